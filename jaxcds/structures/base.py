@@ -1,0 +1,210 @@
+"""The navigation protocol shared by every structure.
+
+Every structure (HalfEdge, CornerTable, the CDS family, LR, pemb) exposes the mesh through
+*darts*: oriented edges, identified by ``int32`` ids in ``[0, num_darts)``. The id space is the
+structure's own (``3u + colour`` for CDS6n, ``8v + i`` corners for LR, half-edge slots for
+HalfEdge...) and may contain holes, reported by :meth:`MeshStructure.dart_valid`.
+
+Vocabulary (CDS paper, Sec. 1.3, Fig. 2). Let ``e = (u, v)`` be a dart oriented toward ``v``,
+incident to ``(u, v, w)`` (its left triangle, counter-clockwise) and to ``(v, u, z)`` (its right
+triangle)::
+
+            w
+           / \\
+    lb    /   \\  lf          lf = left_front(e)  = (v, w) = next(e)
+         /  L  \\             lb = left_back(e)   = (w, u) = prev(e)
+        u ----> v  e          rf = right_front(e) = (z, v) = prev(twin(e))
+         \\  R  /             rb = right_back(e)  = (u, z) = next(twin(e))
+    rb    \\   /  rf
+           \\ /
+            z
+
+The paper's operators return *unoriented* edges; ours return the dart of that edge that runs
+counter-clockwise around the face it is named after (left face for ``left_*``, right face for
+``right_*``), so the answer is unique and comparable across structures.
+
+A structure implements the **core** set (``origin``, ``twin``, ``next``, ``face``,
+``edge_of_vertex``, ``edge_of_face``, ``dart_valid``, ``references``); everything else is derived
+here once, and a structure overrides a derived operator only when it has a faster route.
+All operators take arrays of ids of any shape, are branch-free and jittable.
+
+"Absent" is the sentinel one past the end, never ``-1`` (JAX wraps negative indices): the face of
+a border dart is ``num_faces``; a vertex with no dart maps to ``num_darts``.
+
+Corners (Rossignac's corner table vocabulary) are darts too: corner ``c`` at vertex ``c.v`` of a
+triangle is the dart leaving ``c.v`` counter-clockwise in that triangle, so ``c.n = next(c)``,
+``c.p = prev(c)``, ``c.o = prev(twin(next(c)))`` and ``c.s = c.n.o.n = twin(prev(c))``.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar, Optional
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["MeshStructure", "Int", "as_ids"]
+
+Int = jnp.ndarray  # int32 array of ids, any shape
+
+
+def as_ids(x) -> jnp.ndarray:
+    """Ids as an int32 jnp array (the dtype of every reference in jaxcds)."""
+    return jnp.asarray(x, dtype=jnp.int32)
+
+
+class MeshStructure:
+    """Mixin for connectivity structures. Subclasses are :func:`pytree_dataclass` es with static
+    ``num_vertices`` and ``num_faces`` fields (and any array fields they need)."""
+
+    #: registry name (``halfedge``, ``corner-table``, ``cds6n`` ...)
+    name: ClassVar[str] = "abstract"
+    #: whether every face is a triangle and every dart has a face (closed triangle mesh)
+    closed_triangles: ClassVar[bool] = True
+
+    num_vertices: int
+    num_faces: int
+
+    # ------------------------------------------------------------------ core: to implement
+    @property
+    def num_darts(self) -> int:
+        """Size of the dart id space (valid ids are a subset, see :meth:`dart_valid`)."""
+        raise NotImplementedError
+
+    def dart_valid(self, e: Int) -> Int:
+        """True where ``e`` names a dart of the mesh."""
+        raise NotImplementedError
+
+    def origin(self, e: Int) -> Int:
+        """Source vertex ``u`` of ``e = (u, v)``."""
+        raise NotImplementedError
+
+    def twin(self, e: Int) -> Int:
+        """The opposite dart ``(v, u)``."""
+        raise NotImplementedError
+
+    def next(self, e: Int) -> Int:
+        """Next dart counter-clockwise around the left face: ``(v, w)``."""
+        raise NotImplementedError
+
+    def face(self, e: Int) -> Int:
+        """Face at the left of ``e``; ``num_faces`` for a border dart."""
+        raise NotImplementedError
+
+    def edge_of_vertex(self, v: Int) -> Int:
+        """A dart leaving vertex ``v``."""
+        raise NotImplementedError
+
+    def edge_of_face(self, f: Int) -> Int:
+        """A dart whose left face is ``f``."""
+        raise NotImplementedError
+
+    @property
+    def references(self) -> int:
+        """Number of stored integer references (the papers' memory measure)."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ metadata
+    @property
+    def vertex_order(self) -> Optional[np.ndarray]:
+        """``vertex_order[i]`` = input vertex id of structure vertex ``i``; ``None`` if the
+        structure keeps the input numbering. Positions and per-vertex data must be permuted with
+        it (``positions[vertex_order]``) before being used with the structure."""
+        return None
+
+    @property
+    def references_per_vertex(self) -> float:
+        return self.references / max(self.num_vertices, 1)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of every array held by the structure."""
+        return int(sum(np.asarray(x).nbytes for x in jax.tree_util.tree_leaves(self)))
+
+    def all_darts(self) -> np.ndarray:
+        """Host-side array of every valid dart id (for checks, not for hot loops)."""
+        ids = jnp.arange(self.num_darts, dtype=jnp.int32)
+        return np.nonzero(np.asarray(self.dart_valid(ids)))[0].astype(np.int32)
+
+    # ------------------------------------------------------------------ derived: half-edge
+    def source(self, e: Int) -> Int:
+        """Alias of :meth:`origin` (CDS vocabulary)."""
+        return self.origin(e)
+
+    def target(self, e: Int) -> Int:
+        """Target vertex ``v`` of ``e = (u, v)``."""
+        return self.origin(self.twin(e))
+
+    def prev(self, e: Int) -> Int:
+        """Previous dart around the left face: ``(w, u)``. Triangles: ``next(next(e))``."""
+        return self.next(self.next(e))
+
+    def is_border(self, e: Int) -> Int:
+        """True where the left face of ``e`` is the outside (a border dart)."""
+        return self.face(e) == self.num_faces
+
+    def ccw_vertex_edge(self, e: Int) -> Int:
+        """Next dart counter-clockwise around ``origin(e)``: ``twin(prev(e))``."""
+        return self.twin(self.prev(e))
+
+    def cw_vertex_edge(self, e: Int) -> Int:
+        """Next dart clockwise around ``origin(e)``: ``next(twin(e))``."""
+        return self.next(self.twin(e))
+
+    # ------------------------------------------------------------------ derived: CDS vocabulary
+    def left_front(self, e: Int) -> Int:
+        """``{v, w}`` as the dart ``(v, w)`` of the left face."""
+        return self.next(e)
+
+    def left_back(self, e: Int) -> Int:
+        """``{u, w}`` as the dart ``(w, u)`` of the left face."""
+        return self.prev(e)
+
+    def right_front(self, e: Int) -> Int:
+        """``{v, z}`` as the dart ``(z, v)`` of the right face."""
+        return self.prev(self.twin(e))
+
+    def right_back(self, e: Int) -> Int:
+        """``{u, z}`` as the dart ``(u, z)`` of the right face."""
+        return self.next(self.twin(e))
+
+    def face_left(self, e: Int) -> Int:
+        return self.face(e)
+
+    def face_right(self, e: Int) -> Int:
+        return self.face(self.twin(e))
+
+    # ------------------------------------------------------------------ derived: corners
+    def corner_vertex(self, c: Int) -> Int:
+        """``c.v``."""
+        return self.origin(c)
+
+    def corner_next(self, c: Int) -> Int:
+        """``c.n``."""
+        return self.next(c)
+
+    def corner_prev(self, c: Int) -> Int:
+        """``c.p``."""
+        return self.prev(c)
+
+    def corner_opposite(self, c: Int) -> Int:
+        """``c.o``: the corner facing ``c`` across the edge ``(c.n.v, c.p.v)``."""
+        return self.prev(self.twin(self.next(c)))
+
+    def corner_swing(self, c: Int) -> Int:
+        """``c.s = c.n.o.n``: the next corner around ``c.v``."""
+        return self.twin(self.prev(c))
+
+    # ------------------------------------------------------------------ derived: whole mesh
+    def face_vertices(self) -> Int:
+        """``(num_faces, 3)`` int32 array of every triangle's vertices, counter-clockwise."""
+        f = jnp.arange(self.num_faces, dtype=jnp.int32)
+        e0 = self.edge_of_face(f)
+        e1 = self.next(e0)
+        e2 = self.next(e1)
+        return jnp.stack([self.origin(e0), self.origin(e1), self.origin(e2)], axis=-1)
+
+    def __repr__(self) -> str:  # short: printing arrays of millions of ids helps nobody
+        return (f"{type(self).__name__}(num_vertices={self.num_vertices}, "
+                f"num_faces={self.num_faces}, references={self.references})")
