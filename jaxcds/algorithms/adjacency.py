@@ -1,0 +1,71 @@
+"""Rotations around vertices: adjacency tests and one-rings, on any structure."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+
+__all__ = ["adjacent", "one_ring", "rotate_until"]
+
+
+def rotate_until(s, start, stop_fn, max_steps: int):
+    """Turn ccw around ``origin(start)`` (batched) until ``stop_fn(e)`` or back at ``start``.
+
+    Returns ``(e, hit)``: the dart where the rotation stopped and whether ``stop_fn`` held there.
+    Written as a ``while_loop`` whose body is branch-free: lanes that are done keep their state,
+    and the loop ends when every lane is done (after at most the largest degree in the batch).
+    """
+    hit0 = stop_fn(start)
+
+    def cond(state):
+        e, hit, done, k = state
+        return jnp.any(~done) & (k < max_steps)
+
+    def body(state):
+        e, hit, done, k = state
+        e2 = s.ccw_vertex_edge(e)
+        back = e2 == start
+        h2 = stop_fn(e2) & ~back
+        e = jnp.where(done, e, e2)
+        hit = jnp.where(done, hit, h2)
+        done = done | h2 | back
+        return e, hit, done, k + 1
+
+    e, hit, _, _ = jax.lax.while_loop(cond, body, (start, hit0, hit0, jnp.int32(0)))
+    return e, hit
+
+
+@jax.jit
+def adjacent(s, u, v):
+    """``Adjacent(u, v)`` (CDS Sec. 1.3): True where ``u`` and ``v`` share an edge. O(deg u)."""
+    u = jnp.asarray(u, jnp.int32)
+    v = jnp.asarray(v, jnp.int32)
+    if hasattr(s, "adjacent"):
+        return s.adjacent(u, v)
+    start = s.edge_of_vertex(u)
+    _, hit = rotate_until(s, start, lambda e: s.target(e) == v, s.num_vertices + 1)
+    return hit & (u != v)
+
+
+def one_ring(s, v, max_degree: int):
+    """Neighbours of each vertex in ``v``, ccw, as a ``(len(v), max_degree)`` array padded with
+    ``num_vertices`` (absent), and the degrees. ``max_degree`` is static (shapes depend on it);
+    vertices of larger degree are truncated to their first ``max_degree`` neighbours."""
+    return _one_ring(s, jnp.asarray(v, jnp.int32), int(max_degree))
+
+
+@functools.partial(jax.jit, static_argnums=2)
+def _one_ring(s, v, max_degree):
+    start = s.edge_of_vertex(v)
+
+    def step(carry, _):
+        e, done = carry
+        t = jnp.where(done, s.num_vertices, s.target(e))
+        e2 = s.ccw_vertex_edge(e)
+        return (e2, done | (e2 == start)), t
+
+    (_, _), ring = jax.lax.scan(step, (start, jnp.zeros(v.shape, bool)), None, length=max_degree)
+    ring = jnp.moveaxis(ring, 0, -1)
+    return ring, jnp.sum(ring < s.num_vertices, axis=-1).astype(jnp.int32)

@@ -1,0 +1,89 @@
+"""Area-weighted vertex normals on any structure, differentiable w.r.t. positions.
+
+Two formulations, same result:
+
+* ``"scatter"`` — the face-list route: one cross product per face (its length is twice the area,
+  so summing unnormalised face normals *is* area weighting), accumulated at the three corners with
+  ``segment_sum``. The structure only has to produce its ``face_vertices()``.
+* ``"gather"`` — the navigation route of the CDS paper's Table 3: every vertex turns around its
+  one-ring (``ccw_vertex_edge``) and sums the cross products of consecutive neighbours, no
+  scatter at all. Cost: (max degree) rounds of gathers over all vertices.
+
+Scatter-add is the known slow spot of XLA:CPU (jax-ml/jax#39959); ``benchmarks/`` measures both
+and ``method="auto"`` picks the one measured faster (see benchmarks/RESULTS.md).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+
+__all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals"]
+
+
+def normalize(x, axis: int = -1, eps: float = 0.0):
+    """``x / |x|`` with the double-``where`` trick (optax ``safe_norm``): a zero vector maps to
+    zero with a finite (zero) gradient instead of NaN."""
+    sq = jnp.sum(x * x, axis=axis, keepdims=True)
+    nonzero = sq > eps
+    safe_sq = jnp.where(nonzero, sq, 1.0)
+    return jnp.where(nonzero, x / jnp.sqrt(safe_sq), 0.0)
+
+
+def face_normals(positions, faces):
+    """Unnormalised face normals ``(p1 - p0) x (p2 - p0)``: length = twice the face area."""
+    p = positions[faces]
+    return jnp.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+
+
+@jax.jit
+def face_list_vertex_normals(positions, faces):
+    """The plain-JAX baseline on an ``(F, 3)`` face list (the peer in every benchmark)."""
+    fn = face_normals(positions, faces)
+    acc = jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), faces.reshape(-1),
+                              num_segments=positions.shape[0])
+    return normalize(acc)
+
+
+@functools.partial(jax.jit, static_argnames=("method",))
+def vertex_normals(s, positions, method: str = "scatter"):
+    """``(num_vertices, 3)`` unit area-weighted normals of structure ``s``.
+
+    ``positions`` are in the structure's vertex order (``positions[s.vertex_order]`` when the
+    structure permuted vertices). Border darts contribute nothing. Differentiable.
+    """
+    if method == "scatter":
+        fv = s.face_vertices()
+        fn = face_normals(positions, fv)
+        acc = jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), fv.reshape(-1),
+                                  num_segments=s.num_vertices)
+        return normalize(acc)
+    if method == "gather":
+        return normalize(_gather_sums(s, positions))
+    raise ValueError(f"unknown method {method!r}: 'scatter' or 'gather'")
+
+
+def _gather_sums(s, positions):
+    v = jnp.arange(s.num_vertices, dtype=jnp.int32)
+    start = s.edge_of_vertex(v)
+    p0 = positions
+
+    def cond(state):
+        _, _, done, k = state
+        return jnp.any(~done) & (k < s.num_vertices + 1)
+
+    def body(state):
+        e, acc, done, k = state
+        e2 = s.ccw_vertex_edge(e)
+        # the face (v, target(e), target(e2)) is the left face of e: skip border darts
+        inner = ~s.is_border(e)
+        a = positions[s.target(e)] - p0
+        b = positions[s.target(e2)] - p0
+        contrib = jnp.where((inner & ~done)[:, None], jnp.cross(a, b), 0.0)
+        return e2, acc + contrib, done | (e2 == start), k + 1
+
+    _, acc, _, _ = jax.lax.while_loop(
+        cond, body, (start, jnp.zeros_like(positions), jnp.zeros(v.shape, bool), jnp.int32(0)))
+    return acc

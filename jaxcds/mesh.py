@@ -1,0 +1,542 @@
+"""Triangle meshes on the host: loading, welding, validation, topology report, closing holes.
+
+Everything here is numpy (and numba for the sequential loops): structures are built from a
+validated :class:`TriMesh`, and every defect is reported with a typed error of
+:mod:`jaxcds.errors` naming *what* and *where*.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from typing import Any, Optional, Sequence
+
+import numba
+import numpy as np
+
+from jaxcds import errors
+
+__all__ = [
+    "TriMesh",
+    "load_mesh",
+    "find_defects",
+    "validate",
+    "topology",
+    "close_boundaries",
+    "split_components",
+    "boundary_loops",
+    "edge_table",
+]
+
+SUFFIXES = (".obj", ".off", ".ply", ".stl")
+
+
+@dataclasses.dataclass(frozen=True)
+class TriMesh:
+    """A triangle mesh on the host.
+
+    Attributes:
+      vertices: ``(V, 3)`` float64 positions.
+      faces: ``(F, 3)`` int32 vertex ids, counter-clockwise seen from outside.
+      welded: how many input vertices were merged because they shared a position.
+      removed_unreferenced: input vertices used by no face, dropped on load.
+      dummy_vertices: ``(V,)`` bool, True for vertices added by :func:`close_boundaries`.
+      dummy_faces: ``(F,)`` bool, True for faces added by :func:`close_boundaries`.
+      source: where the mesh came from (file name or ``"arrays"``).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    welded: int = 0
+    removed_unreferenced: int = 0
+    dummy_vertices: Optional[np.ndarray] = None
+    dummy_faces: Optional[np.ndarray] = None
+    source: str = "arrays"
+
+    @property
+    def num_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def num_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    @property
+    def closed_boundaries(self) -> bool:
+        return self.dummy_vertices is not None and bool(np.any(self.dummy_vertices))
+
+
+# ---------------------------------------------------------------------------------- loading
+def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
+    """Load a mesh from a path (OBJ, OFF, PLY, STL), a ``trimesh.Trimesh``, a :class:`TriMesh`,
+    or ``(vertices, faces)`` arrays.
+
+    Vertices that share a position (texture seams) are welded when ``weld`` is true and
+    unreferenced vertices dropped; both counts are kept on the result. Defects are *not* raised
+    here (so :func:`topology` can report them); call :func:`validate` before building.
+
+    Raises:
+      UnreadableMeshError: missing file, unknown format, or a file the parser rejects.
+      InvalidIndexError, EmptyMeshError: arrays that cannot describe a triangle mesh at all.
+    """
+    if isinstance(obj, TriMesh):
+        return obj
+    source = "arrays"
+    if faces is not None:
+        vertices = obj
+    elif isinstance(obj, (str, os.PathLike)):
+        source = os.fspath(obj)
+        vertices, faces = _read_file(source)
+    elif isinstance(obj, tuple) and len(obj) == 2:
+        vertices, faces = obj
+    else:
+        try:
+            import trimesh
+        except ImportError:  # pragma: no cover - trimesh is a core dependency
+            trimesh = None
+        if trimesh is not None and isinstance(obj, trimesh.Trimesh):
+            vertices, faces = obj.vertices, obj.faces
+            source = "trimesh"
+        else:
+            raise errors.UnreadableMeshError(
+                f"cannot load a mesh from an object of type {type(obj).__name__}; "
+                "give a path, a trimesh.Trimesh, a TriMesh or (vertices, faces) arrays")
+    return _from_arrays(vertices, faces, source=source, weld=weld)
+
+
+def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
+    if not os.path.exists(path):
+        raise errors.UnreadableMeshError(f"{path}: no such file")
+    if os.path.isdir(path):
+        raise errors.UnreadableMeshError(f"{path}: is a directory, not a mesh file")
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix not in SUFFIXES:
+        raise errors.UnreadableMeshError(
+            f"{path}: unknown mesh format {suffix!r} (expected one of {', '.join(SUFFIXES)})")
+    import trimesh
+
+    try:
+        # process=False: we weld ourselves, to count and report it.
+        loaded = trimesh.load(path, process=False, force="mesh")
+    except Exception as exc:  # trimesh raises many kinds; all mean "cannot parse"
+        raise errors.UnreadableMeshError(f"{path}: cannot parse as {suffix[1:].upper()}: {exc}") from exc
+    vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+    faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
+    if faces.size == 0 and os.path.getsize(path) > 0 and vertices.size == 0:
+        raise errors.UnreadableMeshError(f"{path}: no vertices or faces could be read")
+    return vertices, faces
+
+
+def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMesh:
+    try:
+        v = np.asarray(vertices, dtype=np.float64)
+        f = np.asarray(faces)
+    except (TypeError, ValueError) as exc:
+        raise errors.UnreadableMeshError(f"{source}: vertices/faces are not numeric arrays: {exc}") from exc
+    if v.ndim != 2 or v.shape[1] not in (2, 3):
+        raise errors.UnreadableMeshError(f"{source}: vertices must have shape (V, 3), got {v.shape}")
+    if v.shape[1] == 2:
+        v = np.concatenate([v, np.zeros((v.shape[0], 1))], axis=1)
+    if f.size == 0:
+        f = f.reshape(0, 3)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise errors.UnreadableMeshError(f"{source}: faces must have shape (F, 3), got {f.shape}")
+    if f.shape[0] and not np.issubdtype(f.dtype, np.integer):
+        if not np.all(np.equal(np.mod(f, 1), 0)):
+            raise errors.InvalidIndexError(f"{source}: face indices must be integers")
+        f = f.astype(np.int64)
+    f = f.astype(np.int64)
+    if v.shape[0] == 0 or f.shape[0] == 0:
+        raise errors.EmptyMeshError(
+            f"{source}: empty mesh ({v.shape[0]} vertices, {f.shape[0]} faces)")
+    _check_indices(f, v.shape[0], source)
+    welded = 0
+    if weld and np.all(np.isfinite(v)):
+        v, f, welded = _weld(v, f)
+    used = np.zeros(v.shape[0], dtype=bool)
+    used[f.ravel()] = True
+    removed = int(v.shape[0] - used.sum())
+    if removed:
+        remap = np.cumsum(used) - 1
+        v = v[used]
+        f = remap[f]
+    return TriMesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f, dtype=np.int32),
+                   welded=int(welded), removed_unreferenced=removed, source=source)
+
+
+def _check_indices(f: np.ndarray, num_vertices: int, source: str) -> None:
+    bad = np.nonzero((f < 0) | (f >= num_vertices))
+    if bad[0].size:
+        fi, k = int(bad[0][0]), int(bad[1][0])
+        raise errors.InvalidIndexError(
+            f"{source}: face {fi} refers to vertex {int(f[fi, k])}, outside [0, {num_vertices}) "
+            f"({bad[0].size} bad indices in all)")
+
+
+def _weld(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Merge vertices with identical coordinates, keeping first-occurrence order."""
+    _, first, inverse = np.unique(v, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    if first.size == v.shape[0]:
+        return v, f, 0
+    order = np.argsort(first)  # unique rows in order of first occurrence
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return v[first[order]], rank[inverse][f], int(v.shape[0] - first.size)
+
+
+# ---------------------------------------------------------------------------------- edges
+@dataclasses.dataclass(frozen=True)
+class EdgeTable:
+    """Undirected edges of a face list, with their incidences.
+
+    ``dart_edge[3f + k]`` is the undirected edge of the dart from ``faces[f, k]`` to
+    ``faces[f, (k+1) % 3]``; ``edges`` are ``(E, 2)`` sorted pairs; ``count[e]`` is how many darts
+    (face sides) lie on edge ``e``, ``forward[e]`` how many of them run low -> high.
+    """
+
+    edges: np.ndarray
+    dart_edge: np.ndarray
+    count: np.ndarray
+    forward: np.ndarray
+
+
+def edge_table(faces: np.ndarray) -> EdgeTable:
+    f = np.asarray(faces, dtype=np.int64)
+    a = f.ravel()
+    b = np.roll(f, -1, axis=1).ravel()
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    n = int(max(a.max(initial=0), b.max(initial=0))) + 1
+    key = lo * n + hi
+    uniq, dart_edge, count = np.unique(key, return_inverse=True, return_counts=True)
+    forward = np.bincount(dart_edge, weights=(a < b), minlength=uniq.size).astype(np.int64)
+    edges = np.stack([uniq // n, uniq % n], axis=1)
+    return EdgeTable(edges=edges, dart_edge=dart_edge.astype(np.int64), count=count, forward=forward)
+
+
+# ---------------------------------------------------------------------------------- defects
+def find_defects(mesh: TriMesh) -> list[errors.MeshError]:
+    """Every defect of the mesh, as (unraised) typed errors, most fundamental first.
+
+    Checks: non-finite coordinates, degenerate faces, duplicate faces, non-manifold edges,
+    inconsistent orientation, non-manifold vertices. (Empty meshes and bad indices are already
+    refused by :func:`load_mesh`.)
+    """
+    v, f, src = mesh.vertices, mesh.faces.astype(np.int64), mesh.source
+    found: list[errors.MeshError] = []
+    bad = np.nonzero(~np.isfinite(v).all(axis=1))[0]
+    if bad.size:
+        found.append(errors.NonFiniteCoordinateError(
+            f"{src}: vertex {int(bad[0])} has a non-finite coordinate {v[bad[0]].tolist()} "
+            f"({bad.size} such vertices)"))
+    degenerate = np.nonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))[0]
+    if degenerate.size:
+        fi = int(degenerate[0])
+        found.append(errors.DegenerateFaceError(
+            f"{src}: face {fi} repeats a vertex {f[fi].tolist()} ({degenerate.size} degenerate faces)"))
+    sorted_f = np.sort(f, axis=1)
+    _, first, inv, counts = np.unique(sorted_f, axis=0, return_index=True, return_inverse=True,
+                                      return_counts=True)
+    inv = inv.ravel()
+    dup = np.nonzero(counts[inv] > 1)[0]
+    if dup.size:
+        fi = int(dup[0])
+        other = int(dup[1]) if dup.size > 1 else fi
+        found.append(errors.DuplicateFaceError(
+            f"{src}: faces {fi} and {other} use the same vertices {f[fi].tolist()} "
+            f"({dup.size} faces in duplicate groups)"))
+    et = edge_table(f)
+    nm = np.nonzero(et.count > 2)[0]
+    if nm.size:
+        a, b = (int(x) for x in et.edges[nm[0]])
+        found.append(errors.NonManifoldEdgeError(
+            f"{src}: edge ({a}, {b}) is shared by {int(et.count[nm[0]])} faces "
+            f"({nm.size} non-manifold edges); a manifold edge has at most 2"))
+    two = et.count == 2
+    same_dir = np.nonzero(two & (et.forward != 1))[0]
+    if same_dir.size:
+        a, b = (int(x) for x in et.edges[same_dir[0]])
+        faces_on = np.nonzero(et.dart_edge.reshape(-1, 3) == same_dir[0])[0]
+        found.append(errors.InconsistentOrientationError(
+            f"{src}: faces {faces_on.tolist()} both traverse edge ({a}, {b}) in the same direction "
+            f"({same_dir.size} such edges); orient faces consistently"))
+    if not nm.size and not degenerate.size:
+        fans = _fans_per_vertex(f, et, mesh.num_vertices)
+        bad_v = np.nonzero(fans > 1)[0]
+        if bad_v.size:
+            found.append(errors.NonManifoldVertexError(
+                f"{src}: vertex {int(bad_v[0])} joins {int(fans[bad_v[0]])} separate fans of faces "
+                f"({bad_v.size} non-manifold vertices)"))
+    return found
+
+
+def _fans_per_vertex(f: np.ndarray, et: EdgeTable, num_vertices: int) -> np.ndarray:
+    """Number of edge-connected fans of faces around each vertex (1 for a manifold vertex)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    nf = f.shape[0]
+    # corner (f, k) has id 3f+k at vertex f[f, k]; dart 3f+k runs f[f,k] -> f[f,k+1].
+    # Two faces sharing edge (a, b) link their corners at a and at b.
+    order = np.argsort(et.dart_edge, kind="stable")
+    de = et.dart_edge[order]
+    pair = np.nonzero(de[1:] == de[:-1])[0]
+    d1, d2 = order[pair], order[pair + 1]
+    # dart d = 3f+k: corners at its two ends are 3f+k (origin) and 3f+(k+1)%3 (target)
+    nxt = lambda d: 3 * (d // 3) + (d % 3 + 1) % 3  # noqa: E731
+    # d1: a->b, d2: b->a (manifold, consistent) or a->b (flipped); match corners by vertex id
+    c1o, c1t = d1, nxt(d1)
+    c2o, c2t = d2, nxt(d2)
+    vert = f.ravel()
+    same = vert[c1o] == vert[c2o]
+    rows = np.concatenate([c1o, c1t])
+    cols = np.concatenate([np.where(same, c2o, c2t), np.where(same, c2t, c2o)])
+    g = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(3 * nf, 3 * nf))
+    _, label = connected_components(g, directed=False)
+    # distinct labels per vertex
+    key = np.unique(vert.astype(np.int64) * (3 * nf) + label)
+    return np.bincount(key // (3 * nf), minlength=num_vertices)
+
+
+def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,
+             structure: str = "this structure") -> TriMesh:
+    """Raise the first defect of ``mesh`` (typed error), or return it unchanged.
+
+    Args:
+      closed: also refuse meshes with boundaries (suggesting :func:`close_boundaries`).
+      connected: also refuse meshes of several components (suggesting :func:`split_components`).
+    """
+    found = find_defects(mesh)
+    if found:
+        raise found[0]
+    if closed:
+        loops = boundary_loops(mesh)
+        if loops:
+            raise errors.UnsupportedTopologyError(
+                f"{mesh.source}: {structure} needs a closed mesh, this one has {len(loops)} boundary "
+                f"loop(s) (first along vertices {loops[0][:6].tolist()}...); "
+                "call jaxcds.mesh.close_boundaries(mesh) first")
+    if connected:
+        ncomp = _components(mesh)[0]
+        if ncomp > 1:
+            raise errors.UnsupportedTopologyError(
+                f"{mesh.source}: {structure} needs a connected mesh, this one has {ncomp} components; "
+                "use jaxcds.mesh.split_components(mesh) and build one structure per component")
+    return mesh
+
+
+# ---------------------------------------------------------------------------------- topology
+def _components(mesh: TriMesh) -> tuple[int, np.ndarray]:
+    """Connected components of the faces (through shared vertices): (count, face label)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    f = mesh.faces.astype(np.int64)
+    nf, nv = f.shape[0], mesh.num_vertices
+    rows = np.repeat(np.arange(nf), 3)
+    g = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, nf + f.ravel())), shape=(nf + nv, nf + nv))
+    n, label = connected_components(g, directed=False)
+    face_label = label[:nf]
+    uniq, face_label = np.unique(face_label, return_inverse=True)
+    return int(uniq.size), face_label.ravel()
+
+
+def boundary_loops(mesh: TriMesh) -> list[np.ndarray]:
+    """Boundary loops as arrays of vertex ids, each in the order of the border darts (the
+    reverse of the face sides on the boundary). Requires manifold vertices on the boundary."""
+    f = mesh.faces.astype(np.int64)
+    et = edge_table(f)
+    border_side = np.nonzero(et.count[et.dart_edge] == 1)[0]
+    if border_side.size == 0:
+        return []
+    a = f.ravel()[border_side]
+    b = np.roll(f, -1, axis=1).ravel()[border_side]
+    # border dart runs b -> a; chain: the border dart leaving a is the one whose origin b' == a
+    origin, dest = b, a
+    nxt = _chain(origin, dest, mesh.num_vertices, mesh.source)
+    return [origin[loop] for loop in _cycles(nxt)]
+
+
+def _chain(origin: np.ndarray, dest: np.ndarray, num_vertices: int, source: str) -> np.ndarray:
+    by_origin = np.full(num_vertices, -1, dtype=np.int64)
+    counts = np.bincount(origin, minlength=num_vertices)
+    if np.any(counts > 1):
+        v = int(np.nonzero(counts > 1)[0][0])
+        raise errors.NonManifoldVertexError(
+            f"{source}: boundary vertex {v} starts {int(counts[v])} border edges (a pinched boundary)")
+    by_origin[origin] = np.arange(origin.size)
+    return by_origin[dest]
+
+
+@numba.njit(cache=True)
+def _cycle_labels(nxt: np.ndarray) -> np.ndarray:
+    label = np.full(nxt.size, -1, dtype=np.int64)
+    k = 0
+    for s in range(nxt.size):
+        if label[s] >= 0:
+            continue
+        e = s
+        while label[e] < 0:
+            label[e] = k
+            e = nxt[e]
+        k += 1
+    return label
+
+
+def _cycles(nxt: np.ndarray) -> list[np.ndarray]:
+    """Cycles of a permutation given as a successor array, each in successor order."""
+    out = []
+    seen = np.zeros(nxt.size, dtype=bool)
+    for s in range(nxt.size):
+        if seen[s]:
+            continue
+        cyc = [s]
+        seen[s] = True
+        e = int(nxt[s])
+        while not seen[e]:
+            cyc.append(e)
+            seen[e] = True
+            e = int(nxt[e])
+        out.append(np.asarray(cyc, dtype=np.int64))
+    return out
+
+
+def topology(mesh: TriMesh) -> dict:
+    """Topology report: counts, components, boundary loops, Euler characteristic, genus,
+    orientability, manifoldness, and the list of defects (as messages). Never raises on a
+    readable mesh."""
+    f = mesh.faces.astype(np.int64)
+    et = edge_table(f)
+    defects = find_defects(mesh)
+    kinds = {type(d) for d in defects}
+    manifold = not ({errors.NonManifoldEdgeError, errors.NonManifoldVertexError,
+                     errors.DegenerateFaceError} & kinds)
+    ncomp, face_label = _components(mesh)
+    v, e, nf = mesh.num_vertices, int(et.edges.shape[0]), mesh.num_faces
+    chi = v - e + nf
+    loops: list[np.ndarray] = []
+    if manifold:
+        try:
+            loops = boundary_loops(mesh)
+        except errors.MeshError as exc:
+            defects.append(exc)
+            manifold = False
+    orientable = _orientable(f, et) if manifold else None
+    genus = None
+    if manifold and orientable:
+        # chi = sum over components (2 - 2 g_i - b_i); report the total genus
+        g2 = 2 * ncomp - chi - len(loops)
+        genus = g2 // 2 if g2 % 2 == 0 and g2 >= 0 else None
+    return {
+        "source": mesh.source,
+        "vertices": v,
+        "edges": e,
+        "faces": nf,
+        "components": ncomp,
+        "boundary_loops": len(loops),
+        "boundary_loop_lengths": sorted((int(len(l)) for l in loops), reverse=True),
+        "boundary_edges": int(np.sum(et.count == 1)),
+        "euler_characteristic": int(chi),
+        "genus": genus,
+        "closed": bool(np.all(et.count == 2)),
+        "manifold": bool(manifold),
+        "orientable": orientable,
+        "consistently_oriented": errors.InconsistentOrientationError not in kinds,
+        "welded_vertices": int(mesh.welded),
+        "removed_unreferenced_vertices": int(mesh.removed_unreferenced),
+        "dummy_vertices": int(np.sum(mesh.dummy_vertices)) if mesh.dummy_vertices is not None else 0,
+        "defects": [f"{type(d).__name__}: {d}" for d in defects],
+    }
+
+
+def _orientable(f: np.ndarray, et: EdgeTable) -> bool:
+    """Whether faces can be flipped to a consistent orientation (2-colouring of flip parity)."""
+    order = np.argsort(et.dart_edge, kind="stable")
+    de = et.dart_edge[order]
+    pair = np.nonzero((de[1:] == de[:-1]))[0]
+    d1, d2 = order[pair], order[pair + 1]
+    a = f.ravel()
+    same_dir = a[d1] == a[d2]  # both darts start at the same vertex: one face must flip
+    return bool(_parity_consistent(d1 // 3, d2 // 3, same_dir, f.shape[0]))
+
+
+@numba.njit(cache=True)
+def _find(parent, parity, x):
+    p = 0
+    root = x
+    while parent[root] != root:
+        p ^= parity[root]
+        root = parent[root]
+    # path compression with parity
+    cur, cp = x, p
+    while parent[cur] != cur:
+        nxt, np_ = parent[cur], cp ^ parity[cur]
+        parent[cur] = root
+        parity[cur] = cp
+        cur, cp = nxt, np_
+    return root, p
+
+
+@numba.njit(cache=True)
+def _parity_consistent(fa, fb, flip, nf):
+    parent = np.arange(nf)
+    parity = np.zeros(nf, dtype=np.int64)
+    for i in range(fa.size):
+        ra, pa = _find(parent, parity, fa[i])
+        rb, pb = _find(parent, parity, fb[i])
+        want = 1 if flip[i] else 0
+        if ra == rb:
+            if (pa ^ pb) != want:
+                return False
+        else:
+            parent[ra] = rb
+            parity[ra] = pa ^ pb ^ want
+    return True
+
+
+# ---------------------------------------------------------------------------------- surgery
+def close_boundaries(mesh: TriMesh) -> TriMesh:
+    """Close every hole with one dummy vertex (at the loop's centroid) and a fan of triangles
+    (CDS paper Sec. 4.5, LR paper Sec. 4.6). Dummy vertices and faces are appended after the
+    originals and flagged in ``dummy_vertices`` / ``dummy_faces``, so results map back by
+    slicing ``[:num_original]``. A closed mesh is returned unchanged (with all-False masks)."""
+    validate(mesh)
+    loops = boundary_loops(mesh)
+    nv, nf = mesh.num_vertices, mesh.num_faces
+    new_v, new_f = [], []
+    for k, loop in enumerate(loops):
+        d = nv + k
+        new_v.append(mesh.vertices[loop].mean(axis=0))
+        # border dart loop[i] -> loop[i+1] has the outside on its left: the fan triangle
+        # (loop[i], loop[i+1], d) is ccw from outside, matching the surface orientation.
+        nxt = np.roll(loop, -1)
+        new_f.append(np.stack([loop, nxt, np.full(loop.size, d)], axis=1))
+    vertices = np.concatenate([mesh.vertices] + [np.asarray(new_v).reshape(-1, 3)]) if new_v else mesh.vertices
+    faces = np.concatenate([mesh.faces] + [x.astype(np.int32) for x in new_f]) if new_f else mesh.faces
+    dv = np.zeros(vertices.shape[0], dtype=bool)
+    dv[nv:] = True
+    df = np.zeros(faces.shape[0], dtype=bool)
+    df[nf:] = True
+    return dataclasses.replace(mesh, vertices=vertices, faces=faces.astype(np.int32),
+                               dummy_vertices=dv, dummy_faces=df)
+
+
+def split_components(mesh: TriMesh) -> list[TriMesh]:
+    """One :class:`TriMesh` per connected component (vertices renumbered from 0, input order kept)."""
+    ncomp, face_label = _components(mesh)
+    if ncomp == 1:
+        return [mesh]
+    out = []
+    for c in range(ncomp):
+        f = mesh.faces[face_label == c]
+        used = np.unique(f)
+        remap = np.full(mesh.num_vertices, -1, dtype=np.int64)
+        remap[used] = np.arange(used.size)
+        out.append(TriMesh(vertices=mesh.vertices[used], faces=remap[f].astype(np.int32),
+                           source=f"{mesh.source}[component {c}]"))
+    return out
+
+
+def from_arrays(vertices: Sequence, faces: Sequence) -> TriMesh:
+    """Shorthand for ``load_mesh(vertices, faces)``."""
+    return load_mesh(vertices, faces)

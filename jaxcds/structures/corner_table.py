@@ -1,0 +1,127 @@
+"""Rossignac's Corner Table: the baseline of the LR paper (Sec. 2) and of the CDS paper's Table 1.
+
+Two tables of ``3F = 6n`` entries: ``V[c]``, the vertex of corner ``c``, and ``O[c]``, its opposite
+corner; plus one corner per vertex: ``13n`` references on a closed triangulation. ``c.n`` and
+``c.p`` are implicit (``c.t = c // 3``). Corner ids *are* the protocol's dart ids: corner ``c``
+is the dart leaving ``c.v`` ccw in triangle ``c.t`` (see :mod:`jaxcds.structures.base`).
+
+Closed, consistently oriented manifold meshes only (close holes with
+:func:`jaxcds.mesh.close_boundaries`): the corner table has no dart for the outside.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.mesh import TriMesh, load_mesh, validate
+from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.halfedge import halfedge_arrays
+
+__all__ = ["CornerTable"]
+
+
+@pytree_dataclass
+class CornerTable(MeshStructure):
+    """Corner table (13n references).
+
+    Fields:
+      V: ``(3F,)`` int32, ``c.v``.
+      O: ``(3F,)`` int32, ``c.o``.
+      vertex_corner: ``(n,)`` int32, a corner of each vertex (``v.c``).
+    """
+
+    V: jnp.ndarray
+    O: jnp.ndarray
+    vertex_corner: jnp.ndarray
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+
+    name = "corner-table"
+
+    @classmethod
+    def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "CornerTable":
+        mesh = load_mesh(mesh)
+        if check:
+            validate(mesh, closed=True, structure="corner-table")
+        return cls.from_faces(mesh.faces, mesh.num_vertices)
+
+    @classmethod
+    def from_faces(cls, faces, num_vertices: int) -> "CornerTable":
+        f = np.ascontiguousarray(faces, dtype=np.int32)
+        nf = f.shape[0]
+        _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices))
+        c = np.arange(3 * nf)
+        nxt = 3 * (c // 3) + (c + 1) % 3
+        prv = 3 * (c // 3) + (c + 2) % 3
+        # c.o = prev(twin(next(c))): the corner facing the edge (c.n.v, c.p.v)
+        t = opp[nxt]
+        O = 3 * (t // 3) + (t + 2) % 3
+        return cls(V=jnp.asarray(vert[: 3 * nf]), O=jnp.asarray(O.astype(np.int32)),
+                   vertex_corner=jnp.asarray(vedge), num_vertices=int(num_vertices), num_faces=nf)
+
+    # Rossignac's operators, named as in the LR paper (Sec. 2)
+    def n(self, c: Int) -> Int:
+        """``c.n``: next corner in the triangle."""
+        return (3 * (c // 3) + (c + 1) % 3).astype(jnp.int32)
+
+    def p(self, c: Int) -> Int:
+        """``c.p``: previous corner in the triangle."""
+        return (3 * (c // 3) + (c + 2) % 3).astype(jnp.int32)
+
+    def v(self, c: Int) -> Int:
+        return self.V[c]
+
+    def o(self, c: Int) -> Int:
+        return self.O[c]
+
+    def s(self, c: Int) -> Int:
+        """``c.s = c.n.o.n`` (swing around ``c.v``)."""
+        return self.n(self.O[self.n(c)])
+
+    # -------------------------------------------------------------- protocol core
+    @property
+    def num_darts(self) -> int:
+        return 3 * self.num_faces
+
+    def dart_valid(self, e: Int) -> Int:
+        return (e >= 0) & (e < self.num_darts)
+
+    def origin(self, e: Int) -> Int:
+        return self.V[e]
+
+    def next(self, e: Int) -> Int:
+        return self.n(e)
+
+    def prev(self, e: Int) -> Int:
+        return self.p(e)
+
+    def twin(self, e: Int) -> Int:
+        # dart c = (c.v, c.n.v); across it lies c.p.o, whose next corner starts at c.n.v
+        return self.n(self.O[self.p(e)])
+
+    def target(self, e: Int) -> Int:
+        return self.V[self.n(e)]
+
+    def face(self, e: Int) -> Int:
+        return (e // 3).astype(jnp.int32)
+
+    def edge_of_vertex(self, v: Int) -> Int:
+        return self.vertex_corner[v]
+
+    def edge_of_face(self, f: Int) -> Int:
+        return (3 * jnp.asarray(f, jnp.int32)).astype(jnp.int32)
+
+    def corner_opposite(self, c: Int) -> Int:
+        return self.O[c]
+
+    def corner_swing(self, c: Int) -> Int:
+        return self.s(c)
+
+    def face_vertices(self) -> Int:
+        return self.V.reshape(self.num_faces, 3)
+
+    @property
+    def references(self) -> int:
+        return 2 * self.num_darts + self.num_vertices

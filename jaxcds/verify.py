@@ -1,0 +1,177 @@
+"""Compare any structure with the HalfEdge, every operator on every dart.
+
+Darts of different structures have different ids, so each dart is compared through what it
+*means*: its ``(origin, target)`` pair in input vertex ids (through ``vertex_order``). Faces are
+compared as the set of their vertices. This is what ``jaxcds build --verify`` runs and what the
+tests run on every shared mesh.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Dict, Optional
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds.mesh import TriMesh
+from jaxcds.structures.halfedge import HalfEdge
+
+__all__ = ["VerifyReport", "verify", "DART_OPERATORS"]
+
+#: operators dart -> dart checked on every dart
+DART_OPERATORS = ("twin", "next", "prev", "left_front", "left_back", "right_front", "right_back",
+                  "ccw_vertex_edge", "cw_vertex_edge", "corner_opposite", "corner_swing")
+
+
+@dataclasses.dataclass
+class VerifyReport:
+    """Outcome of :func:`verify`: ``checked`` comparisons, ``mismatches`` among them, and the
+    mismatch count per operator (with one example dart each in ``examples``)."""
+
+    structure: str
+    checked: int = 0
+    mismatches: int = 0
+    by_operator: Dict[str, int] = dataclasses.field(default_factory=dict)
+    examples: Dict[str, str] = dataclasses.field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.mismatches == 0 and self.checked > 0
+
+    def add(self, op: str, bad: np.ndarray, total: int, example: str = "") -> None:
+        n = int(np.sum(bad))
+        self.checked += int(total)
+        self.mismatches += n
+        self.by_operator[op] = self.by_operator.get(op, 0) + n
+        if n and op not in self.examples:
+            self.examples[op] = example
+
+    def __str__(self) -> str:
+        bad = {k: v for k, v in self.by_operator.items() if v}
+        return (f"{self.structure}: {self.checked} checks, {self.mismatches} mismatches"
+                + (f" {bad} e.g. {self.examples}" if bad else ""))
+
+
+def _pair_keys(u: np.ndarray, v: np.ndarray, n: int) -> np.ndarray:
+    return u.astype(np.int64) * n + v.astype(np.int64)
+
+
+@jax.jit
+def _apply_all(s, e):
+    out = {op: getattr(s, op)(e) for op in DART_OPERATORS}
+    out["origin"] = s.origin(e)
+    out["target"] = s.target(e)
+    out["face_left"] = s.face_left(e)
+    out["face_right"] = s.face_right(e)
+    out["is_border"] = s.is_border(e)
+    return out
+
+
+@jax.jit
+def _endpoints(s, e):
+    return s.origin(e), s.target(e)
+
+
+def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
+           *, chunk: int = 1 << 20, adjacency_samples: int = 10_000, seed: int = 0) -> VerifyReport:
+    """Check every protocol operator of ``structure`` on every valid dart against the HalfEdge
+    of ``mesh`` (the mesh the structure was built from, dummy vertices included)."""
+    s = structure
+    he = reference if reference is not None else HalfEdge.from_faces(mesh.faces, mesh.num_vertices)
+    rep = VerifyReport(structure=getattr(s, "name", type(s).__name__))
+    n = mesh.num_vertices
+    order = s.vertex_order
+    to_input = (lambda x: np.asarray(order)[x]) if order is not None else (lambda x: x)
+    from_input = None
+    if order is not None:
+        from_input = np.empty(n, dtype=np.int64)
+        from_input[np.asarray(order)] = np.arange(n)
+
+    # reference: key (u, v) -> results
+    he_darts = he.all_darts()
+    he_res = {k: np.asarray(v) for k, v in _apply_all(he, jnp.asarray(he_darts)).items()}
+    he_keys = _pair_keys(he_res["origin"], he_res["target"], n)
+    srt = np.argsort(he_keys)
+    he_faces = np.sort(np.asarray(he.face_vertices()), axis=1)
+
+    def he_lookup(keys):
+        pos = np.searchsorted(he_keys, keys, sorter=srt)
+        pos = np.clip(pos, 0, len(srt) - 1)
+        idx = srt[pos]
+        return idx, he_keys[idx] == keys
+
+    s_darts = s.all_darts()
+    rep.add("dart_count", np.array([len(s_darts) != len(he_darts)]), 1,
+            f"{len(s_darts)} darts vs {len(he_darts)}")
+    s_faces = np.sort(to_input(np.asarray(s.face_vertices())), axis=1)
+    he_fkey, s_fkey = _face_ids(he_faces, s_faces)
+
+    for lo in range(0, len(s_darts), chunk):
+        e = s_darts[lo: lo + chunk]
+        res = {k: np.asarray(v) for k, v in _apply_all(s, jnp.asarray(e)).items()}
+        u, v = to_input(res["origin"]), to_input(res["target"])
+        idx, found = he_lookup(_pair_keys(u, v, n))
+        rep.add("dart_exists", ~found, len(e), f"dart {e[~found][:1]} = {u[~found][:1]}->{v[~found][:1]}")
+        for op in DART_OPERATORS:
+            r = res[op]
+            ru, rv = _endpoints(s, jnp.asarray(r))
+            got = _pair_keys(to_input(np.asarray(ru)), to_input(np.asarray(rv)), n)
+            want_d = he_res[op][idx]
+            want = _pair_keys(he_res["origin"][_he_index(he_darts, want_d)],
+                              he_res["target"][_he_index(he_darts, want_d)], n)
+            bad = found & (got != want)
+            rep.add(op, bad, len(e), f"dart {e[bad][:1]}")
+        for op in ("face_left", "face_right"):
+            f_s = np.where(res[op] >= s.num_faces, -1, res[op])
+            f_h = np.where(he_res[op][idx] >= he.num_faces, -1, he_res[op][idx])
+            got = np.where(f_s < 0, -1, s_fkey[f_s])
+            want = np.where(f_h < 0, -1, he_fkey[f_h])
+            bad = found & (got != want)
+            rep.add(op, bad, len(e), f"dart {e[bad][:1]}")
+        bad = found & (res["is_border"] != he_res["is_border"][idx])
+        rep.add("is_border", bad, len(e), f"dart {e[bad][:1]}")
+
+    # edge_of_vertex: a dart leaving v
+    vs = jnp.arange(n, dtype=jnp.int32)
+    ev = s.edge_of_vertex(vs)
+    o = np.asarray(s.origin(ev))
+    valid = np.asarray(s.dart_valid(ev))
+    rep.add("edge_of_vertex", ~valid | (o != np.arange(n)), n, "")
+    # edge_of_face: a dart with face f on its left
+    fs = jnp.arange(s.num_faces, dtype=jnp.int32)
+    ef = s.edge_of_face(fs)
+    rep.add("edge_of_face", np.asarray(s.face(ef)) != np.arange(s.num_faces), s.num_faces, "")
+    rep.add("face_count", np.array([s.num_faces != he.num_faces]), 1, f"{s.num_faces} vs {he.num_faces}")
+    # adjacency: every edge (true) and random pairs (mostly false)
+    from jaxcds.algorithms.adjacency import adjacent
+
+    rng = np.random.default_rng(seed)
+    uu = np.concatenate([he_res["origin"][:adjacency_samples], rng.integers(0, n, adjacency_samples)])
+    vv = np.concatenate([he_res["target"][:adjacency_samples], rng.integers(0, n, adjacency_samples)])
+    want = _adjacent_reference(he_keys, uu, vv, n)
+    su = from_input[uu] if from_input is not None else uu
+    sv = from_input[vv] if from_input is not None else vv
+    got = np.asarray(adjacent(s, jnp.asarray(su, jnp.int32), jnp.asarray(sv, jnp.int32)))
+    rep.add("adjacent", got != want, len(uu), "")
+    return rep
+
+
+def _he_index(he_darts: np.ndarray, d: np.ndarray) -> np.ndarray:
+    # HalfEdge darts are 0..H-1 without holes: the dart is its own row
+    return d
+
+
+def _face_ids(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Common ids for two lists of sorted vertex triples (equal triples, equal ids)."""
+    _, inv = np.unique(np.concatenate([a, b]), axis=0, return_inverse=True)
+    inv = inv.ravel()
+    return inv[: len(a)], inv[len(a):]
+
+
+def _adjacent_reference(he_keys: np.ndarray, u: np.ndarray, v: np.ndarray, n: int) -> np.ndarray:
+    keys = np.sort(he_keys)
+    q = _pair_keys(u, v, n)
+    pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
+    return keys[pos] == q
