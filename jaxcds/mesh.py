@@ -26,6 +26,7 @@ __all__ = [
     "split_components",
     "boundary_loops",
     "edge_table",
+    "split_nonmanifold_vertices",
 ]
 
 SUFFIXES = (".obj", ".off", ".ply", ".stl")
@@ -272,6 +273,13 @@ def find_defects(mesh: TriMesh) -> list[errors.MeshError]:
 
 def _fans_per_vertex(f: np.ndarray, et: EdgeTable, num_vertices: int) -> np.ndarray:
     """Number of edge-connected fans of faces around each vertex (1 for a manifold vertex)."""
+    key = _corner_fans(f, et)
+    return np.bincount(np.unique(key) // (3 * f.shape[0]), minlength=num_vertices)
+
+
+def _corner_fans(f: np.ndarray, et: EdgeTable) -> np.ndarray:
+    """For every corner ``3f+k``, a key ``vertex * 3F + fan label``: corners of one vertex in the
+    same edge-connected fan share the key."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -293,9 +301,30 @@ def _fans_per_vertex(f: np.ndarray, et: EdgeTable, num_vertices: int) -> np.ndar
     cols = np.concatenate([np.where(same, c2o, c2t), np.where(same, c2t, c2o)])
     g = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(3 * nf, 3 * nf))
     _, label = connected_components(g, directed=False)
-    # distinct labels per vertex
-    key = np.unique(vert.astype(np.int64) * (3 * nf) + label)
-    return np.bincount(key // (3 * nf), minlength=num_vertices)
+    return vert.astype(np.int64) * (3 * nf) + label
+
+
+def split_nonmanifold_vertices(mesh: TriMesh) -> TriMesh:
+    """Repair 'bow-tie' vertices: a vertex whose faces form k > 1 separate fans becomes k
+    vertices (same position), the copies appended after the originals. Edges must already be
+    manifold. Returns the mesh unchanged when every vertex is manifold."""
+    f = mesh.faces.astype(np.int64)
+    et = edge_table(f)
+    if np.any(et.count > 2):
+        raise errors.NonManifoldEdgeError(
+            f"{mesh.source}: cannot split vertices while edges are non-manifold")
+    key = _corner_fans(f, et)
+    uniq, inv = np.unique(key, return_inverse=True)
+    inv = inv.ravel()
+    owner = uniq // (3 * f.shape[0])
+    first = np.ones(uniq.size, dtype=bool)
+    first[1:] = owner[1:] != owner[:-1]
+    if first.all():
+        return mesh
+    new_id = np.where(first, owner, mesh.num_vertices + np.cumsum(~first) - 1)
+    faces = new_id[inv].reshape(-1, 3).astype(np.int32)
+    vertices = np.concatenate([mesh.vertices, mesh.vertices[owner[~first]]])
+    return dataclasses.replace(mesh, vertices=vertices, faces=faces)
 
 
 def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,

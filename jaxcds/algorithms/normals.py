@@ -19,6 +19,7 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals"]
 
@@ -55,14 +56,38 @@ def vertex_normals(s, positions, method: str = "scatter"):
     structure permuted vertices). Border darts contribute nothing. Differentiable.
     """
     if method == "scatter":
-        fv = s.face_vertices()
-        fn = face_normals(positions, fv)
-        acc = jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), fv.reshape(-1),
-                                  num_segments=s.num_vertices)
-        return normalize(acc)
+        return normalize(_scatter_sums(s, positions))
     if method == "gather":
-        return normalize(_gather_sums(s, positions))
+        return _gather_normals(s, positions)
     raise ValueError(f"unknown method {method!r}: 'scatter' or 'gather'")
+
+
+def _scatter_sums(s, positions):
+    fv = s.face_vertices()
+    fn = face_normals(positions, fv)
+    return jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), fv.reshape(-1), num_segments=s.num_vertices)
+
+
+# The gather route turns around vertices with a while_loop (its trip count is the largest degree,
+# known only at run time), and while_loop has no reverse-mode derivative. Both routes compute the
+# same function of the positions, so its VJP is the scatter route's VJP.
+@jax.custom_vjp
+def _gather_normals(s, positions):
+    return normalize(_gather_sums(s, positions))
+
+
+def _gather_fwd(s, positions):
+    return _gather_normals(s, positions), (s, positions)
+
+
+def _gather_bwd(res, g):
+    s, positions = res
+    _, vjp = jax.vjp(lambda p: normalize(_scatter_sums(s, p)), positions)
+    zero_s = jax.tree_util.tree_map(lambda x: np.zeros(x.shape, jax.dtypes.float0), s)
+    return zero_s, vjp(g)[0]
+
+
+_gather_normals.defvjp(_gather_fwd, _gather_bwd)
 
 
 def _gather_sums(s, positions):

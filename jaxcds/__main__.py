@@ -1,0 +1,5 @@
+import sys
+
+from jaxcds.cli import main
+
+sys.exit(main())

@@ -1,0 +1,242 @@
+"""The ``jaxcds`` command line (also ``python -m jaxcds``).
+
+Errors of the :mod:`jaxcds.errors` hierarchy exit with status 2 and print their message, never a
+traceback. ``--json`` prints exactly one JSON object on stdout, with snake_case keys that scripts
+may rely on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from importlib import resources
+from typing import Callable, Optional, Sequence
+
+from jaxcds import errors
+
+__all__ = ["main", "default_mesh_path"]
+
+EXIT_BAD_INPUT = 2
+
+
+def default_mesh_path() -> str:
+    """The closed bunny (3485 vertices) shipped inside the package for ``jaxcds demo``."""
+    return str(resources.files("jaxcds") / "data" / "bunny.off")
+
+
+def _print_json(obj) -> None:
+    json.dump(obj, sys.stdout, indent=2, sort_keys=False, default=_json_default)
+    sys.stdout.write("\n")
+
+
+def _json_default(x):
+    import numpy as np
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+# ------------------------------------------------------------------------------ info
+def cmd_info(args) -> int:
+    from jaxcds.mesh import load_mesh, topology
+
+    if args.mesh.lower().endswith(".cds"):
+        codec = _optional("jaxcds.codec", "the .cds codec")
+        report = codec.cds_info(args.mesh)
+    else:
+        report = topology(load_mesh(args.mesh))
+    if args.json:
+        _print_json(report)
+    else:
+        for k, v in report.items():
+            if k == "defects":
+                print(f"{k:>30}: {len(v)}")
+                for d in v:
+                    print(f"{'':>32}- {d}")
+            else:
+                print(f"{k:>30}: {v}")
+    return 0
+
+
+# ------------------------------------------------------------------------------ build
+def build_report(structure_name: str, mesh, verify: bool = False) -> dict:
+    """Build ``structure_name`` on ``mesh``; the dict ``jaxcds build --json`` prints."""
+    from jaxcds.mesh import close_boundaries, load_mesh
+    from jaxcds.structures import registry
+
+    mesh = load_mesh(mesh)
+    registry.names()
+    info = registry.STRUCTURES.get(structure_name)
+    if info is None:
+        raise errors.JaxcdsError(
+            f"unknown structure {structure_name!r}; available: {', '.join(registry.names())}")
+    closed = False
+    if info.name not in ("halfedge", "pemb") and not info.closes_boundaries:
+        from jaxcds.mesh import boundary_loops, validate
+
+        validate(mesh, structure=structure_name)
+        if boundary_loops(mesh):
+            mesh = close_boundaries(mesh)
+            closed = True
+    t0 = time.perf_counter()
+    s = info.builder(mesh)
+    build_s = time.perf_counter() - t0
+    out = {
+        "structure": structure_name,
+        "vertices": int(s.num_vertices),
+        "faces": int(s.num_faces),
+        "references": int(s.references),
+        "references_per_vertex": round(float(s.references_per_vertex), 4),
+        "bytes": int(s.nbytes),
+        "bytes_per_vertex": round(s.nbytes / max(s.num_vertices, 1), 3),
+        "closed_boundaries": closed,
+        "dummy_vertices": int(mesh.dummy_vertices.sum()) if mesh.dummy_vertices is not None else 0,
+        "build_seconds": round(build_s, 4),
+        "vertex_permutation": s.vertex_order is not None,
+    }
+    if verify:
+        from jaxcds.verify import verify as run_verify
+
+        rep = run_verify(s, mesh)
+        out["checked"] = rep.checked
+        out["mismatches"] = rep.mismatches
+        out["mismatches_by_operator"] = {k: v for k, v in rep.by_operator.items() if v}
+    return out
+
+
+def cmd_build(args) -> int:
+    out = build_report(args.structure, args.mesh, verify=args.verify)
+    if args.json:
+        _print_json(out)
+    else:
+        for k, v in out.items():
+            print(f"{k:>24}: {v}")
+    return 1 if args.verify and out["mismatches"] else 0
+
+
+# ------------------------------------------------------------------------------ demo
+def cmd_demo(args) -> int:
+    """Load the bundled bunny, report its topology, build every registered structure, verify
+    each against the half-edge and compute degrees and normals on each."""
+    import numpy as np
+
+    from jaxcds.algorithms import vertex_degrees, vertex_normals
+    from jaxcds.mesh import load_mesh, topology
+    from jaxcds.structures import registry
+
+    path = args.mesh or default_mesh_path()
+    mesh = load_mesh(path)
+    topo = topology(mesh)
+    print(f"mesh: {os.path.basename(path)}  V={topo['vertices']} E={topo['edges']} F={topo['faces']} "
+          f"genus={topo['genus']} closed={topo['closed']} manifold={topo['manifold']}")
+    print(f"{'structure':<14}{'refs/vertex':>12}{'bytes/vertex':>14}{'build s':>9}"
+          f"{'checked':>10}{'mismatch':>9}{'degree ok':>10}{'normal err':>12}")
+    reference = None
+    failures = 0
+    for name in registry.names():
+        try:
+            rep = build_report(name, mesh, verify=True)
+        except errors.JaxcdsError as exc:
+            print(f"{name:<14} refused: {exc}")
+            continue
+        s = registry.STRUCTURES[name].builder(mesh)
+        pos = mesh.vertices if s.vertex_order is None else mesh.vertices[np.asarray(s.vertex_order)]
+        deg = np.asarray(vertex_degrees(s))
+        nrm = np.asarray(vertex_normals(s, pos.astype(np.float32)))
+        if s.vertex_order is not None:
+            inv = np.empty_like(np.asarray(s.vertex_order))
+            inv[np.asarray(s.vertex_order)] = np.arange(inv.size)
+            deg, nrm = deg[inv], nrm[inv]
+        if reference is None:
+            reference = (deg, nrm)
+        deg_ok = bool(np.array_equal(deg[: mesh.num_vertices], reference[0][: mesh.num_vertices]))
+        err = float(np.abs(nrm[: mesh.num_vertices] - reference[1][: mesh.num_vertices]).max())
+        failures += rep["mismatches"] > 0 or not deg_ok or err > 1e-4
+        print(f"{name:<14}{rep['references_per_vertex']:>12.2f}{rep['bytes_per_vertex']:>14.1f}"
+              f"{rep['build_seconds']:>9.3f}{rep['checked']:>10}{rep['mismatches']:>9}"
+              f"{str(deg_ok):>10}{err:>12.2e}")
+    print("all structures agree with the half-edge" if not failures
+          else f"{failures} structure(s) disagree with the half-edge")
+    return 1 if failures else 0
+
+
+# ------------------------------------------------------------------------------ bench
+def cmd_bench(args, rest: Sequence[str]) -> int:
+    try:
+        from benchmarks import harness
+    except ImportError:
+        raise errors.JaxcdsError(
+            "the benchmark harness lives in benchmarks/ of the source tree: run `jaxcds bench` from "
+            "the repository root (or `python -m benchmarks`)") from None
+    return int(harness.main(list(rest)) or 0)
+
+
+def _optional(module: str, what: str):
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name and module.startswith(exc.name.split(".")[0]) and exc.name.startswith("jaxcds"):
+            raise errors.JaxcdsError(f"{what} is not available in this version of jaxcds") from None
+        raise
+
+
+# ------------------------------------------------------------------------------ main
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="jaxcds", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    d = sub.add_parser("demo", help="run every structure on the bundled bunny and check it")
+    d.add_argument("mesh", nargs="?", help="another mesh instead of the bundled bunny")
+    d.set_defaults(func=cmd_demo)
+
+    i = sub.add_parser("info", help="topology report of a mesh (or a .cds file)")
+    i.add_argument("mesh")
+    i.add_argument("--json", action="store_true")
+    i.set_defaults(func=cmd_info)
+
+    b = sub.add_parser("build", help="build a structure; memory figures; --verify checks it")
+    b.add_argument("mesh")
+    b.add_argument("--structure", "-s", default="halfedge")
+    b.add_argument("--verify", action="store_true",
+                   help="check every operator on every edge against the half-edge")
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_build)
+
+    bench = sub.add_parser("bench", help="benchmarks (options: see `jaxcds bench -- --help`)",
+                           add_help=False)
+    bench.set_defaults(func=None)
+    _extend_parser(sub)
+    return p
+
+
+def _extend_parser(sub) -> None:
+    """Sub-commands of the optional modules (codec, polylla) when they are present."""
+    from jaxcds import _cli_extra
+
+    _cli_extra.add_commands(sub)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if argv[:1] == ["bench"]:
+            return cmd_bench(None, argv[1:])
+        args = _parser().parse_args(argv)
+        return int(args.func(args) or 0)
+    except errors.JaxcdsError as exc:
+        print(f"jaxcds: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:  # pragma: no cover
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

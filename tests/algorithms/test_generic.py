@@ -1,0 +1,119 @@
+"""Generic algorithms (degrees, normals, adjacency, one-ring) on the reference structures."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import trimesh
+
+from jaxcds.algorithms import adjacent, face_list_vertex_normals, one_ring, vertex_degrees, vertex_normals
+from jaxcds.algorithms.normals import normalize
+from jaxcds.mesh import close_boundaries, load_mesh
+from jaxcds.structures import CornerTable, HalfEdge
+
+from conftest import load_shared, octahedron
+
+MESHES = ["bunny.off", "grid.off", "3holes.off", "spot.obj", "camelhead.off"]
+
+
+def trimesh_area_weighted(m):
+    tm = trimesh.Trimesh(m.vertices, m.faces, process=False)
+    weighted = tm.face_normals * tm.area_faces[:, None]
+    return trimesh.geometry.mean_vertex_normals(len(m.vertices), m.faces, weighted)
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_normals_match_trimesh(name):
+    m = load_shared(name)
+    he = HalfEdge.from_mesh(m)
+    got = np.asarray(vertex_normals(he, m.vertices.astype(np.float32)))
+    np.testing.assert_allclose(got, trimesh_area_weighted(m), atol=1e-4)
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_degrees_match_trimesh(name):
+    m = load_shared(name)
+    tm = trimesh.Trimesh(m.vertices, m.faces, process=False)
+    want = np.bincount(tm.edges_unique.ravel(), minlength=m.num_vertices)
+    np.testing.assert_array_equal(np.asarray(vertex_degrees(HalfEdge.from_mesh(m))), want)
+    c = close_boundaries(m)
+    deg_ct = np.asarray(vertex_degrees(CornerTable.from_mesh(c)))
+    tmc = trimesh.Trimesh(c.vertices, c.faces, process=False)
+    np.testing.assert_array_equal(deg_ct, np.bincount(tmc.edges_unique.ravel()))
+
+
+def test_normal_gradient_matches_finite_differences(x64):
+    m = load_shared("decimated-knight.off")
+    he = HalfEdge.from_mesh(m)
+    pos = jnp.asarray(m.vertices, jnp.float64)
+    w = jnp.asarray(np.random.default_rng(0).normal(size=pos.shape))
+
+    def loss(p):
+        return jnp.sum(vertex_normals(he, p) * w)
+
+    g = np.asarray(jax.grad(loss)(pos))
+    rng = np.random.default_rng(1)
+    h = 1e-6
+    for _ in range(12):
+        i, k = int(rng.integers(m.num_vertices)), int(rng.integers(3))
+        dp = jnp.zeros_like(pos).at[i, k].set(h)
+        fd = (loss(pos + dp) - loss(pos - dp)) / (2 * h)
+        assert abs(float(fd) - g[i, k]) < 1e-6 * max(1.0, abs(g[i, k]))
+
+
+def test_gradients_equal_face_list_version(x64):
+    m = load_shared("bunny.off")
+    ct = CornerTable.from_mesh(m)
+    pos = jnp.asarray(m.vertices, jnp.float64)
+    faces = jnp.asarray(m.faces)
+    g1 = jax.grad(lambda p: jnp.sum(vertex_normals(ct, p, method="gather") ** 3))(pos)
+    g2 = jax.grad(lambda p: jnp.sum(face_list_vertex_normals(p, faces) ** 3))(pos)
+    np.testing.assert_allclose(g1, g2, atol=1e-9)
+
+
+def test_normalize_is_finite_at_zero():
+    x = jnp.zeros((2, 3))
+    assert np.all(np.asarray(normalize(x)) == 0)
+    g = jax.grad(lambda y: jnp.sum(normalize(y)))(x)
+    assert np.all(np.isfinite(np.asarray(g)))
+
+
+def test_degenerate_face_gives_finite_normals():
+    v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]], float)  # a collinear face
+    f = np.array([[0, 1, 2], [0, 1, 3]])
+    n = np.asarray(face_list_vertex_normals(jnp.asarray(v, jnp.float32), jnp.asarray(f)))
+    assert np.all(np.isfinite(n))
+
+
+@pytest.mark.parametrize("name", ["bunny.off", "grid.off"])
+def test_adjacent_and_one_ring(name):
+    m = load_shared(name)
+    he = HalfEdge.from_mesh(m)
+    tm = trimesh.Trimesh(m.vertices, m.faces, process=False)
+    edges = tm.edges_unique
+    assert np.all(np.asarray(adjacent(he, edges[:, 0], edges[:, 1])))
+    assert np.all(np.asarray(adjacent(he, edges[:, 1], edges[:, 0])))
+    rng = np.random.default_rng(0)
+    u, v = rng.integers(0, m.num_vertices, (2, 5000))
+    known = set(map(tuple, edges.tolist())) | set(map(tuple, edges[:, ::-1].tolist()))
+    want = np.array([(a, b) in known for a, b in zip(u.tolist(), v.tolist())])
+    np.testing.assert_array_equal(np.asarray(adjacent(he, u, v)), want)
+    deg = np.asarray(vertex_degrees(he))
+    ring, d = one_ring(he, np.arange(m.num_vertices), int(deg.max()))
+    np.testing.assert_array_equal(np.asarray(d), deg)
+    ring = np.asarray(ring)
+    nbrs = tm.vertex_neighbors
+    for i in range(0, m.num_vertices, 37):
+        assert sorted(ring[i, : deg[i]].tolist()) == sorted(nbrs[i])
+
+
+def test_algorithms_are_jitted_once():
+    v, f = octahedron()
+    he = HalfEdge.from_mesh(load_mesh(v, f))
+    pos = jnp.asarray(v, jnp.float32)
+    vertex_normals(he, pos)
+    n_before = vertex_normals._cache_size()
+    vertex_normals(he, pos + 1.0)
+    assert vertex_normals._cache_size() == n_before

@@ -1,0 +1,69 @@
+"""Every registered structure, every operator, every dart, against the HalfEdge.
+
+New structures join automatically by registering in :mod:`jaxcds.structures.registry`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jaxcds import errors
+from jaxcds.algorithms import vertex_degrees, vertex_normals
+from jaxcds.mesh import close_boundaries
+from jaxcds.structures import registry
+from jaxcds.structures.halfedge import HalfEdge
+from jaxcds.verify import verify
+
+from conftest import CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, load_shared, mesh_params
+
+STRUCTURES = registry.names()
+BORDER_AWARE = {"halfedge", "pemb"}
+
+
+def prepared(name, structure):
+    m = load_shared(name)
+    if structure in BORDER_AWARE or registry.STRUCTURES[structure].closes_boundaries:
+        return m
+    return close_boundaries(m)
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("name", mesh_params(CLOSED_GENUS0 + HOLED_GENUS0 + HIGHER_GENUS))
+def test_every_operator_on_every_dart(structure, name):
+    m = prepared(name, structure)
+    try:
+        s = registry.build(structure, m)
+    except errors.UnsupportedTopologyError as exc:
+        if name in HIGHER_GENUS:
+            assert "genus" in str(exc)
+            pytest.skip(f"{structure} refuses genus > 0 ({exc})")
+        raise
+    rep = verify(s, m)
+    assert rep.checked > 10 * m.num_faces
+    assert rep.mismatches == 0, str(rep)
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("name", ["bunny.off", "3holes.off", "grid.off"])
+def test_degrees_and_normals_equal_halfedge(structure, name):
+    m = prepared(name, structure)
+    try:
+        s = registry.build(structure, m)
+    except errors.UnsupportedTopologyError:
+        pytest.skip("structure refuses this mesh")
+    he = HalfEdge.from_faces(m.faces, m.num_vertices)
+    order = np.arange(m.num_vertices) if s.vertex_order is None else np.asarray(s.vertex_order)
+    deg = np.asarray(vertex_degrees(s))
+    np.testing.assert_array_equal(deg, np.asarray(vertex_degrees(he))[order])
+    pos = m.vertices.astype(np.float32)
+    want = np.asarray(vertex_normals(he, pos))[order]
+    for method in ("scatter", "gather"):
+        got = np.asarray(vertex_normals(s, pos[order], method=method))
+        np.testing.assert_allclose(got, want, atol=2e-5)
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+def test_refusals_are_typed(structure):
+    with pytest.raises(errors.MeshError):
+        registry.build(structure, load_shared("cow.off"))

@@ -1,0 +1,67 @@
+"""The `jaxcds` command line: JSON keys, exit codes, no tracebacks."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from jaxcds.cli import main
+
+from conftest import mesh_path
+
+INFO_KEYS = {"vertices", "edges", "faces", "components", "boundary_loops", "euler_characteristic",
+             "genus", "manifold", "orientable", "welded_vertices", "defects"}
+BUILD_KEYS = {"structure", "vertices", "faces", "references", "references_per_vertex", "bytes"}
+
+
+def run_json(capsys, argv):
+    rc = main(argv)
+    out = capsys.readouterr().out
+    return rc, json.loads(out)
+
+
+def test_info_json(capsys):
+    rc, d = run_json(capsys, ["info", mesh_path("bunny.off"), "--json"])
+    assert rc == 0 and INFO_KEYS <= set(d)
+    assert d["vertices"] == 3485 and d["genus"] == 0 and d["manifold"] is True
+
+
+def test_info_reports_defects_of_a_defective_mesh(capsys):
+    rc, d = run_json(capsys, ["info", mesh_path("cow.off"), "--json"])
+    assert rc == 0 and d["manifold"] is False and any("NonManifoldEdge" in x for x in d["defects"])
+
+
+def test_build_verify_json(capsys):
+    rc, d = run_json(capsys, ["build", mesh_path("grid.off"), "--structure", "corner-table",
+                              "--verify", "--json"])
+    assert rc == 0 and BUILD_KEYS <= set(d)
+    assert d["mismatches"] == 0 and d["checked"] > 0 and d["closed_boundaries"] is True
+
+
+def test_build_refuses_defective_mesh_with_exit_2(capsys):
+    rc = main(["build", mesh_path("cow.off"), "--structure", "halfedge"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "non-manifold" not in err.lower() or "shared by 4 faces" in err
+    assert "Traceback" not in err
+
+
+def test_unknown_structure(capsys):
+    assert main(["build", mesh_path("cube.off"), "--structure", "nope"]) == 2
+    assert "unknown structure" in capsys.readouterr().err
+
+
+def test_python_dash_m_and_demo():
+    r = subprocess.run([sys.executable, "-m", "jaxcds", "demo"], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "all structures agree with the half-edge" in r.stdout
+    assert "halfedge" in r.stdout and "corner-table" in r.stdout
+
+
+def test_missing_file_no_traceback():
+    r = subprocess.run([sys.executable, "-m", "jaxcds", "info", "/nonexistent/x.off"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "no such file" in r.stderr and "Traceback" not in r.stderr

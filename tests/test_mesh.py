@@ -1,0 +1,207 @@
+"""Loading, welding, validation, topology report and hole closing (jaxcds/mesh.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jaxcds import errors
+from jaxcds.mesh import (TriMesh, boundary_loops, close_boundaries, find_defects, load_mesh,
+                         split_components, topology, validate)
+
+from conftest import DEFECTIVE, MESH_TABLE, load_shared, mesh_params, mesh_path, octahedron
+
+
+@pytest.mark.parametrize("name", mesh_params(list(MESH_TABLE)))
+def test_shared_mesh_topology_matches_readme(name):
+    v, f, bnd, chi, bodies = MESH_TABLE[name]
+    t = topology(load_shared(name))
+    assert (t["vertices"], t["faces"]) == (v, f)
+    assert t["boundary_edges"] == bnd
+    assert t["euler_characteristic"] == chi
+    assert t["manifold"] == (name not in DEFECTIVE)
+    if name not in DEFECTIVE:
+        assert t["components"] == bodies
+        assert t["orientable"] is True
+        # chi = 2c - 2g - b
+        assert t["euler_characteristic"] == 2 * t["components"] - 2 * t["genus"] - t["boundary_loops"]
+        assert t["defects"] == []
+    else:
+        assert t["defects"], "a defective mesh must list its defects"
+        assert t["genus"] is None
+
+
+def test_genus_of_higher_genus_meshes():
+    assert topology(load_shared("rocker-arm.obj"))["genus"] == 1
+    assert topology(load_shared("3holes.off"))["genus"] == 3
+    assert topology(load_shared("stanford-bunny.obj"))["boundary_loops"] == 5
+
+
+def test_texture_seams_are_welded():
+    m = load_shared("spot.obj")
+    assert m.welded > 0 and m.num_vertices == 2930
+    raw = load_mesh(mesh_path("spot.obj"), weld=False)
+    assert raw.num_vertices == m.num_vertices + m.welded
+
+
+@pytest.mark.parametrize("name,kind", [("cow.off", errors.NonManifoldEdgeError),
+                                       ("suzanne.obj", errors.MeshError)])
+def test_defective_real_files_are_refused(name, kind):
+    m = load_shared(name)
+    with pytest.raises(kind) as exc:
+        validate(m)
+    assert name in str(exc.value)
+
+
+def test_cow_names_the_non_manifold_edge():
+    with pytest.raises(errors.NonManifoldEdgeError, match=r"edge \(\d+, \d+\) is shared by 4 faces"):
+        validate(load_shared("cow.off"))
+
+
+def test_suzanne_lists_the_non_manifold_edge_among_defects():
+    kinds = {type(d) for d in find_defects(load_shared("suzanne.obj"))}
+    assert errors.NonManifoldEdgeError in kinds
+
+
+OCT_V, OCT_F = octahedron()
+
+
+@pytest.mark.parametrize("faces,kind,where", [
+    (np.array([[0, 1, 6]]), errors.InvalidIndexError, "face 0 refers to vertex 6"),
+    (np.array([[0, -1, 2]]), errors.InvalidIndexError, "vertex -1"),
+])
+def test_bad_indices(faces, kind, where):
+    with pytest.raises(kind, match=where):
+        load_mesh(OCT_V, faces)
+
+
+def test_empty_mesh():
+    with pytest.raises(errors.EmptyMeshError):
+        load_mesh(np.zeros((0, 3)), np.zeros((0, 3), int))
+    with pytest.raises(errors.EmptyMeshError):
+        load_mesh(OCT_V, np.zeros((0, 3), int))
+
+
+def test_nan_coordinates():
+    v = OCT_V.copy()
+    v[3, 1] = np.nan
+    with pytest.raises(errors.NonFiniteCoordinateError, match="vertex 3"):
+        validate(load_mesh(v, OCT_F))
+
+
+def test_degenerate_face():
+    f = np.concatenate([OCT_F, [[1, 1, 2]]])
+    with pytest.raises(errors.DegenerateFaceError, match="face 8"):
+        validate(load_mesh(OCT_V, f))
+
+
+def test_duplicate_face():
+    f = np.concatenate([OCT_F, [[4, 0, 2]]])
+    with pytest.raises(errors.DuplicateFaceError, match="faces 0 and 8"):
+        validate(load_mesh(OCT_V, f))
+
+
+def test_inconsistent_orientation():
+    f = OCT_F.copy()
+    f[0] = f[0, ::-1]
+    with pytest.raises(errors.InconsistentOrientationError, match="same direction"):
+        validate(load_mesh(OCT_V, f))
+    t = topology(load_mesh(OCT_V, f))
+    assert t["orientable"] is True and t["consistently_oriented"] is False
+
+
+def test_non_manifold_vertex_bow_tie():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0]], float)
+    f = np.array([[0, 1, 2], [0, 3, 4]])
+    with pytest.raises(errors.NonManifoldVertexError, match="vertex 0"):
+        validate(load_mesh(v, f))
+
+
+def test_non_manifold_edge_crafted():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]], float)
+    f = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    with pytest.raises(errors.NonManifoldEdgeError, match=r"edge \(0, 1\) is shared by 3 faces"):
+        validate(load_mesh(v, f))
+
+
+def test_unreadable_files(tmp_path):
+    with pytest.raises(errors.UnreadableMeshError, match="no such file"):
+        load_mesh(str(tmp_path / "missing.off"))
+    bad = tmp_path / "bad.xyz"
+    bad.write_text("hello")
+    with pytest.raises(errors.UnreadableMeshError, match="unknown mesh format"):
+        load_mesh(str(bad))
+    garbage = tmp_path / "garbage.off"
+    garbage.write_bytes(b"OFF\n3 1 0\n0 0 zz\n")
+    with pytest.raises(errors.MeshError):
+        validate(load_mesh(str(garbage)))
+
+
+def test_unreferenced_vertices_are_dropped():
+    v = np.concatenate([OCT_V, [[5, 5, 5]]])
+    m = load_mesh(v, OCT_F)
+    assert m.num_vertices == 6 and m.removed_unreferenced == 1
+
+
+def test_all_errors_share_one_root():
+    for name in errors.__all__:
+        assert issubclass(getattr(errors, name), errors.JaxcdsError)
+
+
+def load_repaired(name):
+    from jaxcds.mesh import split_nonmanifold_vertices
+
+    return split_nonmanifold_vertices(load_shared(name))
+
+
+@pytest.mark.parametrize("name", ["beetle.off", "teapot.obj"])
+def test_bow_tie_vertices_are_reported_and_repairable(name):
+    m = load_shared(name)
+    with pytest.raises(errors.NonManifoldVertexError, match=r"vertex \d+ joins 2 separate fans"):
+        validate(m)
+    r = load_repaired(name)
+    validate(r)
+    t = topology(r)
+    assert t["manifold"] and t["boundary_edges"] == MESH_TABLE[name][2]
+    assert r.num_faces == m.num_faces and r.num_vertices > m.num_vertices
+
+
+@pytest.mark.parametrize("name", mesh_params(["grid.off", "2triangles.off", "stanford-bunny.obj",
+                                              "camelhead.off", "beetle.off"]))
+def test_close_boundaries(name):
+    m = load_repaired(name)
+    loops = boundary_loops(m)
+    c = close_boundaries(m)
+    t = topology(c)
+    assert t["closed"] and t["manifold"] and t["defects"] == []
+    assert c.num_vertices == m.num_vertices + len(loops)
+    assert c.dummy_vertices.sum() == len(loops)
+    assert c.dummy_faces.sum() == sum(len(l) for l in loops)
+    np.testing.assert_array_equal(c.faces[: m.num_faces], m.faces)
+    # closing a genus-0 surface with holes gives a sphere
+    assert t["genus"] == topology(m)["genus"] == 0 and t["euler_characteristic"] == 2
+
+
+def test_close_boundaries_of_closed_mesh_is_identity():
+    m = load_mesh(OCT_V, OCT_F)
+    c = close_boundaries(m)
+    assert c.num_faces == m.num_faces and not c.dummy_vertices.any()
+
+
+def test_split_components_and_connected_requirement():
+    v2 = np.concatenate([OCT_V, OCT_V + 5])
+    f2 = np.concatenate([OCT_F, OCT_F + 6])
+    m = load_mesh(v2, f2)
+    with pytest.raises(errors.UnsupportedTopologyError, match="2 components"):
+        validate(m, connected=True)
+    parts = split_components(m)
+    assert [p.num_vertices for p in parts] == [6, 6]
+    np.testing.assert_array_equal(parts[1].faces, OCT_F)
+
+
+def test_trimesh_input():
+    import trimesh
+
+    tm = trimesh.creation.icosphere(2)
+    m = load_mesh(tm)
+    assert isinstance(m, TriMesh) and m.num_faces == len(tm.faces)
