@@ -1,0 +1,80 @@
+"""The words of Sec. 3.1 / 3.3 on the paper's worked example (Fig. 9) and their error paths."""
+
+import numpy as np
+import pytest
+
+from jaxcds import errors
+from jaxcds.codec import words as W
+from jaxcds.codec.decode import decode_faces
+
+# Fig. 9 / Sec. 3.1. The paper prints the red word twice: undecorated as
+# "(() () () () () ((() ())) ())" (22 symbols: 11 vertices, a typo) and decorated with vertex
+# indices "(0 (1)1 (2)2 (3)3 (4)4 (5 (6 (7)7 (8)8 )6 )5 (9)9 )0" (20 symbols, n = 10). The
+# 17-bit black word (2n - 3 = 17) and the mixed word of Sec. 3.3 both agree with n = 10.
+FIG9_RED = "(0 (1)1 (2)2 (3)3 (4)4 (5 (6 (7)7 (8)8 )6 )5 (9)9 )0"
+FIG9_RED_PLAIN = "".join(c for c in FIG9_RED if c in "()")
+FIG9_BLACK = "00000011010101110"
+# Sec. 3.3, subscripts dropped: 0_0 0_0 0_1 0_1 1_1 0_2 0_2 1_2 ... 0_9 1110_9 1_9 1_0
+FIG9_MIXED = ("0 0 0 0 1 0 0 1 0 0 1 0 0 1 0 0 0 110 0 10 1 0 10 1 1 1 0 1110 1 1").replace(" ", "")
+
+
+def fig9():
+    return W.from_strings(FIG9_RED_PLAIN, FIG9_BLACK)
+
+
+def test_fig9_lengths_and_degrees():
+    w = fig9()
+    assert FIG9_RED_PLAIN == "(()()()()((()()))())"
+    assert w.num_vertices == 10 and w.num_bits == 4 * 10 - 3 == 37
+    assert W.red_string(w) == FIG9_RED_PLAIN and W.black_string(w) == FIG9_BLACK
+    # "the black word encodes the in-black-degrees ... 0,0,0,0,0,0,2,1,1,3"
+    blocks = FIG9_BLACK.split("0")[:-1]
+    assert [len(b) for b in blocks] == [0, 0, 0, 0, 0, 0, 2, 1, 1, 3]
+
+
+def test_fig9_mixed_word_is_the_papers():
+    w = fig9()
+    assert W.mixed_string(w) == FIG9_MIXED
+    m = W.to_mixed(w)
+    assert m.mixed and W.to_separate(m) == w
+
+
+def test_paper_undecorated_red_word_is_rejected():
+    # the undecorated string has 11 vertices: its black word would need 19 bits
+    with pytest.raises(errors.EncodingError, match="2n-3 = 19"):
+        W.from_strings("(() () () () () ((() ())) ())", FIG9_BLACK)
+
+
+def test_fig9_decodes_to_a_closed_triangulation():
+    faces, table = decode_faces(fig9())
+    n = 10
+    assert faces.shape == (2 * n - 4, 3)
+    # every dart exactly once, and its twin too: a closed oriented manifold
+    darts = {(int(a), int(b)) for f in faces for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
+    assert len(darts) == 3 * len(faces)
+    assert all((b, a) in darts for a, b in darts)
+    assert n - len(darts) // 2 + len(faces) == 2
+    # outer face (V_red, V_black, V_blue) and the trees of the paper's words
+    assert {tuple(np.roll(f, -int(np.argmin(f)))) for f in faces} >= {(0, 9, 1)}
+    T = table.T
+    assert list(T[0]) == [10, 0, 0, 0, 0, 0, 5, 6, 6, 0]          # red parents (Fig. 9 red tree)
+    assert np.bincount(T[2][T[2] < n], minlength=n).tolist() == [0, 0, 0, 0, 0, 0, 2, 1, 1, 3]
+    # mixed word decodes to the same faces
+    faces_m, _ = decode_faces(W.to_mixed(fig9()))
+    assert np.array_equal(faces, faces_m)
+
+
+@pytest.mark.parametrize("red,black,msg", [
+    (")" + FIG9_RED_PLAIN[1:], FIG9_BLACK, "start with"),
+    ("(()()()())(()()())()", FIG9_BLACK, "unbalanced"),           # the root closes at bit 9
+    ("(()()()()((()()))(((", FIG9_BLACK, "more than n vertices"),  # never closes
+    (FIG9_RED_PLAIN, "10000011010101110", "V_red and V_blue"),    # V_red with a black child
+    (FIG9_RED_PLAIN, "00000111010101100", "wrong black count"),  # 3 black children for vertex 6: underflow
+    (FIG9_RED_PLAIN, "00000011010101011", "black word"),          # unary block never ends
+    ("(((()))()((()()))())", FIG9_BLACK, "V_blue must be"),      # V_blue has a red child
+])
+def test_invalid_words_raise_with_offsets(red, black, msg):
+    w = W.from_strings(red, black)
+    with pytest.raises(errors.EncodingError, match=msg) as exc:
+        decode_faces(w)
+    assert "bit" in str(exc.value) or "vertex" in str(exc.value)
