@@ -1,0 +1,526 @@
+"""Maximal Schnyder woods by vertex conquest (Castelli Aleardi & Devillers, JoCG 2018, Appendix A).
+
+Conventions (the paper's Definition 1 and Sec. 2.1, used by every CDS structure and by the codec):
+
+* Colours are ints: ``RED = 0``, ``BLUE = 1``, ``BLACK = 2``; ``next(c) = (c + 1) % 3``
+  (next(red) = blue, next(blue) = black, next(black) = red), ``prev(c) = (c + 2) % 3``.
+* Orientation: the mesh is a closed genus-0 triangle mesh whose faces are counter-clockwise seen
+  from outside. The root face ``root_face = (a, b, c)`` of the mesh (ccw) becomes the outer face of
+  the planar drawing, where it reads clockwise; hence ``V_red = a``, ``V_black = b``,
+  ``V_blue = c`` so that the outer vertices are ``V_red, V_blue, V_black`` in ccw order of the
+  drawing, and "ccw around a vertex" in the drawing is the mesh's ccw (``twin(prev(e))``).
+* Every inner vertex ``u`` has one outgoing edge of each colour (``out[u, c]`` is its target) and
+  the local Schnyder rule holds: turning ccw around ``u`` one meets
+  ``out red, in black*, out blue, in red*, out black, in blue*``.
+* Outer edges follow Sec. 2.1 (trees T̄_red and T_blue): ``(V_blue, V_red)`` and
+  ``(V_black, V_red)`` are red, ``(V_black, V_blue)`` is blue. So ``V_red`` has no outgoing edge,
+  ``V_blue`` only a red one, ``V_black`` a red and a blue one, and the edges incident to the outer
+  vertices are all incoming (red at V_red, blue at V_blue, black at V_black), as Definition 1 asks.
+  There are ``3n - 6`` edges: ``3n`` slots ``(u, c)`` minus the 6 absent ones.
+* "Absent" is ``n`` (one past the end).
+
+The construction conquers vertices from ``V_black`` inwards keeping a simple boundary path
+``B = V_blue ... V_red``; the conquered vertex ``v`` gets a blue edge to its neighbour ``v_r``
+on ``B`` toward V_blue, a red edge to its neighbour ``v_l`` toward V_red, and the new boundary
+vertices get their black edge to ``v``. Always conquering the free vertex closest to V_blue
+gives the *maximal* wood (no clockwise oriented cycle, Lemma 3). The free vertices are kept in a
+stack in B order with lazy deletion (only ``v_r``, ``v_l`` and new boundary vertices can become
+free), so the whole construction is linear: O(sum of degrees).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Optional
+
+import numba
+import numpy as np
+
+from jaxcds import errors
+
+__all__ = [
+    "RED", "BLUE", "BLACK", "COLOUR_NAMES",
+    "SchnyderWood", "schnyder_wood", "check_schnyder_wood", "schnyder_wood_reference",
+    "mesh_darts",
+]
+
+RED, BLUE, BLACK = 0, 1, 2
+COLOUR_NAMES = ("red", "blue", "black")
+
+
+@dataclasses.dataclass(frozen=True)
+class SchnyderWood:
+    """A Schnyder wood of a planar triangulation (numpy, host side).
+
+    Attributes:
+      num_vertices: ``n``.
+      v_red, v_blue, v_black: the three outer vertices (the root face is ``(v_red, v_black,
+        v_blue)`` ccw in the mesh, i.e. ``V_red, V_blue, V_black`` ccw in the planar drawing).
+      out: ``(n, 3)`` int32; ``out[u, c]`` = target of the outgoing edge of colour ``c`` of
+        ``u`` (``u_c^↗`` in the paper), ``n`` where absent (the 6 outer slots).
+      offsets: ``(n + 1,)`` int64 CSR offsets into the rotation arrays below.
+      neighbors: ``(6n - 12,)`` int32; ``neighbors[offsets[u]:offsets[u+1]]`` are the neighbours
+        of ``u`` in ccw order, starting at ``out[u, RED]`` (at ``V_red``: starting at ``V_blue``).
+      colour: ``(6n - 12,)`` int8 colour of the edge to that neighbour.
+      outgoing: ``(6n - 12,)`` bool, True if the edge is oriented from ``u`` to that neighbour.
+      conquest_order: ``(n - 2,)`` int32, the vertices in conquest order (V_black first); its
+        reverse is a canonical ordering.
+      root_face: index of the root face in the input face array (``-1`` if not built from faces).
+      maximal: whether it was built with the "closest to V_blue" rule (no cw cycle).
+    """
+
+    num_vertices: int
+    v_red: int
+    v_blue: int
+    v_black: int
+    out: np.ndarray
+    offsets: np.ndarray
+    neighbors: np.ndarray
+    colour: np.ndarray
+    outgoing: np.ndarray
+    conquest_order: np.ndarray
+    root_face: int = -1
+    maximal: bool = True
+
+    @property
+    def outer(self) -> tuple[int, int, int]:
+        """``(V_red, V_blue, V_black)``."""
+        return (self.v_red, self.v_blue, self.v_black)
+
+    @property
+    def num_edges(self) -> int:
+        return int(np.sum(self.out < self.num_vertices))
+
+    def degrees(self) -> np.ndarray:
+        return np.diff(self.offsets).astype(np.int32)
+
+    def in_degree(self, c: int) -> np.ndarray:
+        """``(n,)`` number of incoming edges of colour ``c`` at every vertex."""
+        u = np.repeat(np.arange(self.num_vertices), np.diff(self.offsets))
+        m = (~self.outgoing) & (self.colour == c)
+        return np.bincount(u[m], minlength=self.num_vertices).astype(np.int32)
+
+    def edges(self) -> np.ndarray:
+        """``(3n - 6, 3)`` int32 rows ``(source, target, colour)``."""
+        u, c = np.nonzero(self.out < self.num_vertices)
+        return np.stack([u, self.out[u, c], c], axis=1).astype(np.int32)
+
+
+# ---------------------------------------------------------------------------------- darts
+@numba.njit(cache=True)
+def _twins(faces, num_vertices):
+    """Twin of every dart ``3f + k`` (``faces[f,k] -> faces[f,(k+1)%3]``), ``-1`` on borders,
+    via a CSR of darts by origin (linear time, no sort)."""
+    nf = faces.shape[0]
+    n3 = 3 * nf
+    cnt = np.zeros(num_vertices + 1, dtype=np.int64)
+    for d in range(n3):
+        cnt[faces[d // 3, d % 3] + 1] += 1
+    for i in range(num_vertices):
+        cnt[i + 1] += cnt[i]
+    pos = cnt[:-1].copy()
+    by_origin = np.empty(n3, dtype=np.int64)
+    for d in range(n3):
+        a = faces[d // 3, d % 3]
+        by_origin[pos[a]] = d
+        pos[a] += 1
+    twin = np.full(n3, -1, dtype=np.int64)
+    for d in range(n3):
+        f = d // 3
+        k = d % 3
+        a = faces[f, k]
+        b = faces[f, (k + 1) % 3]
+        for j in range(cnt[b], cnt[b + 1]):
+            d2 = by_origin[j]
+            f2 = d2 // 3
+            if faces[f2, (d2 % 3 + 1) % 3] == a:
+                twin[d] = d2
+                break
+    first = np.full(num_vertices, -1, dtype=np.int64)
+    for v in range(num_vertices):
+        if cnt[v + 1] > cnt[v]:
+            first[v] = by_origin[cnt[v]]
+    return twin, first
+
+
+def mesh_darts(faces: np.ndarray, num_vertices: int):
+    """``(twin, vertex_dart)`` of the mesh darts ``3f + k`` (linear time, numba)."""
+    f = np.ascontiguousarray(faces, dtype=np.int32)
+    return _twins(f, int(num_vertices))
+
+
+# ---------------------------------------------------------------------------------- conquest
+@numba.njit(cache=True, inline="always")
+def _tgt(faces, d):
+    return faces[d // 3, (d % 3 + 1) % 3]
+
+
+@numba.njit(cache=True, inline="always")
+def _ccw(twin, d):
+    # ccw around origin(d): twin(prev(d))
+    return twin[3 * (d // 3) + (d % 3 + 2) % 3]
+
+
+@numba.njit(cache=True, inline="always")
+def _cw(twin, d):
+    # cw around origin(d): next(twin(d))
+    t = twin[d]
+    return 3 * (t // 3) + (t % 3 + 1) % 3
+
+
+@numba.njit(cache=True)
+def _conquest(faces, twin, first, n, v_red, v_blue, v_black, maximal):
+    out = np.full((n, 3), n, dtype=np.int32)
+    removed = np.zeros(n, dtype=np.bool_)
+    on_b = np.zeros(n, dtype=np.bool_)
+    chords = np.zeros(n, dtype=np.int64)
+    bnext = np.full(n, -1, dtype=np.int64)
+    bprev = np.full(n, -1, dtype=np.int64)
+    in_stack = np.zeros(n, dtype=np.bool_)
+    cap = 3 * faces.shape[0] + n + 8
+    stack = np.empty(cap, dtype=np.int64)
+    order = np.empty(max(n - 2, 0), dtype=np.int32)
+    new = np.empty(n, dtype=np.int64)
+    # B = V_blue, V_black, V_red
+    on_b[v_blue] = True
+    on_b[v_black] = True
+    on_b[v_red] = True
+    bnext[v_blue] = v_black
+    bprev[v_black] = v_blue
+    bnext[v_black] = v_red
+    bprev[v_red] = v_black
+    top = 0
+    stack[top] = v_black
+    top += 1
+    in_stack[v_black] = True
+    done = 0
+    while done < n - 2:
+        if top == 0:
+            return out, order, done  # stuck: not a planar triangulation
+        # pop the free vertex closest to V_blue (maximal) -- or the latest pushed otherwise
+        v = stack[top - 1]
+        top -= 1
+        in_stack[v] = False
+        if removed[v] or (not on_b[v]) or chords[v] != 0 or v == v_red or v == v_blue:
+            continue
+        vr = bprev[v]
+        vl = bnext[v]
+        # dart v -> vr
+        d = first[v]
+        guard = 0
+        while _tgt(faces, d) != vr:
+            d = _ccw(twin, d)
+            guard += 1
+            if guard > 3 * faces.shape[0]:
+                return out, order, -1
+        removed[v] = True
+        on_b[v] = False
+        order[done] = v
+        done += 1
+        out[v, BLUE] = vr
+        out[v, RED] = vl
+        # cw from (v, vr) to (v, vl): the fan of v in the unconquered region
+        k = 0
+        d = _cw(twin, d)
+        w = _tgt(faces, d)
+        while w != vl:
+            new[k] = w
+            k += 1
+            out[w, BLACK] = v
+            d = _cw(twin, d)
+            w = _tgt(faces, d)
+        # splice the new vertices between vr and vl
+        prev = vr
+        for i in range(k):
+            u = new[i]
+            bprev[u] = prev
+            bnext[prev] = u
+            prev = u
+        bnext[prev] = vl
+        bprev[vl] = prev
+        if k == 0:
+            # the chord {vr, vl} becomes a boundary edge
+            if not (vr == v_blue and vl == v_red):
+                chords[vr] -= 1
+                chords[vl] -= 1
+        else:
+            for i in range(k):
+                u = new[i]
+                left = bprev[u]
+                right = bnext[u]
+                e = first[u]
+                e0 = e
+                while True:
+                    x = _tgt(faces, e)
+                    if on_b[x] and x != left and x != right:
+                        chords[u] += 1
+                        chords[x] += 1
+                    e = _ccw(twin, e)
+                    if e == e0:
+                        break
+                on_b[u] = True
+        # push candidates so that the top of the stack is the leftmost (closest to V_blue)
+        if maximal:
+            if vl != v_red and not in_stack[vl] and chords[vl] == 0:
+                stack[top] = vl
+                top += 1
+                in_stack[vl] = True
+            for i in range(k - 1, -1, -1):
+                u = new[i]
+                if chords[u] == 0:
+                    stack[top] = u
+                    top += 1
+                    in_stack[u] = True
+            if vr != v_blue and not in_stack[vr] and chords[vr] == 0:
+                stack[top] = vr
+                top += 1
+                in_stack[vr] = True
+        else:
+            # any free vertex: last-in first-out from the right side (a different valid wood)
+            if vr != v_blue and not in_stack[vr] and chords[vr] == 0:
+                stack[top] = vr
+                top += 1
+                in_stack[vr] = True
+            for i in range(k):
+                u = new[i]
+                if chords[u] == 0:
+                    stack[top] = u
+                    top += 1
+                    in_stack[u] = True
+            if vl != v_red and not in_stack[vl] and chords[vl] == 0:
+                stack[top] = vl
+                top += 1
+                in_stack[vl] = True
+        if top + k + 2 >= cap:
+            return out, order, -1
+    out[v_blue, RED] = v_red
+    return out, order, done
+
+
+@numba.njit(cache=True)
+def _rotations(faces, twin, first, out, n, v_red, v_blue):
+    nf = faces.shape[0]
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    for d in range(3 * nf):
+        offsets[faces[d // 3, d % 3] + 1] += 1
+    for i in range(n):
+        offsets[i + 1] += offsets[i]
+    m = offsets[n]
+    nb = np.empty(m, dtype=np.int32)
+    col = np.empty(m, dtype=np.int8)
+    og = np.empty(m, dtype=np.bool_)
+    bad = -1
+    for u in range(n):
+        start_t = out[u, RED] if u != v_red else v_blue
+        d = first[u]
+        g = 0
+        while _tgt(faces, d) != start_t:
+            d = _ccw(twin, d)
+            g += 1
+            if g > offsets[u + 1] - offsets[u]:
+                return offsets, nb, col, og, u
+        j = offsets[u]
+        d0 = d
+        while True:
+            x = _tgt(faces, d)
+            nb[j] = x
+            c = -1
+            o = False
+            for cc in range(3):
+                if out[u, cc] == x:
+                    c = cc
+                    o = True
+                elif out[x, cc] == u:
+                    c = cc
+            if c < 0 and bad < 0:
+                bad = u
+            col[j] = c
+            og[j] = o
+            j += 1
+            d = _ccw(twin, d)
+            if d == d0:
+                break
+    return offsets, nb, col, og, bad
+
+
+def _default_root(faces: np.ndarray) -> int:
+    return 0
+
+
+def schnyder_wood(faces, num_vertices: int, root_face: Optional[int] = None,
+                  maximal: bool = True) -> SchnyderWood:
+    """Schnyder wood of a closed genus-0 triangle mesh, in linear time (Appendix A).
+
+    Args:
+      faces: ``(F, 3)`` int ccw faces of a closed, connected, genus-0 manifold triangle mesh
+        (``F = 2n - 4``; validate untrusted input with :func:`jaxcds.mesh.validate` first).
+      num_vertices: ``n >= 3``.
+      root_face: index of the root face (default 0); ``faces[root_face] = (V_red, V_black, V_blue)``.
+      maximal: conquer the free vertex closest to V_blue (the maximal wood, no cw cycle);
+        ``False`` uses another valid choice (a Schnyder wood that may have cw cycles).
+
+    Raises:
+      UnsupportedTopologyError: the faces do not form a planar triangulation (wrong Euler count,
+        border edges, or the conquest got stuck), naming what failed.
+    """
+    f = np.ascontiguousarray(faces, dtype=np.int32)
+    n = int(num_vertices)
+    nf = int(f.shape[0])
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise errors.InvalidIndexError(f"faces must be (F, 3), got shape {f.shape}")
+    if n < 3 or nf != 2 * n - 4:
+        raise errors.UnsupportedTopologyError(
+            f"a Schnyder wood needs a closed genus-0 triangulation with F = 2n - 4 faces; got "
+            f"n = {n} vertices and F = {nf} faces (Euler characteristic {n - 3 * nf // 2 + nf}); "
+            "use the 'lr' or 'halfedge' structure for other topologies")
+    root = 0 if root_face is None else int(root_face)
+    if not 0 <= root < nf:
+        raise errors.InvalidIndexError(f"root_face {root} out of range [0, {nf})")
+    twin, first = mesh_darts(f, n)
+    if np.any(twin < 0):
+        d = int(np.nonzero(twin < 0)[0][0])
+        raise errors.UnsupportedTopologyError(
+            f"face {d // 3} side {d % 3} has no neighbour: the mesh has a boundary; call "
+            "jaxcds.mesh.close_boundaries first")
+    v_red, v_black, v_blue = (int(x) for x in f[root])
+    out, order, done = _conquest(f, twin, first, n, v_red, v_blue, v_black, bool(maximal))
+    if done != n - 2:
+        raise errors.UnsupportedTopologyError(
+            f"the vertex conquest stopped after {max(done, 0)} of {n - 2} vertices: the mesh is not a "
+            "planar (genus-0, simple) triangulation; use the 'lr' or 'halfedge' structure")
+    if n == 3:
+        out[v_blue, RED] = v_red
+    offsets, nb, col, og, bad = _rotations(f, twin, first, out, n, v_red, v_blue)
+    if bad >= 0:
+        raise errors.StructureError(f"Schnyder wood: an edge at vertex {bad} got no colour")
+    return SchnyderWood(num_vertices=n, v_red=v_red, v_blue=v_blue, v_black=v_black, out=out,
+                        offsets=offsets, neighbors=nb, colour=col, outgoing=og,
+                        conquest_order=order, root_face=root, maximal=bool(maximal))
+
+
+# ---------------------------------------------------------------------------------- checker
+# Local Schnyder rule (Definition 1) as a cyclic pattern of (outgoing, colour) groups, ccw,
+# starting at the outgoing red edge: out red, in black*, out blue, in red*, out black, in blue*.
+_PATTERN = ((True, RED), (False, BLACK), (True, BLUE), (False, RED), (True, BLACK), (False, BLUE))
+
+
+def check_schnyder_wood(wood: SchnyderWood, faces: Optional[np.ndarray] = None,
+                        *, maximal: bool = True) -> list[str]:
+    """Problems of ``wood`` as messages (empty list: valid). Checks Definition 1 -- one outgoing
+    edge per colour at each inner vertex, the local ccw rule, edges at the outer vertices
+    incoming and of their colour (with the Sec. 2.1 outer edges), edge colours and
+    orientations agreeing on both sides -- and, if ``maximal``, that no triangle of ``faces`` is
+    a clockwise oriented cycle. A plain Python loop: the slow, obviously-correct reference."""
+    n = wood.num_vertices
+    R, Bl, Bk = wood.v_red, wood.v_blue, wood.v_black
+    probs: list[str] = []
+    out = wood.out
+    want_absent = {(R, RED), (R, BLUE), (R, BLACK), (Bl, BLUE), (Bl, BLACK), (Bk, BLACK)}
+    for u in range(n):
+        for c in range(3):
+            absent = out[u, c] >= n
+            if absent != ((u, c) in want_absent):
+                probs.append(f"vertex {u}: outgoing {COLOUR_NAMES[c]} edge "
+                             f"{'missing' if absent else 'present at an outer vertex'}")
+    if out[Bl, RED] != R or out[Bk, RED] != R or out[Bk, BLUE] != Bl:
+        probs.append("outer edges are not (V_blue,V_red) red, (V_black,V_red) red, (V_black,V_blue) blue")
+    nbrs = {}
+    for u in range(n):
+        a, b = wood.offsets[u], wood.offsets[u + 1]
+        rot = [(bool(wood.outgoing[j]), int(wood.colour[j]), int(wood.neighbors[j])) for j in range(a, b)]
+        nbrs[u] = rot
+        for og, c, x in rot:
+            if c < 0:
+                probs.append(f"edge {u}-{x} has no colour")
+            elif og and out[u, c] != x:
+                probs.append(f"edge {u}->{x} marked outgoing {COLOUR_NAMES[c]} but out[{u}] = {out[u].tolist()}")
+            elif not og and out[x, c] != u:
+                probs.append(f"edge {x}->{u} marked incoming {COLOUR_NAMES[c]} but out[{x}] = {out[x].tolist()}")
+        if u in (R, Bl, Bk):
+            own = {R: RED, Bl: BLUE, Bk: BLACK}[u]
+            for og, c, x in rot:
+                if x in (R, Bl, Bk):
+                    continue
+                if og or c != own:
+                    probs.append(f"outer vertex {u}: edge to {x} is not incoming {COLOUR_NAMES[own]}")
+            continue
+        # group consecutive entries and match the pattern
+        groups = []
+        for og, c, _ in rot:
+            if groups and groups[-1] == (og, c) and not og:
+                continue
+            groups.append((og, c))
+        pat = [g for g in _PATTERN]
+        # incoming groups may be empty: drop them from the pattern when absent
+        gi = 0
+        ok = True
+        for p in pat:
+            if gi < len(groups) and groups[gi] == p:
+                gi += 1
+            elif p[0]:  # an outgoing edge is mandatory
+                ok = False
+                break
+        if not ok or gi != len(groups):
+            names = [("out " if g[0] else "in ") + COLOUR_NAMES[g[1]] for g in groups]
+            probs.append(f"vertex {u}: ccw order {names} breaks the local Schnyder rule")
+    if maximal and faces is not None:
+        f = np.asarray(faces)
+        def forward(a, b):  # edge a -> b oriented so in the wood
+            return bool(np.any(out[a] == b))
+        for i, (a, b, c) in enumerate(f.tolist()):
+            if not forward(a, b) and not forward(b, c) and not forward(c, a):
+                probs.append(f"face {i} ({a}, {b}, {c}) is a clockwise oriented triangle")
+    return probs
+
+
+def schnyder_wood_reference(faces, num_vertices: int, root_face: int = 0) -> np.ndarray:
+    """Slow, obviously-correct Python version of the maximal conquest (for tests): rescans the
+    boundary path from V_blue at each step and recounts chords from scratch. Returns ``out``."""
+    f = np.asarray(faces, dtype=np.int64)
+    n = int(num_vertices)
+    adj = {u: set() for u in range(n)}
+    for a, b, c in f.tolist():
+        for x, y in ((a, b), (b, c), (c, a)):
+            adj[x].add(y)
+            adj[y].add(x)
+    # ccw rotation: for each dart (a, b) in face (a, b, c), the next ccw neighbour of a after b
+    # is the origin of the previous dart of the twin... simpler: ccw successor of b around a is c'
+    # where (a, c', b) is a face, i.e. face (b, a, ?) -> see below
+    ccw_next = {}
+    for a, b, c in f.tolist():
+        # face (a, b, c) ccw: around a, c follows b ccw; around b, a follows c; around c, b follows a
+        ccw_next[(a, b)] = c
+        ccw_next[(b, c)] = a
+        ccw_next[(c, a)] = b
+    cw_next = {(u, y): x for (u, x), y in ccw_next.items()}
+    v_red, v_black, v_blue = (int(x) for x in f[root_face])
+    out = np.full((n, 3), n, dtype=np.int32)
+    B = [v_blue, v_black, v_red]
+    removed = set()
+    while len(removed) < n - 2:
+        onb = set(B)
+        pos = {x: i for i, x in enumerate(B)}
+        # faces of the unconquered region: those with no removed vertex
+        chosen = None
+        for i in range(1, len(B) - 1):
+            v = B[i]
+            chord = any(x in onb and abs(pos[x] - i) > 1 and not (x in (v_blue, v_red) and False)
+                        for x in adj[v] if x not in removed)
+            if not chord:
+                chosen = i
+                break
+        assert chosen is not None, "stuck"
+        v = B[chosen]
+        vr, vl = B[chosen - 1], B[chosen + 1]
+        out[v, BLUE] = vr
+        out[v, RED] = vl
+        fan = []
+        x = cw_next[(v, vr)]
+        while x != vl:
+            fan.append(x)
+            out[x, BLACK] = v
+            x = cw_next[(v, x)]
+        B = B[:chosen] + fan + B[chosen + 1:]
+        removed.add(v)
+    out[v_blue, RED] = v_red
+    return out
