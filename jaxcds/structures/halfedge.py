@@ -119,33 +119,55 @@ class HalfEdge(MeshStructure):
 def halfedge_arrays(faces: np.ndarray, num_vertices: int):
     """``(next, opposite, vertex, vertex_edge, border_prev)`` int32 arrays for a face list.
 
-    Twins are found by sorting the darts on ``(min, max)`` vertex keys: ``O(F log F)`` in numpy's
-    radix-friendly argsort, the rest linear in numba.
+    Linear time: darts are bucketed by their smaller endpoint (a counting sort), and each dart
+    finds its twin inside its bucket, whose size is the vertex degree.
     """
-    nf = faces.shape[0]
-    a = faces.reshape(-1).astype(np.int64)
-    b = faces[:, [1, 2, 0]].reshape(-1).astype(np.int64)
-    key = np.minimum(a, b) * num_vertices + np.maximum(a, b)
-    order = np.argsort(key, kind="stable")
-    return _link(faces.astype(np.int32), key, order.astype(np.int64), num_vertices, nf)
+    f = np.ascontiguousarray(faces, dtype=np.int32)
+    opp = _match_twins(f, int(num_vertices))
+    return _link(f, opp, int(num_vertices), f.shape[0])
 
 
 @numba.njit(cache=True)
-def _link(faces, key, order, num_vertices, nf):
+def _match_twins(faces, num_vertices):
+    nf = faces.shape[0]
     n3 = 3 * nf
+    start = np.zeros(num_vertices + 1, dtype=np.int64)
+    for d in range(n3):
+        a = faces[d // 3, d % 3]
+        b = faces[d // 3, (d % 3 + 1) % 3]
+        start[min(a, b) + 1] += 1
+    for v in range(num_vertices):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    bucket = np.empty(n3, dtype=np.int64)
+    other = np.empty(n3, dtype=np.int32)
+    for d in range(n3):
+        a = faces[d // 3, d % 3]
+        b = faces[d // 3, (d % 3 + 1) % 3]
+        lo = min(a, b)
+        bucket[fill[lo]] = d
+        other[fill[lo]] = max(a, b)
+        fill[lo] += 1
     opp = np.full(n3, -1, dtype=np.int64)
-    i = 0
+    for v in range(num_vertices):
+        for i in range(start[v], start[v + 1]):
+            if opp[bucket[i]] >= 0:
+                continue
+            for j in range(i + 1, start[v + 1]):
+                if other[j] == other[i] and opp[bucket[j]] < 0:
+                    opp[bucket[i]] = bucket[j]
+                    opp[bucket[j]] = bucket[i]
+                    break
+    return opp
+
+
+@numba.njit(cache=True)
+def _link(faces, opp, num_vertices, nf):
+    n3 = 3 * nf
     nb = 0
-    while i < n3:
-        d = order[i]
-        if i + 1 < n3 and key[order[i + 1]] == key[d]:
-            d2 = order[i + 1]
-            opp[d] = d2
-            opp[d2] = d
-            i += 2
-        else:
+    for d in range(n3):
+        if opp[d] < 0:
             nb += 1
-            i += 1
     h = n3 + nb
     nxt = np.empty(h, dtype=np.int32)
     opposite = np.empty(h, dtype=np.int32)
