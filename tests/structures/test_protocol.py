@@ -67,3 +67,29 @@ def test_degrees_and_normals_equal_halfedge(structure, name):
 def test_refusals_are_typed(structure):
     with pytest.raises(errors.MeshError):
         registry.build(structure, load_shared("cow.off"))
+
+
+# ---------------------------------------------------------------- random triangulations
+from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(4, 400), seed=st.integers(0, 2**31 - 1))
+def test_every_structure_on_random_planar_triangulations(n, seed):
+    from jaxcds.generators import random_planar_triangulation
+
+    m = random_planar_triangulation(n, seed=seed)
+    for structure in STRUCTURES:
+        s = registry.build(structure, m)
+        rep = verify(s, m)
+        assert rep.mismatches == 0, f"n={n} seed={seed}: {rep}"
+
+
+@pytest.mark.slow
+def test_every_structure_on_a_5000_vertex_random_triangulation():
+    from jaxcds.generators import random_planar_triangulation
+
+    m = random_planar_triangulation(5000, seed=7)
+    for structure in STRUCTURES:
+        rep = verify(registry.build(structure, m), m)
+        assert rep.mismatches == 0, str(rep)
