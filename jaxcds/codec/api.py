@@ -1,0 +1,297 @@
+"""High-level codec API: mesh <-> words <-> ``.cds`` files (CDS paper, Sec. 3).
+
+* :func:`encode_mesh` -- Schnyder wood (maximal by default) + red/black words (Sec. 3.1).
+* :func:`decode` -- words -> faces, the Thm 2 table, or a CDS structure (Sec. 3.2).
+* :func:`write_cds` / :func:`read_cds` / :func:`cds_info` -- the ``.cds`` file
+  (``docs/cds-format.md``), written atomically.
+* :func:`encode_file` / :func:`decode_file` -- everything the ``jaxcds encode`` / ``jaxcds decode``
+  commands do, returning a JSON-able report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from typing import Any, Optional
+
+import numpy as np
+
+from jaxcds import errors
+from jaxcds.codec import fileformat as ff
+from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n
+from jaxcds.codec.encode import encode_schnyder
+from jaxcds.codec.words import Words, to_mixed
+from jaxcds.mesh import TriMesh, boundary_loops, close_boundaries, load_mesh, topology, validate
+
+__all__ = ["EncodedMesh", "encode_mesh", "decode", "write_cds", "read_cds", "cds_info",
+           "encode_file", "decode_file", "write_mesh_atomic"]
+
+
+@dataclasses.dataclass(frozen=True)
+class EncodedMesh:
+    """The connectivity words of a mesh and how its vertices were renumbered.
+
+    Attributes:
+      words: :class:`Words` (``words.bits`` is the packed ``uint8`` bit string, 4n-3 bits).
+      order: ``(n,)`` int32, ``order[i]`` = vertex id in the encoded mesh of decoded vertex ``i``.
+      mesh: the (closed) mesh that was encoded (dummy vertices/faces flagged if holes were closed).
+      wood_seconds, words_seconds: time spent on the Schnyder wood and on the words.
+    """
+
+    words: Words
+    order: np.ndarray
+    mesh: TriMesh
+    wood_seconds: float = 0.0
+    words_seconds: float = 0.0
+
+    @property
+    def bits_per_vertex(self) -> float:
+        return self.words.num_bits / self.words.num_vertices
+
+
+def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: bool = True,
+                close: bool = True, root_face: Optional[int] = None) -> EncodedMesh:
+    """Encode the connectivity of a genus-0 mesh in 4n - 3 bits (Sec. 3.1, 3.3).
+
+    Args:
+      mesh: anything :func:`jaxcds.mesh.load_mesh` accepts.
+      mixed: produce the streamable mixed word (Sec. 3.3) instead of red ++ black.
+      maximal: use the maximal Schnyder wood (Lemma 3); any wood encodes (and decodes) as well.
+      check: validate the mesh first (typed :class:`MeshError` on defects).
+      close: close boundaries with dummy vertices (``close_boundaries``) instead of refusing.
+
+    Raises:
+      UnsupportedTopologyError: genus > 0, several components, or (``close=False``) boundaries.
+    """
+    from jaxcds.construct.schnyder import schnyder_wood
+
+    mesh = load_mesh(mesh)
+    if check:
+        validate(mesh, connected=True, structure="the 4n-bit encoding")
+    if close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
+        mesh = close_boundaries(mesh)
+    t0 = time.perf_counter()
+    wood = schnyder_wood(mesh.faces, mesh.num_vertices, root_face=root_face, maximal=maximal)
+    t1 = time.perf_counter()
+    words, order = encode_schnyder(wood)
+    if mixed:
+        words = to_mixed(words)
+    t2 = time.perf_counter()
+    return EncodedMesh(words, order, mesh, t1 - t0, t2 - t1)
+
+
+def decode(words: Words, *, structure: str = "faces"):
+    """Decode words (either form) in linear time (Sec. 3.2).
+
+    ``structure``:
+      * ``"faces"``: ``(2n - 4, 3)`` int32 ccw triangles, vertices in ccw DFS order of ``T_red``;
+      * ``"paper6n"``: the Thm 2 table (:class:`Paper6n`) only, no memory beyond it (the red and
+        black stacks live in the blue columns);
+      * ``"wood"``: ``(faces, Paper6n with targets)``;
+      * ``"cds6n"`` / ``"cds5n"``: the CDS structures of ``jaxcds.structures.cds`` (issue 3).
+    """
+    if structure == "faces":
+        return decode_faces(words)[0]
+    if structure == "paper6n":
+        return decode_paper6n(words, targets=False)
+    if structure == "wood":
+        return decode_faces(words)
+    if structure in ("cds6n", "cds5n"):
+        from jaxcds.codec.structures import build_cds
+
+        faces, table = decode_faces(words)
+        return build_cds(structure, faces, table)
+    raise ValueError(f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n")
+
+
+# --------------------------------------------------------------------------- files
+def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometry: bool = True,
+              keep_order: bool = True, maximal: bool = True) -> dict:
+    """Encode ``mesh`` and write it as a ``.cds`` file (temporary name, then rename).
+
+    Geometry is stored as float32 in decoded order; with ``keep_order`` the original vertex
+    ids are stored too (4 bytes per vertex) so :func:`read_cds` restores the input numbering.
+    Meshes with holes are closed with dummy vertices, flagged in the file and removed on read.
+    Returns a report (sizes, bits per vertex, timings)."""
+    t0 = time.perf_counter()
+    enc = encode_mesh(mesh, mixed=mixed, maximal=maximal)
+    m = enc.mesh
+    pos = m.vertices[enc.order].astype(np.float32) if geometry else None
+    dummy = None
+    if m.dummy_vertices is not None and m.dummy_vertices.any():
+        dummy = m.dummy_vertices[enc.order]
+    data = ff.pack_cds(enc.words, positions=pos, order=enc.order if keep_order else None, dummy=dummy)
+    ff.atomic_write_bytes(path, data)
+    n = enc.words.num_vertices
+    return {
+        "path": os.fspath(path),
+        "vertices": n,
+        "faces": 2 * n - 4,
+        "dummy_vertices": int(dummy.sum()) if dummy is not None else 0,
+        "connectivity_bits": enc.words.num_bits,
+        "bits_per_vertex": round(enc.bits_per_vertex, 4),
+        "file_bytes": len(data),
+        "mixed": bool(mixed),
+        "maximal_wood": bool(maximal),
+        "schnyder_seconds": round(enc.wood_seconds, 4),
+        "words_seconds": round(enc.words_seconds, 4),
+        "total_seconds": round(time.perf_counter() - t0, 4),
+    }
+
+
+def _read_bytes(path) -> bytes:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read()
+    except OSError as exc:
+        raise errors.FormatError(f"cannot read .cds file {os.fspath(path)!r}: {exc.strerror}") from exc
+
+
+def _with_file_offset(exc: errors.EncodingError, words: Words) -> errors.EncodingError:
+    return errors.EncodingError(f"{exc} [connectivity section starts at byte {ff.HEADER_SIZE}]")
+
+
+def read_cds(path: str | os.PathLike, *, original_order: bool = True, drop_dummies: bool = True,
+             return_table: bool = False):
+    """Read a ``.cds`` file: ``(TriMesh, info)`` (or ``(TriMesh, info, table)``).
+
+    The mesh is in the original vertex order when the file stores it (and ``original_order``),
+    else in decoded order; dummy vertices and their faces are dropped (``drop_dummies``).
+    Raises :class:`FormatError` / :class:`EncodingError` naming the byte / bit offset."""
+    t0 = time.perf_counter()
+    data = _read_bytes(path)
+    c = ff.unpack_cds(data)
+    t1 = time.perf_counter()
+    try:
+        faces, table = decode_faces(c.words)
+    except errors.EncodingError as exc:
+        raise _with_file_offset(exc, c.words) from None
+    t2 = time.perf_counter()
+    n = c.words.num_vertices
+    pos = (np.asarray(c.positions, dtype=np.float64) if c.positions is not None
+           else np.zeros((n, 3), dtype=np.float64))
+    dummy = c.dummy
+    if original_order and c.order is not None:
+        inv_pos = np.empty_like(pos)
+        inv_pos[c.order] = pos
+        pos = inv_pos
+        faces = c.order[faces].astype(np.int32)
+        if dummy is not None:
+            d2 = np.empty_like(dummy)
+            d2[c.order] = dummy
+            dummy = d2
+    dummy_faces = None
+    if dummy is not None:
+        dummy_faces = dummy[faces].any(axis=1)
+    if drop_dummies and dummy is not None and dummy.any():
+        keep = ~dummy
+        remap = np.cumsum(keep) - 1
+        faces = remap[faces[~dummy_faces]].astype(np.int32)
+        pos = pos[keep]
+        dummy = dummy_faces = None
+    mesh = TriMesh(vertices=pos, faces=np.ascontiguousarray(faces, dtype=np.int32),
+                   dummy_vertices=dummy, dummy_faces=dummy_faces, source=os.fspath(path))
+    info = {
+        "num_vertices_encoded": n,
+        "connectivity_bits": c.words.num_bits,
+        "bits_per_vertex": round(c.words.num_bits / n, 4),
+        "mixed": bool(c.words.mixed),
+        "has_geometry": c.positions is not None,
+        "has_order": c.order is not None,
+        "dummy_vertices": int(c.dummy.sum()) if c.dummy is not None else 0,
+        "file_bytes": len(data),
+        "read_seconds": round(t1 - t0, 4),
+        "decode_seconds": round(t2 - t1, 4),
+    }
+    return (mesh, info, table) if return_table else (mesh, info)
+
+
+def cds_info(path: str | os.PathLike) -> dict:
+    """Report of a ``.cds`` file: the mesh keys of :func:`jaxcds.mesh.topology` (of the
+    decoded mesh) plus ``connectivity_bits``, ``bits_per_vertex``, ``file_bytes``,
+    ``format_version``, ``mixed``, ``has_geometry``, ``has_order``, ``dummy_vertices``."""
+    mesh, info = read_cds(path)
+    rep = topology(mesh)
+    head = ff.read_header(_read_head(path), os.path.getsize(path))
+    rep.update({
+        "connectivity_bits": info["connectivity_bits"],
+        "bits_per_vertex": info["bits_per_vertex"],
+        "file_bytes": info["file_bytes"],
+        "format_version": head["version"],
+        "mixed": info["mixed"],
+        "has_geometry": info["has_geometry"],
+        "has_order": info["has_order"],
+        "dummy_vertices_encoded": info["dummy_vertices"],
+    })
+    return rep
+
+
+def _read_head(path) -> bytes:
+    with open(path, "rb") as fh:
+        return fh.read(ff.HEADER_SIZE)
+
+
+# --------------------------------------------------------------------------- CLI helpers
+_MESH_TYPES = {".off": "off", ".obj": "obj", ".ply": "ply", ".stl": "stl"}
+
+
+def write_mesh_atomic(path: str | os.PathLike, mesh: TriMesh) -> None:
+    """Write ``mesh`` as .off / .obj / .ply / .stl (by suffix) to a temporary file in the same
+    folder, then rename it over ``path``."""
+    import trimesh
+
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in _MESH_TYPES:
+        raise errors.UnreadableMeshError(f"cannot write {path!r}: unknown suffix {ext!r} "
+                                         f"(use {', '.join(_MESH_TYPES)})")
+    tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False, validate=False)
+    data = tm.export(file_type=_MESH_TYPES[ext])
+    if isinstance(data, str):
+        data = data.encode()
+    ff.atomic_write_bytes(path, data)
+
+
+def encode_file(mesh_path: str | os.PathLike, out_path: str | os.PathLike, *, mixed: bool = True,
+                keep_order: bool = True) -> dict:
+    """``jaxcds encode MESH -o FILE.cds``: load, encode, write atomically; JSON-able report
+    (adds ``input_bytes``, ``binary_off_bytes`` and ``ratio_vs_binary_off``)."""
+    mesh = load_mesh(mesh_path)
+    rep = write_cds(out_path, mesh, mixed=mixed, keep_order=keep_order)
+    rep["input"] = os.fspath(mesh_path)
+    rep["input_bytes"] = os.path.getsize(mesh_path)
+    n, f = mesh.num_vertices, mesh.num_faces
+    rep["binary_off_bytes"] = 12 * n + 12 * f  # float32 xyz + 3 int32 per face (Table 2 note 6)
+    rep["ratio_vs_binary_off"] = round(rep["file_bytes"] / rep["binary_off_bytes"], 4)
+    return rep
+
+
+def decode_file(cds_path: str | os.PathLike, out_path: str | os.PathLike, *,
+                structure: Optional[str] = None, verify: bool = False) -> dict:
+    """``jaxcds decode FILE.cds -o MESH.off|.obj|.ply [--structure cds6n|cds5n]``: read and decode,
+    optionally build a CDS structure from the decoded words (and ``verify`` it against the
+    half-edge), write the mesh atomically. Returns a JSON-able report."""
+    mesh, info, table = read_cds(cds_path, return_table=True)
+    rep = {"input": os.fspath(cds_path), "output": os.fspath(out_path),
+           "vertices": mesh.num_vertices, "faces": mesh.num_faces, **info}
+    if structure:
+        from jaxcds.codec.structures import build_cds
+        from jaxcds.codec.decode import faces_from_paper6n
+
+        t0 = time.perf_counter()
+        faces = faces_from_paper6n(table)
+        s = build_cds(structure, faces, table)
+        rep["structure"] = structure
+        rep["structure_seconds"] = round(time.perf_counter() - t0, 4)
+        rep["references"] = int(s.references)
+        if verify:
+            from jaxcds.verify import verify as run_verify
+
+            dm = TriMesh(vertices=np.zeros((table.num_vertices, 3)), faces=faces)
+            r = run_verify(s, dm)
+            rep["checked"] = int(r.checked)
+            rep["mismatches"] = int(r.mismatches)
+    write_mesh_atomic(out_path, mesh)
+    rep["output_bytes"] = os.path.getsize(out_path)
+    return rep
