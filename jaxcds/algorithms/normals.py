@@ -21,6 +21,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxcds import errors
+
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals"]
 
 
@@ -54,12 +56,23 @@ def vertex_normals(s, positions, method: str = "scatter"):
 
     ``positions`` are in the structure's vertex order (``positions[s.vertex_order]`` when the
     structure permuted vertices). Border darts contribute nothing. Differentiable.
+
+    Raises:
+      MeshError: ``positions`` is not ``(num_vertices, 3)`` (checked at trace time).
     """
+    _check_positions(s, positions)
     if method == "scatter":
         return normalize(_scatter_sums(s, positions))
     if method == "gather":
         return _gather_normals(s, positions)
     raise ValueError(f"unknown method {method!r}: 'scatter' or 'gather'")
+
+
+def _check_positions(s, positions) -> None:
+    if positions.ndim != 2 or positions.shape != (s.num_vertices, 3):
+        raise errors.MeshError(
+            f"positions must have shape ({s.num_vertices}, 3) for this {s.name} "
+            f"(structure vertex order), got {tuple(positions.shape)}")
 
 
 def _scatter_sums(s, positions):

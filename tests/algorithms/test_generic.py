@@ -117,3 +117,12 @@ def test_algorithms_are_jitted_once():
     n_before = vertex_normals._cache_size()
     vertex_normals(he, pos + 1.0)
     assert vertex_normals._cache_size() == n_before
+
+
+def test_positions_of_wrong_shape_are_refused():
+    from jaxcds import errors
+
+    v, f = octahedron()
+    he = HalfEdge.from_mesh(load_mesh(v, f))
+    with pytest.raises(errors.MeshError, match=r"positions must have shape \(6, 3\)"):
+        vertex_normals(he, jnp.zeros((5, 3)))
