@@ -148,25 +148,32 @@ def _read_bytes(path) -> bytes:
         raise errors.FormatError(f"cannot read .cds file {os.fspath(path)!r}: {exc.strerror}") from exc
 
 
-def _with_file_offset(exc: errors.EncodingError, words: Words) -> errors.EncodingError:
-    return errors.EncodingError(f"{exc} [connectivity section starts at byte {ff.HEADER_SIZE}]")
+def _with_file_offset(exc: errors.EncodingError) -> errors.EncodingError:
+    bit = getattr(exc, "bit", None)
+    if bit is None:
+        return errors.EncodingError(f"{exc} (connectivity section: bytes from {ff.HEADER_SIZE})")
+    return errors.EncodingError(f"{exc}; file byte {ff.HEADER_SIZE + bit // 8}, bit {bit % 8} (MSB first)")
 
 
 def read_cds(path: str | os.PathLike, *, original_order: bool = True, drop_dummies: bool = True,
              return_table: bool = False):
-    """Read a ``.cds`` file: ``(TriMesh, info)`` (or ``(TriMesh, info, table)``).
+    """Read a ``.cds`` file (a path, or the file's bytes): ``(TriMesh, info)`` (or
+    ``(TriMesh, info, table)``).
 
     The mesh is in the original vertex order when the file stores it (and ``original_order``),
     else in decoded order; dummy vertices and their faces are dropped (``drop_dummies``).
     Raises :class:`FormatError` / :class:`EncodingError` naming the byte / bit offset."""
     t0 = time.perf_counter()
-    data = _read_bytes(path)
+    if isinstance(path, (bytes, bytearray, memoryview)):
+        data, path = bytes(path), "<bytes>"
+    else:
+        data = _read_bytes(path)
     c = ff.unpack_cds(data)
     t1 = time.perf_counter()
     try:
         faces, table = decode_faces(c.words)
     except errors.EncodingError as exc:
-        raise _with_file_offset(exc, c.words) from None
+        raise _with_file_offset(exc) from None
     t2 = time.perf_counter()
     n = c.words.num_vertices
     pos = (np.asarray(c.positions, dtype=np.float64) if c.positions is not None

@@ -376,8 +376,10 @@ def _raise(status: int, bit: int, vertex: int, words: Words, where: str) -> None
         loc = f"bit {bit - 2 * n} of the black word (bit {bit} of the connectivity)"
     else:
         loc = f"bit {bit} of the red word"
-    raise errors.EncodingError(f"{where}: {_MESSAGES.get(status, 'invalid word')} at {loc} "
+    exc = errors.EncodingError(f"{where}: {_MESSAGES.get(status, 'invalid word')} at {loc} "
                                f"(vertex {vertex}, n = {n})")
+    exc.bit = int(bit)  # offset in the connectivity bits (red ++ black, or mixed)
+    raise exc
 
 
 def decode_paper6n(words: Words, *, targets: bool = True) -> Paper6n:

@@ -7,19 +7,7 @@ from jaxcds import errors
 from jaxcds.codec import words as W
 from jaxcds.codec.decode import decode_faces
 
-# Fig. 9 / Sec. 3.1. The paper prints the red word twice: undecorated as
-# "(() () () () () ((() ())) ())" (22 symbols: 11 vertices, a typo) and decorated with vertex
-# indices "(0 (1)1 (2)2 (3)3 (4)4 (5 (6 (7)7 (8)8 )6 )5 (9)9 )0" (20 symbols, n = 10). The
-# 17-bit black word (2n - 3 = 17) and the mixed word of Sec. 3.3 both agree with n = 10.
-FIG9_RED = "(0 (1)1 (2)2 (3)3 (4)4 (5 (6 (7)7 (8)8 )6 )5 (9)9 )0"
-FIG9_RED_PLAIN = "".join(c for c in FIG9_RED if c in "()")
-FIG9_BLACK = "00000011010101110"
-# Sec. 3.3, subscripts dropped: 0_0 0_0 0_1 0_1 1_1 0_2 0_2 1_2 ... 0_9 1110_9 1_9 1_0
-FIG9_MIXED = ("0 0 0 0 1 0 0 1 0 0 1 0 0 1 0 0 0 110 0 10 1 0 10 1 1 1 0 1110 1 1").replace(" ", "")
-
-
-def fig9():
-    return W.from_strings(FIG9_RED_PLAIN, FIG9_BLACK)
+from codec_helpers import FIG9_BLACK, FIG9_MIXED, FIG9_RED_PLAIN, fig9
 
 
 def test_fig9_lengths_and_degrees():

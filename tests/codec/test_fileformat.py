@@ -1,0 +1,245 @@
+"""The .cds container: round trips on shared meshes, and every kind of bad input gives a typed
+error naming where (docs/cds-format.md)."""
+
+import os
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from jaxcds import errors
+from jaxcds.codec import cds_info, decode_file, encode_file, read_cds, write_cds
+from jaxcds.codec import fileformat as ff
+from jaxcds.codec.words import Words, pack
+from jaxcds.generators import icosphere
+
+from codec_helpers import canon_faces, fig9
+from conftest import CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, load_shared, mesh_params
+
+CORPUS = os.path.join(os.path.dirname(__file__), "corpus")
+
+
+@pytest.mark.parametrize("name", mesh_params(CLOSED_GENUS0 + HOLED_GENUS0))
+def test_shared_mesh_round_trip(name, tmp_path):
+    m = load_shared(name)
+    path = tmp_path / "m.cds"
+    rep = write_cds(path, m)
+    assert rep["bits_per_vertex"] <= 4.0
+    m2, info = read_cds(path)
+    assert m2.num_vertices == m.num_vertices
+    assert np.array_equal(m2.vertices, m.vertices.astype(np.float32).astype(np.float64))
+    assert canon_faces(m2.faces) == canon_faces(m.faces)
+    assert info["connectivity_bits"] == 4 * info["num_vertices_encoded"] - 3
+
+
+@pytest.mark.parametrize("name", HIGHER_GENUS)
+def test_higher_genus_is_refused_and_no_file_left(name, tmp_path):
+    path = tmp_path / "g.cds"
+    with pytest.raises(errors.UnsupportedTopologyError):
+        write_cds(path, load_shared(name))
+    assert os.listdir(tmp_path) == []
+
+
+def test_decoded_order_without_permutation(tmp_path):
+    m = icosphere(2)
+    path = tmp_path / "i.cds"
+    write_cds(path, m, keep_order=False)
+    m2, info = read_cds(path)
+    assert not info["has_order"] and info["file_bytes"] == ff.file_size(m.num_vertices, ff.FLAG_MIXED | ff.FLAG_GEOMETRY)
+    # same triangles up to a renumbering: positions identify the vertices
+    key = {tuple(p): i for i, p in enumerate(m.vertices.astype(np.float32).tolist())}
+    remap = np.array([key[tuple(p)] for p in m2.vertices.astype(np.float32).tolist()])
+    assert canon_faces(remap[m2.faces]) == canon_faces(m.faces)
+
+
+def test_info_and_cli_helpers(tmp_path):
+    src = tmp_path / "ico.off"
+    m = icosphere(2)
+    from jaxcds.codec import write_mesh_atomic
+    write_mesh_atomic(src, m)
+    rep = encode_file(src, tmp_path / "ico.cds")
+    assert rep["file_bytes"] < rep["binary_off_bytes"]
+    info = cds_info(tmp_path / "ico.cds")
+    assert info["vertices"] == m.num_vertices and info["genus"] == 0 and info["closed"]
+    assert info["connectivity_bits"] == 4 * m.num_vertices - 3
+    assert info["bits_per_vertex"] == round((4 * m.num_vertices - 3) / m.num_vertices, 4)
+    for ext in (".off", ".obj", ".ply"):
+        out = tmp_path / ("back" + ext)
+        r = decode_file(tmp_path / "ico.cds", out)
+        assert r["vertices"] == m.num_vertices and out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".tmp")) == []
+
+
+# ------------------------------------------------------------------------- corruption
+def _small_file(tmp_path):
+    path = tmp_path / "small.cds"
+    write_cds(path, icosphere(0))  # 12 vertices
+    return path, path.read_bytes()
+
+
+def _read_bytes(tmp_path, data, name="bad.cds"):
+    p = tmp_path / name
+    p.write_bytes(data)
+    return read_cds(p)
+
+
+def _recrc_header(b: bytearray) -> bytearray:
+    b[32:36] = struct.pack("<I", zlib.crc32(bytes(b[:32])) & 0xFFFFFFFF)
+    return b
+
+
+def test_every_single_bit_flip_is_detected(tmp_path):
+    _, data = _small_file(tmp_path)
+    read_cds(data)  # the intact bytes read fine
+    for byte in range(len(data)):
+        for bit in range(8):
+            b = bytearray(data)
+            b[byte] ^= 1 << bit
+            with pytest.raises(errors.CodecError, match="byte"):
+                read_cds(bytes(b))
+
+
+@pytest.mark.parametrize("cut", [0, 5, 35, 36, 40, -5, -1])
+def test_truncated(tmp_path, cut):
+    _, data = _small_file(tmp_path)
+    with pytest.raises(errors.FormatError, match="truncated") as exc:
+        _read_bytes(tmp_path, data[:cut])
+    assert "byte" in str(exc.value)
+
+
+def test_wrong_magic_version_trailing(tmp_path):
+    _, data = _small_file(tmp_path)
+    with pytest.raises(errors.FormatError, match="magic.*byte 0"):
+        _read_bytes(tmp_path, b"PLY\n" + data[4:])
+    b = bytearray(data)
+    b[8:10] = struct.pack("<H", 7)
+    with pytest.raises(errors.FormatError, match="version 7 at byte 8"):
+        _read_bytes(tmp_path, bytes(_recrc_header(b)))
+    with pytest.raises(errors.FormatError, match="trailing"):
+        _read_bytes(tmp_path, data + b"\0")
+
+
+def test_giant_vertex_count_is_refused_before_allocating(tmp_path):
+    _, data = _small_file(tmp_path)
+    for n in (2**31 - 1, 2**40, 3):
+        b = bytearray(data)
+        b[12:20] = struct.pack("<Q", n)
+        b[20:28] = struct.pack("<Q", max(4 * n - 3, 0))
+        with pytest.raises(errors.FormatError, match="byte 12|truncated"):
+            _read_bytes(tmp_path, bytes(_recrc_header(b)))
+
+
+def test_vertex_count_and_bit_count_must_match(tmp_path):
+    _, data = _small_file(tmp_path)
+    b = bytearray(data)
+    b[20:28] = struct.pack("<Q", 4 * 12 - 2)
+    with pytest.raises(errors.FormatError, match="byte 20"):
+        _read_bytes(tmp_path, bytes(_recrc_header(b)))
+    b = bytearray(data)
+    b[12:20] = struct.pack("<Q", 13)
+    b[20:28] = struct.pack("<Q", 4 * 13 - 3)
+    with pytest.raises(errors.FormatError, match="truncated|trailing"):
+        _read_bytes(tmp_path, bytes(_recrc_header(b)))
+
+
+def _file_with_words(words: Words, **kw) -> bytes:
+    return ff.pack_cds(words, **kw)
+
+
+def test_invalid_words_with_valid_checksums(tmp_path):
+    w = fig9()
+    bits = w.unpacked().copy()
+    bits[5] ^= 1  # unbalanced red word
+    bad = Words(10, pack(bits))
+    with pytest.raises(errors.EncodingError, match=r"bit 6 of the red word .*file byte 36, bit 6"):
+        _read_bytes(tmp_path, _file_with_words(bad))
+    bits = w.unpacked().copy()
+    bits[20 + 7] ^= 1  # a black count changed
+    with pytest.raises(errors.EncodingError, match="black"):
+        _read_bytes(tmp_path, _file_with_words(Words(10, pack(bits))))
+
+
+def test_order_must_be_a_permutation(tmp_path):
+    w = fig9()
+    order = np.arange(10)
+    order[3] = 4
+    with pytest.raises(errors.FormatError, match="not a permutation"):
+        _read_bytes(tmp_path, _file_with_words(w, order=order))
+    order[3] = 99
+    with pytest.raises(errors.FormatError, match="byte"):
+        _read_bytes(tmp_path, _file_with_words(w, order=order))
+
+
+def test_non_finite_geometry(tmp_path):
+    pos = np.zeros((10, 3), np.float32)
+    pos[6, 1] = np.nan
+    with pytest.raises(errors.FormatError, match="vertex 6 at byte"):
+        _read_bytes(tmp_path, _file_with_words(fig9(), positions=pos))
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(errors.FormatError, match="cannot read"):
+        read_cds(tmp_path / "nope.cds")
+
+
+# ------------------------------------------------------------------------- fuzzing
+def _expect_codec_error_or_ok(tmp_path, data: bytes):
+    p = tmp_path / "fuzz.cds"
+    p.write_bytes(data)
+    try:
+        read_cds(p)
+    except errors.CodecError:
+        pass
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.binary(min_size=0, max_size=200))
+def test_fuzz_random_bytes(tmp_path, blob):
+    _expect_codec_error_or_ok(tmp_path, ff.MAGIC + blob)
+
+
+@settings(max_examples=300, deadline=None)
+@given(n=st.integers(4, 40), data=st.data())
+def test_fuzz_decoder_on_random_words(n, data):
+    """Arbitrary bit strings of the right length: a decoded triangulation or an EncodingError,
+    never a crash or a hang; mixed and separate forms both."""
+    from jaxcds.codec import decode_faces
+
+    nb = 4 * n - 3
+    bits = np.array(data.draw(st.lists(st.integers(0, 1), min_size=nb, max_size=nb)), dtype=np.uint8)
+    for mixed in (False, True):
+        try:
+            faces, _ = decode_faces(Words(n, pack(bits), mixed=mixed))
+        except errors.EncodingError:
+            continue
+        from codec_helpers import is_closed_sphere
+        assert is_closed_sphere(faces, n)
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(4, 30), seed=st.integers(0, 2**31 - 1), flips=st.integers(1, 3))
+def test_fuzz_mutated_valid_words(n, seed, flips):
+    """Valid words with a few bits flipped (checksums recomputed): sphere or EncodingError."""
+    from jaxcds.codec import decode_faces
+    from codec_helpers import is_closed_sphere, random_words
+
+    rng = np.random.default_rng(seed)
+    w = random_words(n, rng)
+    bits = w.unpacked().copy()
+    for i in rng.integers(0, bits.size, flips):
+        bits[i] ^= 1
+    try:
+        faces, _ = decode_faces(Words(n, pack(bits)))
+    except errors.EncodingError:
+        return
+    assert is_closed_sphere(faces, n)
+
+
+def test_corpus_regressions(tmp_path):
+    """Inputs kept from fuzzing (tests/codec/corpus/*.cds): each must raise a CodecError."""
+    files = sorted(f for f in os.listdir(CORPUS) if f.endswith(".cds")) if os.path.isdir(CORPUS) else []
+    for f in files:
+        with pytest.raises(errors.CodecError):
+            read_cds(os.path.join(CORPUS, f))

@@ -1,0 +1,87 @@
+"""Decode -> encode -> decode identity, mesh -> words -> mesh, and the decoded Thm 2 table against
+its definitions (CDS paper Sec. 2.1, 3.1, 3.2)."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from jaxcds.codec import (decode, decode_faces, decode_paper6n, encode_mesh, encode_schnyder,
+                          encode_wood, to_mixed, to_separate)
+from jaxcds.construct.schnyder import schnyder_wood
+from jaxcds.generators import icosphere, random_planar_triangulation
+
+from codec_helpers import brute_table, canon_faces, fig9, is_closed_sphere, random_words
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(4, 60), seed=st.integers(0, 2**31 - 1))
+def test_random_valid_words_decode_to_spheres_and_reencode(n, seed):
+    """Every word passing the stack conditions is a Schnyder wood: it decodes to a closed
+    sphere, and re-encoding the decoded wood gives back the same bits (decode-encode identity)."""
+    w = random_words(n, np.random.default_rng(seed))
+    faces, table = decode_faces(w)
+    assert is_closed_sphere(faces, n)
+    w2, order = encode_wood(faces, n, table.T[0], table.T[2], (0, 1, n - 1))
+    assert w2 == w and np.array_equal(order, np.arange(n))
+    faces_m, _ = decode_faces(to_mixed(w))
+    assert np.array_equal(faces, faces_m)
+
+
+@pytest.mark.parametrize("n", [4, 5, 10, 200])
+@pytest.mark.parametrize("maximal", [True, False])
+def test_mesh_words_mesh(n, maximal):
+    """mesh -> (any / maximal) Schnyder wood -> words -> faces equals the mesh re-indexed by order,
+    and the decoded wood is the encoded one."""
+    m = random_planar_triangulation(n, seed=n + 7)
+    wood = schnyder_wood(m.faces, n, maximal=maximal)
+    words, order = encode_schnyder(wood)
+    assert words.num_bits == 4 * n - 3
+    w2, o2 = encode_wood(m.faces, n, wood.out[:, 0], wood.out[:, 2], wood.outer)
+    assert w2 == words and np.array_equal(o2, order)
+    faces, table = decode_faces(words)
+    inv = np.empty(n, np.int64)
+    inv[order] = np.arange(n)
+    assert canon_faces(inv[m.faces]) == canon_faces(faces)
+    for c in range(3):
+        tgt = wood.out[order, c]
+        expect = np.where(tgt < n, inv[np.minimum(tgt, n - 1)], n)
+        assert np.array_equal(table.T[c], expect), c
+    # decode -> encode -> decode
+    w3, o3 = encode_wood(faces, n, table.T[0], table.T[2], (0, 1, n - 1))
+    assert w3 == words and np.array_equal(o3, np.arange(n))
+
+
+@pytest.mark.parametrize("case", ["fig9", "ico", "random-max", "random-any"])
+def test_decoded_table_matches_definitions(case):
+    if case == "fig9":
+        w = fig9()
+    elif case == "ico":
+        m = icosphere(1)
+        w = encode_mesh(m, mixed=False).words
+    else:
+        m = random_planar_triangulation(120, seed=3)
+        w, _ = encode_schnyder(schnyder_wood(m.faces, 120, maximal=case == "random-max"))
+    n = w.num_vertices
+    faces, p = decode_faces(w)
+    S, C, I = brute_table(faces, p.T, n)
+    exists = p.T < n
+    for c in range(3):
+        for side in range(2):
+            ok = exists[c].copy()
+            if c == 1 and side == 0:
+                ok[n - 1] = False  # LeftFront of (V_black, V_blue) is on the outer face (Thm 4 proof)
+            assert np.array_equal(p.S[c, side][ok], S[c, side][ok]), (c, side)
+            assert np.array_equal(p.C[c, side][ok], C[c, side][ok]), (c, side)
+        assert np.array_equal(p.I[c], I[c]), c
+    # the table alone (no targets: the red and black stacks in the blue columns) is the same
+    q = decode_paper6n(w, targets=False)
+    assert q.T is None and np.array_equal(q.S, p.S) and np.array_equal(q.C, p.C) and np.array_equal(q.I, p.I)
+
+
+def test_mixed_and_separate_agree_on_a_real_mesh():
+    m = icosphere(3)
+    enc = encode_mesh(m, mixed=True)
+    assert enc.words.mixed and enc.bits_per_vertex < 4
+    sep = to_separate(enc.words)
+    assert np.array_equal(decode(sep), decode(enc.words))
+    assert to_mixed(sep) == enc.words
