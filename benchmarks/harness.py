@@ -476,9 +476,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     repeats = a.repeats or (3 if a.quick else 7)
     queries = a.queries or (4096 if a.quick else 1 << 20)
     command = " ".join(["jaxcds bench"] + argv)
-    res = run(meshes, structures=_split(a.structures), peers=_split(a.peers), repeats=repeats,
-              queries=queries, dtype=a.dtype, ops=_split(a.ops), command=command,
-              budget_s=a.budget)
+    from jaxcds import errors
+
+    try:
+        res = run(meshes, structures=_split(a.structures), peers=_split(a.peers), repeats=repeats,
+                  queries=queries, dtype=a.dtype, ops=_split(a.ops), command=command,
+                  budget_s=a.budget)
+    except errors.JaxcdsError as exc:
+        print(f"jaxcds bench: error: {exc}", file=sys.stderr)
+        return 2
     out_dir = a.out if a.out else (None if a.quick else os.path.dirname(os.path.abspath(__file__)))
     if out_dir:
         from benchmarks.report import write_report

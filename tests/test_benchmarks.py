@@ -1,0 +1,123 @@
+"""Smoke test of the benchmark harness (its ``--quick`` mode, as CI runs it) and of its timers."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+
+import numpy as np
+import pytest
+
+from benchmarks import harness, peers, report
+
+
+def test_timers_report_median_and_respect_the_budget():
+    t = harness.time_call(lambda: time.sleep(0.02), repeats=5)
+    assert len(t["times"]) == 5 and 0.02 <= t["median_s"] < 0.5 and t["min_s"] <= t["median_s"]
+    t = harness.time_call(lambda: time.sleep(0.05), repeats=50, budget_s=0.1)
+    assert 1 <= len(t["times"]) <= 2  # 50 runs of 50 ms would take 2.5 s
+
+    import jax
+    import jax.numpy as jnp
+
+    f = jax.jit(lambda x: jnp.sort(x))
+    x = jnp.arange(1000, dtype=jnp.float32)[::-1]
+    t = harness.time_compiled(f, (x,), repeats=3)
+    assert t["compile_s"] > 0 and len(t["times"]) == 3 and t["median_s"] > 0
+
+
+def test_reference_normals_and_error_mapping():
+    from jaxcds.generators import icosphere
+
+    m = icosphere(2)
+    ref = harness._reference_normals(m.vertices, m.faces)
+    # on a sphere the area-weighted normal is close to the position itself
+    assert np.max(np.abs(ref - m.vertices)) < 0.05
+    order = np.random.default_rng(0).permutation(m.num_vertices)
+    assert harness._max_err(ref[order], ref, order) == 0.0
+    assert harness._max_err(ref[order], ref, None) > 0.5  # forgetting the permutation is caught
+
+
+def test_quick_mode_smoke(tmp_path, capsys):
+    """The quick run end to end: JSON on stdout, RESULTS.md and plots written, every normals
+    result right, OpenMesh either timed or skipped with its reason."""
+    t0 = time.perf_counter()
+    rc = harness.main(["--quick", "--json", "--out", str(tmp_path),
+                       "--structures", "halfedge,corner-table"])
+    elapsed = time.perf_counter() - t0
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    assert elapsed < 120  # < 60 s on an idle 2-core machine
+    assert set(res) >= {"machine", "command", "settings", "meshes", "timings", "memory", "skipped", "summary"}
+    assert res["machine"]["jax"] and res["command"].startswith("jaxcds bench --quick")
+    assert [m["name"] for m in res["meshes"]] == harness.QUICK_MESHES
+    rows = res["timings"]
+    impls = {r["impl"] for r in rows}
+    assert {"halfedge", "corner-table", "plain-jax", "numba-loop", "trimesh"} <= impls
+    for st in ("halfedge", "corner-table"):
+        ops = {r["op"] for r in rows if r["impl"] == st}
+        assert ops == {"vertex_degrees", "vertex_normals[scatter]", "vertex_normals[gather]",
+                       "target", "face_left", "adjacent"}
+    for r in rows:
+        assert r["ns_per_item"] > 0 and r["median_s"] > 0 and r["per"] in ("vertex", "query")
+        if r["op"].startswith("vertex_normals") and r["impl"] != "trimesh":
+            assert r["max_err"] < 1e-4, r  # trimesh weights by angle: not comparable
+        if r["op"] == "vertex_degrees" and r["kind"] == "structure":
+            assert r["max_err"] == 0
+    mem = {r["structure"]: r for r in res["memory"]}
+    n = res["meshes"][0]["vertices"]
+    # CDS paper Table 1 counts, on a closed triangulation: 19n and 13n references
+    assert mem["halfedge"]["references"] == 19 * n - 36  # 3 * (6n - 12) + n
+    assert mem["corner-table"]["references"] == 13 * n - 24  # 2 * (6n - 12) + n
+    assert all(r["bytes"] > 0 for r in res["memory"])
+    if "openmesh" not in impls:
+        assert any(s["impl"] == "openmesh" and "openmesh" in s["reason"] for s in res["skipped"])
+    for name in ("RESULTS.md", "normals.png", "queries.png", "memory.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    md = (tmp_path / "RESULTS.md").read_text()
+    assert "| halfedge |" in md and res["machine"]["jax"] in md
+    assert "## Skipped" in md or "openmesh" in impls
+
+
+def test_cli_bench_entry_and_bad_names(capsys):
+    from jaxcds import cli
+
+    rc = cli.main(["bench", "--quick", "--json", "--structures", "halfedge", "--peers",
+                   "--ops", "vertex_degrees", "--repeats", "1"])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    assert {(r["impl"], r["op"]) for r in res["timings"]} == {("halfedge", "vertex_degrees")}
+    rc = cli.main(["bench", "--quick", "--structures", "no-such-structure", "--peers"])
+    assert rc != 0
+    assert "no-such-structure" in capsys.readouterr().err
+
+
+def test_peers_agree_with_reference():
+    from jaxcds.generators import sphere_hull
+
+    m = sphere_hull(300, seed=2)
+    ref = harness._reference_normals(m.vertices, m.faces)
+    for name in ("plain-jax", "numba-loop", "libigl"):
+        try:
+            ops = peers.PEERS[name](m.vertices, m.faces)
+        except peers.PeerUnavailable:
+            continue
+        assert harness._max_err(ops["vertex_normals"][0](), ref) < 1e-5, name
+    for name, (fn, _) in peers.plain_jax_variants(m.vertices, m.faces).items():
+        assert harness._max_err(fn(), ref) < 1e-5, name
+    deg = np.bincount(m.faces.ravel(), minlength=m.num_vertices)
+    for name in ("plain-jax", "numba-loop", "trimesh"):
+        got = np.asarray(peers.PEERS[name](m.vertices, m.faces)["vertex_degrees"][0]())
+        np.testing.assert_array_equal(got, deg)
+
+
+def test_report_markdown_from_minimal_results():
+    res = {"machine": {"date": "d", "cpu": "c", "cores": 2, "memory_bytes": None, "platform": "p",
+                       "python": "3", "jax": "0.x", "jax_backend": "cpu", "numpy": "2", "numba": "0"},
+           "command": "jaxcds bench", "settings": {"dtype": "float32", "repeats": 1, "queries": 1,
+                                                   "budget_s": 1},
+           "meshes": [{"name": "m", "vertices": 1, "faces": 1}], "timings": [], "memory": [],
+           "skipped": [{"impl": "openmesh", "reason": "not installed"}], "summary": {}}
+    md = report.markdown(res)
+    assert "## m: 1 vertices" in md and "openmesh: not installed" in md
