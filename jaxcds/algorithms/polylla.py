@@ -1,0 +1,564 @@
+"""Polylla: polygonal meshes from terminal-edge regions, written once against the navigation protocol.
+
+Salinas-Fernández, Hitschfeld-Kahler, Ortiz-Bernardin, Si, *POLYLLA: polygonal meshing algorithm
+based on terminal-edge regions*, Engineering with Computers 38(5), 2022 (Alg. 1-4); IMR 2023 slides
+(``../shared/seeds/004_*``): "label phase, traversal phase, polygon reparation phase".
+
+Vocabulary (paper Sec. 2). The *longest-edge propagation path* Lepp(t) of a triangle walks to the
+neighbour across the longest edge until the longest edge is shared by both triangles (a *terminal
+edge*) or lies on the border (a *border terminal edge*). A *terminal-edge region* is the union of
+the triangles whose Lepp ends at the same terminal edge; every region becomes one polygon. An edge
+is a *frontier edge* when it lies on the border or is the longest edge of neither of its triangles
+(Def. 4: its two triangles are in different regions, or it is a *barrier edge*: both triangles in
+the same region); a *barrier-edge tip* is the end of a barrier edge with no other frontier edge.
+
+Every phase is a set of elementwise or gather operations on dart arrays, jitted, and calls only
+the protocol operators (``origin``, ``target``, ``twin``, ``next``, ``prev``, ``is_border``,
+``cw_vertex_edge``, ``ccw_vertex_edge``, ``dart_valid``), so it runs unchanged on every structure
+that accepts borders (HalfEdge, pemb):
+
+1. :func:`label_phase` (Alg. 1 lines 1-9, elementwise): longest edge of each triangle, frontier
+   edges, seed edges (one dart per terminal / border terminal edge).
+2. :func:`traversal_phase` (Alg. 2): the reference walks each polygon from its seed turning
+   clockwise around vertices until it meets a frontier edge (``search_frontier_edge``). Here that
+   walk is a *successor map* on frontier darts: ``succ(f)`` = first frontier dart met turning
+   clockwise (``cw_vertex_edge``) from ``next(f)``; the polygons are its cycles. The "turn until
+   frontier" table is computed for all darts at once by pointer doubling (``O(log deg)`` gathers).
+3. :func:`barrier_tips` / :func:`middle_edges` / :func:`repair_phase` (Alg. 3-4): a tip is a dart
+   whose successor is its own twin (the walk goes up a barrier edge and straight back); the edge in
+   the middle of the tip's fan (reference ``search_middle_edge``: ``deg // 2`` clockwise turns from
+   the barrier edge) becomes frontier, and only the successors around the new frontier darts
+   change (two short rotations per new dart).
+4. :func:`walk_polygons`: one lane per seed and per new frontier dart walks its cycle (length,
+   canonical start), duplicates are dropped, and a second walk writes the CSR arrays.
+
+Output is canonical and independent of the structure's dart numbering: every polygon starts at
+its lexicographically smallest directed edge ``(origin, target)`` (input vertex ids) and the
+polygons are sorted by that edge, so HalfEdge and pemb give identical arrays.
+
+Host-side parts (said here, as the issue asks): choosing the lane bucket sizes between phases
+(two scalars read back), and counting the repaired polygons (connected components of the pieces
+joined by the new middle edges, scipy on a graph with one edge per barrier-edge tip).
+
+Ties between equally long edges of a triangle are broken by the smaller input vertex-id pair
+``(min id, max id)`` (the reference breaks them by the triangle's corner order, which depends on
+the input file); lengths are squared Euclidean, computed in the dtype of ``positions`` (use
+float64, ``jax.enable_x64``, to reproduce the reference's decisions exactly: :func:`polylla` does).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Optional
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds import errors
+
+__all__ = ["PolyllaMesh", "polylla", "label_phase", "traversal_phase", "barrier_tips",
+           "middle_edges", "repair_phase", "walk_polygons", "polygons_as_cycles",
+           "canonical_cycle"]
+
+_BIG = np.int32(np.iinfo(np.int32).max)
+
+
+def _darts(s):
+    return jnp.arange(s.num_darts, dtype=jnp.int32)
+
+
+# ------------------------------------------------------------------------------ 1. label
+@jax.jit
+def label_phase(s, positions, vertex_ids):
+    """Label phase (paper Alg. 1; slides "Label Phase"), elementwise over all darts.
+
+    Args:
+      s: a structure with borders (``MeshStructure``).
+      positions: ``(V, 2)`` (or ``(V, 3)``) float coordinates in the structure's vertex numbering.
+      vertex_ids: ``(V,)`` int32 input id of every structure vertex (tie-breaking only).
+
+    Returns:
+      ``(max_edge, frontier, seed)``: ``(num_darts,)`` bool arrays. ``max_edge[e]``: ``e`` is the
+      longest edge of its left triangle; ``frontier[e]``: border edge, or longest edge of neither
+      triangle (Def. 4); ``seed[e]``: one dart per terminal edge (the one with the smaller id) and
+      the inner dart of every border terminal edge (Def. 3). Jittable.
+    """
+    e = _darts(s)
+    valid = s.dart_valid(e)
+    border = s.is_border(e) & valid
+    inner = valid & ~border
+    o, t = s.origin(e), s.target(e)
+    d = positions[o] - positions[t]
+    length = jnp.sum(d * d, axis=-1)  # squared, as the reference (no sqrt)
+    vo, vt = vertex_ids[o], vertex_ids[t]
+    lo, hi = jnp.minimum(vo, vt), jnp.maximum(vo, vt)
+
+    def beats(b):
+        # e is longer than b, or as long and with the smaller (min id, max id) vertex pair
+        return ((length > length[b])
+                | ((length == length[b]) & ((lo < lo[b]) | ((lo == lo[b]) & (hi < hi[b])))))
+
+    max_edge = inner & beats(s.next(e)) & beats(s.prev(e))
+    tw = s.twin(e)
+    border_t = s.is_border(tw)
+    max_t = max_edge[tw]
+    # Def. 4: frontier = border edge, or an edge that is the longest of neither triangle
+    frontier = valid & (border | border_t | ~(max_edge | max_t))
+    # Def. 3 case "terminal edge": longest of both triangles (one dart kept, the smaller id);
+    # case "border terminal edge": longest of its only triangle
+    seed = inner & max_edge & (border_t | (max_t & (e < tw)))
+    return max_edge, frontier, seed
+
+
+# ------------------------------------------------------------------------------ 2. traversal
+def _turn_to_frontier(s, frontier, queries, max_rounds: int = 32):
+    """``first frontier dart in the clockwise turn (cw_vertex_edge) starting at q`` for every dart,
+    by pointer doubling: ``p0(e) = e`` on frontier darts (fixed points), ``cw(e)`` elsewhere;
+    ``p <- p[p]`` until every query lands on a frontier dart. Returns ``(p, rounds)``."""
+    e = _darts(s)
+    inner = s.dart_valid(e) & ~s.is_border(e)
+    p = jnp.where(frontier | ~inner, e, s.cw_vertex_edge(e)).astype(jnp.int32)
+    qmask = queries < s.num_darts
+
+    def cond(c):
+        p, k = c
+        return jnp.any(qmask & ~frontier[p[queries]]) & (k < max_rounds)
+
+    def body(c):
+        p, k = c
+        return p[p], k + 1
+
+    return jax.lax.while_loop(cond, body, (p, jnp.int32(0)))
+
+
+@jax.jit
+def traversal_phase(s, frontier):
+    """Traversal phase as a successor map (paper Alg. 2, reference ``travel_triangles``).
+
+    Returns:
+      ``(succ, turn, rounds)``: ``succ`` ``(num_darts,)`` int32, for every frontier dart ``f``
+      with an inner left face the next frontier dart of its polygon (first frontier dart turning
+      clockwise around ``target(f)`` from ``next(f)``), ``num_darts`` elsewhere; ``turn`` the
+      turn-to-frontier table (used to start the walks from seeds); ``rounds`` doubling rounds.
+      Jittable.
+    """
+    e = _darts(s)
+    valid = s.dart_valid(e)
+    active = valid & ~s.is_border(e) & frontier
+    q = jnp.where(active, s.next(e), s.num_darts)
+    turn, rounds = _turn_to_frontier(s, frontier, q)
+    succ = jnp.where(active, turn[jnp.minimum(q, s.num_darts - 1)], s.num_darts)
+    return succ.astype(jnp.int32), turn, rounds
+
+
+@jax.jit
+def barrier_tips(s, succ):
+    """``(num_darts,)`` bool: darts ``f`` arriving at a barrier-edge tip (paper Def. 5).
+
+    The reference detects ``poly[i] == poly[i+2]`` in a polygon's vertex list: the walk goes up a
+    barrier edge to its tip and straight back, i.e. ``succ(f) == twin(f)``."""
+    e = _darts(s)
+    return (succ < s.num_darts) & (succ == s.twin(e))
+
+
+def _rotate(s, start, stop, step, mask, max_steps):
+    """Turn every lane with ``step`` from ``start`` until ``stop(e)`` (lanes not in ``mask`` stay)."""
+
+    def cond(c):
+        d, done, k = c
+        return jnp.any(~done) & (k < max_steps)
+
+    def body(c):
+        d, done, k = c
+        d2 = jnp.where(done, d, step(d))
+        return d2, done | stop(d2), k + 1
+
+    d, _, _ = jax.lax.while_loop(cond, body, (start, ~mask | stop(start), jnp.int32(0)))
+    return d
+
+
+@jax.jit
+def middle_edges(s, tip_darts, mask):
+    """Middle edge of each barrier-edge tip (reference ``search_middle_edge``, paper Alg. 4).
+
+    Args:
+      tip_darts: ``(T,)`` darts arriving at the tips (from :func:`barrier_tips`), padded.
+      mask: ``(T,)`` bool, the real lanes.
+
+    Returns ``(T,)`` int32: the dart leaving the tip after ``deg // 2`` clockwise turns from the
+    barrier edge (``deg`` = degree of the tip; the reference's even/odd cases both reduce to it).
+    """
+    fe = s.twin(tip_darts)  # the barrier edge, leaving the tip
+    limit = s.num_darts
+
+    # degree of the tip: clockwise turns from the barrier edge back to it
+    def cond(c):
+        d, deg, done, k = c
+        return jnp.any(~done) & (k < limit)
+
+    def body(c):
+        d, deg, done, k = c
+        d2 = s.cw_vertex_edge(d)
+        deg = jnp.where(done, deg, deg + 1)
+        d = jnp.where(done, d, d2)
+        return d, deg, done | (d2 == fe), k + 1
+
+    zeros = jnp.zeros(fe.shape, jnp.int32)
+    _, deg, _, _ = jax.lax.while_loop(cond, body, (fe, zeros, ~mask, jnp.int32(0)))
+    half = deg // 2
+
+    def cond2(c):
+        d, k = c
+        return jnp.any(mask & (k < half))
+
+    def body2(c):
+        d, k = c
+        go = mask & (k < half)
+        return jnp.where(go, s.cw_vertex_edge(d), d), k + go.astype(jnp.int32)
+
+    d, _ = jax.lax.while_loop(cond2, body2, (fe, zeros))
+    return d.astype(jnp.int32)
+
+
+@jax.jit
+def repair_phase(s, frontier, succ, middle, mask):
+    """Make the middle edges frontier and update the successor map (paper Alg. 3).
+
+    For every new frontier dart ``m`` leaving ``v``: ``succ(twin(m))`` becomes the first frontier
+    dart clockwise after ``m`` around ``v``, and the frontier dart ``g`` met first turning
+    counter-clockwise from ``m`` now continues into ``m``: ``succ(twin(g)) = m``. Both rotations
+    use the updated frontier, so several new darts at one vertex agree (writes of one target carry
+    the same value). Returns ``(frontier, succ, new_darts)``; ``new_darts`` ``(2T,)`` padded with
+    ``num_darts``.
+    """
+    E = s.num_darts
+    m = jnp.concatenate([middle, s.twin(middle)])
+    mk = jnp.concatenate([mask, mask])
+    m = jnp.where(mk, m, 0).astype(jnp.int32)
+    frontier2 = frontier.at[jnp.where(mk, m, E)].set(True, mode="drop")
+    isf = lambda d: frontier2[d]  # noqa: E731
+    after = _rotate(s, s.cw_vertex_edge(m), isf, s.cw_vertex_edge, mk, E)
+    before = _rotate(s, s.ccw_vertex_edge(m), isf, s.ccw_vertex_edge, mk, E)
+    succ2 = succ.at[jnp.where(mk, s.twin(m), E)].set(after, mode="drop")
+    succ2 = succ2.at[jnp.where(mk, s.twin(before), E)].set(m, mode="drop")
+    return frontier2, succ2, jnp.where(mk, m, E).astype(jnp.int32)
+
+
+# ------------------------------------------------------------------------------ 4. polygons
+@jax.jit
+def walk_polygons(s, succ, starts, mask, vertex_ids):
+    """Walk the cycle of every lane; keep one lane per cycle; write the polygons in CSR.
+
+    Args:
+      succ: the successor map (after repair).
+      starts: ``(L,)`` frontier darts, one or more on every polygon (seeds' first frontier darts
+        and the new middle darts), padded; ``mask`` ``(L,)`` the real lanes.
+      vertex_ids: ``(V,)`` int32 input ids.
+
+    Returns ``(offsets (L+1,), indices (num_darts,), num_polygons, total, polygon_of_lane (L,))``:
+    the first ``num_polygons + 1`` offsets and the first ``total`` indices are the polygons,
+    sorted by their smallest directed edge, each starting there. Jittable; two ``while_loop`` s of
+    as many steps as the longest polygon.
+    """
+    E = s.num_darts
+    L = starts.shape[0]
+    lane = jnp.arange(L, dtype=jnp.int32)
+    starts = jnp.where(mask, starts, 0).astype(jnp.int32)
+    vid = lambda d: vertex_ids[s.origin(d)]  # noqa: E731
+
+    def cond(c):
+        return jnp.any(~c[-2]) & (c[-1] < E)
+
+    def body(c):
+        cur, vo, n, dmin, bo, bt, bd, done, k = c
+        nxt = succ[cur]
+        vn = vid(nxt)
+        better = (vo < bo) | ((vo == bo) & (vn < bt))
+        upd = ~done
+        bo = jnp.where(upd & better, vo, bo)
+        bt = jnp.where(upd & better, vn, bt)
+        bd = jnp.where(upd & better, cur, bd)
+        dmin = jnp.where(upd, jnp.minimum(dmin, cur), dmin)
+        n = jnp.where(upd, n + 1, n)
+        cur = jnp.where(upd, nxt, cur)
+        vo = jnp.where(upd, vn, vo)
+        return cur, vo, n, dmin, bo, bt, bd, done | (cur == starts), k + 1
+
+    big = jnp.full((L,), _BIG, jnp.int32)
+    init = (starts, vid(starts), jnp.zeros((L,), jnp.int32), starts, big, big, starts, ~mask,
+            jnp.int32(0))
+    _, _, n, dmin, bo, bt, bd, _, _ = jax.lax.while_loop(cond, body, init)
+    # one lane per cycle: the first lane whose cycle has this smallest dart
+    winner = jnp.full((E,), _BIG, jnp.int32).at[jnp.where(mask, dmin, E)].min(lane, mode="drop")
+    keep = mask & (winner[dmin] == lane)
+    order = jnp.lexsort((bt, jnp.where(keep, bo, _BIG)))
+    rank = jnp.zeros((L,), jnp.int32).at[order].set(lane)
+    npoly = jnp.sum(keep).astype(jnp.int32)
+    sizes = jnp.where(keep, n, 0)[order]
+    offsets = jnp.concatenate([jnp.zeros((1,), jnp.int32), jnp.cumsum(sizes).astype(jnp.int32)])
+    total = offsets[-1]
+    polygon_of_lane = jnp.where(mask, rank[winner[dmin]], L)
+
+    first = bd[order]
+    base = offsets[:-1]
+
+    def cond2(c):
+        return jnp.any(c[1] < sizes)
+
+    def body2(c):
+        cur, k, out = c
+        go = k < sizes
+        out = out.at[jnp.where(go, base + k, E)].set(vid(cur), mode="drop")
+        return jnp.where(go, succ[cur], cur), k + 1, out
+
+    _, _, out = jax.lax.while_loop(
+        cond2, body2, (first, jnp.zeros((L,), jnp.int32), jnp.zeros((E,), jnp.int32)))
+    return offsets, out, npoly, total, polygon_of_lane
+
+
+# ------------------------------------------------------------------------------ driver
+@dataclasses.dataclass(frozen=True)
+class PolyllaMesh:
+    """A Polylla polygon mesh (host arrays, CSR in the manner of jraph's per-graph counts).
+
+    Attributes:
+      points: ``(V, 2)`` float64 coordinates (input numbering).
+      offsets: ``(P + 1,)`` int64; polygon ``i`` is ``indices[offsets[i]:offsets[i+1]]``.
+      indices: ``(N,)`` int32 input vertex ids, each polygon counter-clockwise from its smallest
+        directed edge; polygons sorted by that edge.
+      barrier_edge_tips: number of barrier-edge tips found (before repair).
+      repaired_polygons: number of terminal-edge-region polygons that had tips and were split.
+      regions: number of terminal-edge regions (= seed edges = polygons before repair).
+      frontier_edges: number of frontier edges (undirected, before repair).
+      triangles: number of input triangles.
+      timings: seconds per phase (``label``, ``traversal``, ``repair``, ``polygons``).
+    """
+
+    points: np.ndarray
+    offsets: np.ndarray
+    indices: np.ndarray
+    barrier_edge_tips: int
+    repaired_polygons: int
+    regions: int
+    frontier_edges: int
+    triangles: int
+    timings: dict
+
+    @property
+    def num_polygons(self) -> int:
+        return int(self.offsets.shape[0] - 1)
+
+    def polygons(self) -> list[list[int]]:
+        """The polygons as Python lists of vertex ids."""
+        idx = self.indices.tolist()
+        off = self.offsets.tolist()
+        return [idx[off[i]:off[i + 1]] for i in range(len(off) - 1)]
+
+    def summary(self) -> dict:
+        return {"polygons": self.num_polygons, "barrier_edge_tips": self.barrier_edge_tips,
+                "repaired_polygons": self.repaired_polygons, "regions": self.regions,
+                "frontier_edges": self.frontier_edges, "vertices": int(self.points.shape[0]),
+                "triangles": self.triangles}
+
+
+def _bucket(n: int) -> int:
+    """Lane counts rounded up to a power of two (>= 64), to bound recompilations."""
+    return max(64, 1 << max(int(n) - 1, 0).bit_length())
+
+
+def _pad(x: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    out = np.zeros(size, np.int32)
+    out[: x.size] = x
+    mask = np.zeros(size, bool)
+    mask[: x.size] = True
+    return out, mask
+
+
+def polylla(s, positions, *, sync_timings: bool = True) -> PolyllaMesh:
+    """Run Polylla on structure ``s`` (any structure with borders) and 2D ``positions``.
+
+    Args:
+      s: e.g. ``HalfEdge.from_faces(faces, V)`` or the ``pemb`` structure of the same mesh.
+      positions: ``(V, 2)`` or ``(V, 3)`` coordinates in the *input* numbering (permuted here
+        through ``s.vertex_order`` when the structure renumbers vertices).
+
+    Lengths are compared in float64 (``jax.enable_x64`` around the label phase). Returns a
+    :class:`PolyllaMesh`; raises :class:`~jaxcds.errors.StructureError` if the successor map
+    does not close into cycles covering every frontier dart (a structure bug).
+    """
+    pos = np.asarray(positions, dtype=np.float64)[:, :2]
+    order = s.vertex_order
+    if pos.shape[0] != s.num_vertices:
+        raise errors.PolyllaError(
+            f"{pos.shape[0]} positions for a structure of {s.num_vertices} vertices")
+    vids = np.arange(s.num_vertices, dtype=np.int32) if order is None else np.asarray(order, np.int32)
+    pos_s = pos if order is None else pos[vids]
+    vids_j = jnp.asarray(vids)
+    t = {}
+    clock = time.perf_counter
+
+    def done(x):
+        if sync_timings:
+            jax.block_until_ready(x)
+        return clock()
+
+    t0 = clock()
+    with jax.enable_x64(True):
+        max_edge, frontier, seed = label_phase(s, jnp.asarray(pos_s, jnp.float64), vids_j)
+        t1 = done(seed)
+    t["label"] = t1 - t0
+
+    succ, turn, _ = traversal_phase(s, frontier)
+    tips = barrier_tips(s, succ)
+    seeds = np.nonzero(np.asarray(seed))[0].astype(np.int32)
+    tip_darts = np.nonzero(np.asarray(tips))[0].astype(np.int32)
+    t2 = done(succ)
+    t["traversal"] = t2 - t1
+
+    T = tip_darts.size
+    new_darts = np.zeros(0, np.int32)
+    if T:
+        td, tm = _pad(tip_darts, _bucket(T))
+        mid = middle_edges(s, jnp.asarray(td), jnp.asarray(tm))
+        frontier, succ, new = repair_phase(s, frontier, succ, mid, jnp.asarray(tm))
+        new_darts = np.asarray(new)
+        new_darts = np.concatenate([new_darts[:T], new_darts[td.size: td.size + T]])
+    t3 = done(succ)
+    t["repair"] = t3 - t2
+
+    # lanes: first frontier dart of every seed's fan (reference e_init), then the new darts
+    turn_h = turn
+    cand = jnp.stack([turn_h[seeds], turn_h[s.next(jnp.asarray(seeds))],
+                      turn_h[s.prev(jnp.asarray(seeds))]]) if seeds.size else jnp.zeros((3, 0), jnp.int32)
+    fr = np.asarray(frontier)
+    cand = np.asarray(cand)
+    ok = fr[cand]
+    pick = np.argmax(ok, axis=0)
+    start_seed = cand[pick, np.arange(seeds.size)]
+    starts = np.concatenate([start_seed, new_darts]).astype(np.int32)
+    lanes, lmask = _pad(starts, _bucket(starts.size))
+    offsets, out, npoly, total, pol = walk_polygons(s, succ, jnp.asarray(lanes), jnp.asarray(lmask),
+                                                    vids_j)
+    npoly, total = int(npoly), int(total)
+    offsets = np.asarray(offsets[: npoly + 1]).astype(np.int64)
+    indices = np.asarray(out[:total]).astype(np.int32)
+    t4 = clock()
+    t["polygons"] = t4 - t3
+
+    active = int(np.sum(np.asarray(succ) < s.num_darts))
+    if total != active:
+        raise errors.StructureError(
+            f"Polylla walks covered {total} of the {active} frontier darts "
+            f"({seeds.size} seeds, {T} barrier-edge tips): successor map is not a set of cycles")
+
+    repaired = 0
+    if T:
+        pol = np.asarray(pol)
+        a = pol[seeds.size: seeds.size + T]
+        b = pol[seeds.size + T: seeds.size + 2 * T]
+        repaired = _count_components(a, b)
+    t["repair_count"] = clock() - t4
+    return PolyllaMesh(points=pos, offsets=offsets, indices=indices, barrier_edge_tips=int(T),
+                       repaired_polygons=int(repaired), regions=int(seeds.size),
+                       frontier_edges=_undirected_frontier(s, fr, new_darts),
+                       triangles=int(s.num_faces), timings=t)
+
+
+def _undirected_frontier(s, fr: np.ndarray, new_darts: np.ndarray) -> int:
+    """Frontier edges before repair (each undirected edge once; border edges have one inner
+    dart and one border dart, both flagged)."""
+    fr = fr.copy()
+    if new_darts.size:
+        fr[np.unique(new_darts)] = False
+    return int(fr.sum()) // 2
+
+
+def _count_components(a: np.ndarray, b: np.ndarray) -> int:
+    """Connected components of the graph on polygon ids with edges ``a[i] - b[i]``: the pieces
+    of one repaired region are joined by its middle edges, so this counts repaired regions."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    nodes, inv = np.unique(np.concatenate([a, b]), return_inverse=True)
+    k = a.size
+    g = coo_matrix((np.ones(k, np.int8), (inv[:k], inv[k:])), shape=(nodes.size, nodes.size))
+    return int(connected_components(g, directed=False)[0])
+
+
+# ------------------------------------------------------------------------------ comparison
+def canonical_cycle(cycle) -> tuple:
+    """The rotation of a vertex cycle that starts at its lexicographically smallest position
+    (as a tuple): two polygons are equal up to rotation iff their canonical cycles are equal."""
+    c = list(cycle)
+    n = len(c)
+    return min(tuple(c[i:] + c[:i]) for i in range(n)) if n else ()
+
+
+def polygons_as_cycles(polys) -> list:
+    """Sorted list of canonical cycles (a multiset of polygons up to rotation)."""
+    return sorted(canonical_cycle(p) for p in polys)
+
+
+# ------------------------------------------------------------------------------ file to file
+def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
+    """The structure ``structure`` (``halfedge``, ``pemb``, any registered name accepting borders)
+    of a :class:`~jaxcds.polylla_io.Triangulation2D`, input vertex numbering kept.
+
+    With ``check`` the triangulation is validated first (typed :class:`~jaxcds.errors.MeshError`
+    naming the bad face, edge or vertex: non-manifold edges, bow-tie vertices, duplicates...)."""
+    from jaxcds.mesh import TriMesh, validate
+    from jaxcds.structures import registry
+    from jaxcds.structures.halfedge import HalfEdge
+
+    mesh = TriMesh(vertices=np.column_stack([tri.points, np.zeros(tri.num_vertices)]),
+                   faces=tri.faces, source=tri.source)
+    if check:
+        validate(mesh, structure=f"Polylla on {structure}")
+    if structure == "halfedge":
+        return HalfEdge.from_faces(tri.faces, tri.num_vertices)
+    if structure not in registry.names():
+        raise errors.PolyllaError(
+            f"unknown structure {structure!r} for Polylla; available: {', '.join(registry.names())}")
+    return registry.build(structure, mesh)
+
+
+def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
+        check: bool = True) -> dict:
+    """Read ``source``, run Polylla on ``structure``, write ``output`` (OFF, atomically).
+
+    Args:
+      source: a path (``.node``/``.ele``/``.neigh`` or their stem, 2D ``.off`` triangulation,
+        point list ``.xy``/``.txt``/``.csv``/``.npy`` triangulated by Delaunay), an ``(N, 2)``
+        array of points, or a :class:`~jaxcds.polylla_io.Triangulation2D`.
+      output: OFF path for the polygons, or None.
+      structure: ``halfedge`` (default) or ``pemb`` (or any registered structure with borders).
+
+    Returns a dict: ``polygons``, ``barrier_edge_tips``, ``repaired_polygons``, ``regions``,
+    ``frontier_edges``, ``vertices``, ``triangles``, ``structure``, ``input``, ``output``,
+    ``timings`` (seconds per phase, first call includes compilation).
+
+    Raises:
+      PolyllaError (unreadable or degenerate input, naming file and line/triangle), MeshError
+      (non-manifold triangulations, naming the edge/vertex).
+    """
+    from jaxcds import polylla_io
+
+    if isinstance(source, polylla_io.Triangulation2D):
+        tri, name = source, source.source
+    elif isinstance(source, (str, bytes)) or hasattr(source, "__fspath__"):
+        name = str(source)
+        tri = polylla_io.read_input(name)
+    else:
+        tri, name = polylla_io.from_points(source), "points"
+    t0 = time.perf_counter()
+    s = build_structure(tri, structure, check=check)
+    t_build = time.perf_counter() - t0
+    mesh = polylla(s, tri.points)
+    if output is not None:
+        polylla_io.write_polygon_off(str(output), tri.points, mesh.offsets, mesh.indices)
+    out = mesh.summary()
+    out.update(structure=structure, input=name, output=None if output is None else str(output),
+               timings={"build": t_build, **mesh.timings})
+    return out

@@ -1,0 +1,355 @@
+"""Polylla input and output: Triangle's ``.node`` / ``.ele`` / ``.neigh``, 2D OFF, point sets.
+
+Everything here is numpy on the host. The readers return a :class:`Triangulation2D` (2D points
+and counter-clockwise triangles, input vertex numbering kept: no welding, no dropping), the
+writer puts a polygon mesh (CSR ``offsets`` / ``indices``) in an OFF file atomically.
+
+Formats (Shewchuk's Triangle, https://www.cs.cmu.edu/~quake/triangle.html):
+
+- ``.node``: header ``N dim n_attributes n_boundary_markers``, then ``id x y [attrs] [marker]``;
+  ids start at 0 or 1 (the first id decides), ``#`` starts a comment.
+- ``.ele``: header ``T nodes_per_triangle n_attributes``, then ``id a b c [...]`` (only the three
+  corners are used, also for 6-node triangles).
+- ``.neigh``: header ``T 3``, then ``id n0 n1 n2`` with ``-1`` for "no neighbour"; ``n_k`` is the
+  triangle opposite corner ``k``. Optional: when given it is checked against the faces.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import tempfile
+from typing import Optional
+
+import numpy as np
+
+from jaxcds import errors
+
+__all__ = ["Triangulation2D", "read_triangle", "read_off_2d", "from_points", "read_input",
+           "write_polygon_off", "read_polygon_off", "orient_ccw"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Triangulation2D:
+    """A planar triangulation on the host.
+
+    Attributes:
+      points: ``(V, 2)`` float64 coordinates.
+      faces: ``(F, 3)`` int32 vertex ids, counter-clockwise.
+      source: where it came from (file name, ``"points"``, ``"arrays"``).
+      flipped: how many input triangles were clockwise and were re-oriented.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    source: str = "arrays"
+    flipped: int = 0
+
+    @property
+    def num_vertices(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def num_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+
+# ------------------------------------------------------------------------------ helpers
+def _rows(path: str) -> list[list[str]]:
+    """Non-empty, non-comment lines of a text file, split on whitespace."""
+    if not os.path.exists(path):
+        raise errors.PolyllaError(f"{path}: no such file")
+    rows = []
+    with open(path, "r", encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            line = line.split("#", 1)[0].strip()
+            if line:
+                rows.append(line.split())
+    if not rows:
+        raise errors.PolyllaError(f"{path}: empty file")
+    return rows
+
+
+def _ints(row: list[str], path: str, lineno: int, what: str) -> list[int]:
+    try:
+        return [int(x) for x in row]
+    except ValueError as exc:
+        raise errors.PolyllaError(f"{path}: {what} {lineno}: expected integers, got {row}") from exc
+
+
+def _table(rows, n, ncols, path, what, dtype):
+    """``n`` data rows of at least ``ncols`` columns after the header row, as an array."""
+    body = rows[1:1 + n]
+    if len(body) < n:
+        raise errors.PolyllaError(
+            f"{path}: header announces {n} {what}s but only {len(body)} are present")
+    short = [i for i, r in enumerate(body) if len(r) < ncols]
+    if short:
+        raise errors.PolyllaError(
+            f"{path}: {what} {short[0]} has {len(body[short[0]])} fields, expected at least {ncols}")
+    try:
+        return np.array([r[:ncols] for r in body], dtype=dtype)
+    except ValueError as exc:
+        raise errors.PolyllaError(f"{path}: a {what} line is not numeric: {exc}") from exc
+
+
+def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
+    """Faces turned counter-clockwise (by the sign of their area); ``(faces, n_flipped)``.
+
+    Raises:
+      PolyllaError: a triangle of zero area (collinear corners), naming it.
+    """
+    p = points[faces]
+    area2 = ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+             - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    flat = np.nonzero(area2 == 0)[0]
+    if flat.size:
+        raise errors.PolyllaError(
+            f"{source}: triangle {int(flat[0])} {faces[flat[0]].tolist()} has zero area "
+            f"({flat.size} degenerate triangles)")
+    cw = area2 < 0
+    out = faces.copy()
+    out[cw] = out[cw][:, ::-1]
+    return np.ascontiguousarray(out, dtype=np.int32), int(cw.sum())
+
+
+def _check_faces(faces: np.ndarray, nv: int, source: str) -> None:
+    bad = np.nonzero((faces < 0) | (faces >= nv))
+    if bad[0].size:
+        t = int(bad[0][0])
+        raise errors.PolyllaError(
+            f"{source}: triangle {t} refers to vertex {int(faces[t, bad[1][0]])}, "
+            f"outside [0, {nv})")
+    rep = np.nonzero((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+                     | (faces[:, 0] == faces[:, 2]))[0]
+    if rep.size:
+        raise errors.PolyllaError(
+            f"{source}: triangle {int(rep[0])} repeats a vertex {faces[rep[0]].tolist()}")
+
+
+def _make(points, faces, source) -> Triangulation2D:
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if points.shape[0] == 0 or faces.shape[0] == 0:
+        raise errors.PolyllaError(
+            f"{source}: empty triangulation ({points.shape[0]} vertices, {faces.shape[0]} triangles)")
+    bad = np.nonzero(~np.isfinite(points).all(axis=1))[0]
+    if bad.size:
+        raise errors.PolyllaError(
+            f"{source}: vertex {int(bad[0])} has a non-finite coordinate {points[bad[0]].tolist()}")
+    _check_faces(faces, points.shape[0], source)
+    faces, flipped = orient_ccw(points, faces, source)
+    return Triangulation2D(points=points, faces=faces, source=source, flipped=flipped)
+
+
+# ------------------------------------------------------------------------------ readers
+def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = None) -> Triangulation2D:
+    """Read Triangle's ``.node`` + ``.ele`` (``.neigh`` optional, checked when given).
+
+    ``node`` may also be the common stem (``points50.1``) or any of the three file names; the
+    siblings are found by suffix. Domains with holes are fine (no triangle covers a hole).
+    """
+    stem = node
+    for suf in (".node", ".ele", ".neigh"):
+        if stem.endswith(suf):
+            stem = stem[: -len(suf)]
+    node = stem + ".node" if not node.endswith(".node") else node
+    ele = ele or stem + ".ele"
+    if neigh is None and os.path.exists(stem + ".neigh"):
+        neigh = stem + ".neigh"
+    rows = _rows(node)
+    head = _ints(rows[0][:1], node, 0, "header")
+    nv = head[0]
+    dim = int(rows[0][1]) if len(rows[0]) > 1 else 2
+    if dim != 2:
+        raise errors.PolyllaError(f"{node}: dimension {dim} in the header, Polylla needs 2")
+    tab = _table(rows, nv, 3, node, "vertex", np.float64)
+    ids = tab[:, 0].astype(np.int64)
+    base = int(ids[0]) if nv else 0
+    if base not in (0, 1) or np.any(ids != np.arange(base, base + nv)):
+        bad = int(np.nonzero(ids != np.arange(base, base + nv))[0][0]) if base in (0, 1) else 0
+        raise errors.PolyllaError(
+            f"{node}: vertex ids must run consecutively from 0 or 1; line {bad + 1} has id {int(ids[bad])}")
+    points = tab[:, 1:3]
+    erows = _rows(ele)
+    nt = _ints(erows[0][:1], ele, 0, "header")[0]
+    per = int(erows[0][1]) if len(erows[0]) > 1 else 3
+    if per not in (3, 6):
+        raise errors.PolyllaError(f"{ele}: {per} nodes per triangle in the header (expected 3 or 6)")
+    et = _table(erows, nt, 4, ele, "triangle", np.int64)
+    faces = et[:, 1:4] - base
+    tri = _make(points, faces, os.path.basename(stem))
+    if neigh is not None:
+        _check_neigh(neigh, faces - 0, tri.num_faces, base)
+    return tri
+
+
+def _check_neigh(path: str, faces: np.ndarray, nf: int, base: int) -> None:
+    """Every neighbour listed in ``.neigh`` shares the edge opposite the corner it is listed at."""
+    rows = _rows(path)
+    n = _ints(rows[0][:1], path, 0, "header")[0]
+    if n != nf:
+        raise errors.PolyllaError(f"{path}: {n} triangles in the header, the .ele file has {nf}")
+    tab = _table(rows, n, 4, path, "triangle", np.int64)[:, 1:4]
+    nb = np.where(tab < 0, -1, tab - base)
+    if np.any(nb >= nf):
+        t = int(np.nonzero((nb >= nf).any(axis=1))[0][0])
+        raise errors.PolyllaError(f"{path}: triangle {t} lists a neighbour outside [0, {nf})")
+    t, k = np.nonzero(nb >= 0)
+    if t.size:
+        a = faces[t, (k + 1) % 3]
+        b = faces[t, (k + 2) % 3]
+        other = faces[nb[t, k]]
+        shares = ((other == a[:, None]).any(axis=1)) & ((other == b[:, None]).any(axis=1))
+        bad = np.nonzero(~shares)[0]
+        if bad.size:
+            i = int(bad[0])
+            raise errors.PolyllaError(
+                f"{path}: triangle {int(t[i])} lists triangle {int(nb[t[i], k[i]])} as neighbour "
+                f"{int(k[i])}, but they do not share edge ({int(a[i])}, {int(b[i])})")
+
+
+def read_off_2d(path: str) -> Triangulation2D:
+    """A 2D triangulation in OFF (``z`` ignored); every face must be a triangle."""
+    rows = _rows(path)
+    i = 0
+    if rows[0][0].upper().endswith("OFF") and rows[0][0].upper() in ("OFF", "COFF", "NOFF", "STOFF"):
+        i = 1
+    elif rows[0][0] == "{":  # geomview LIST wrapper as written by the reference Polylla
+        while i < len(rows) and rows[i][0].upper() != "OFF":
+            i += 1
+        i += 1
+    if i >= len(rows):
+        raise errors.PolyllaError(f"{path}: no OFF header")
+    try:
+        nv, nf = int(rows[i][0]), int(rows[i][1])
+    except (ValueError, IndexError) as exc:
+        raise errors.PolyllaError(f"{path}: bad OFF counts line {rows[i]}") from exc
+    vrows = rows[i + 1: i + 1 + nv]
+    frows = rows[i + 1 + nv: i + 1 + nv + nf]
+    if len(vrows) < nv or len(frows) < nf:
+        raise errors.PolyllaError(
+            f"{path}: header announces {nv} vertices and {nf} faces, the file is shorter")
+    try:
+        pts = np.array([r[:2] for r in vrows], dtype=np.float64)
+    except ValueError as exc:
+        raise errors.PolyllaError(f"{path}: a vertex line is not numeric: {exc}") from exc
+    faces = np.empty((nf, 3), dtype=np.int64)
+    for j, r in enumerate(frows):
+        k = _ints(r[:1], path, j, "face")[0]
+        if k != 3:
+            raise errors.PolyllaError(
+                f"{path}: face {j} has {k} vertices; Polylla needs a triangulation")
+        faces[j] = _ints(r[1:4], path, j, "face")
+    return _make(pts, faces, os.path.basename(path))
+
+
+def from_points(points, source: str = "points") -> Triangulation2D:
+    """Delaunay triangulation (scipy.spatial.Delaunay, Qhull) of a 2D point set."""
+    from scipy.spatial import Delaunay
+
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise errors.PolyllaError(f"{source}: points must have shape (N, 2), got {pts.shape}")
+    if pts.shape[0] < 3:
+        raise errors.PolyllaError(f"{source}: {pts.shape[0]} points, at least 3 are needed")
+    bad = np.nonzero(~np.isfinite(pts).all(axis=1))[0]
+    if bad.size:
+        raise errors.PolyllaError(f"{source}: point {int(bad[0])} is not finite")
+    try:
+        tri = Delaunay(pts)
+    except Exception as exc:  # Qhull errors: all points collinear, too few distinct points...
+        raise errors.PolyllaError(f"{source}: Delaunay triangulation failed: {exc}") from exc
+    used = np.zeros(pts.shape[0], bool)
+    used[tri.simplices.ravel()] = True
+    if not used.all():
+        v = int(np.nonzero(~used)[0][0])
+        raise errors.PolyllaError(
+            f"{source}: point {v} is a duplicate (or coplanar) and is in no triangle; remove duplicates")
+    return _make(pts, tri.simplices, source)
+
+
+def read_input(path: str) -> Triangulation2D:
+    """Any Polylla input by suffix: ``.node``/``.ele``/``.neigh`` (or their stem), ``.off``,
+    or a point list (``.xy``, ``.txt``, ``.csv``, ``.npy``: one ``x y`` per line, Delaunay)."""
+    low = path.lower()
+    if low.endswith((".node", ".ele", ".neigh")) or (
+            not os.path.exists(path) and os.path.exists(path + ".node")):
+        return read_triangle(path)
+    if low.endswith(".off"):
+        return read_off_2d(path)
+    if low.endswith(".npy"):
+        if not os.path.exists(path):
+            raise errors.PolyllaError(f"{path}: no such file")
+        return from_points(np.load(path), os.path.basename(path))
+    if low.endswith((".xy", ".txt", ".csv", ".pts")):
+        rows = _rows(path)
+        try:
+            pts = np.array([[float(x) for x in r[:2]] for r in
+                            ([c for c in ",".join(r).split(",") if c] for r in rows)])
+        except ValueError as exc:
+            raise errors.PolyllaError(f"{path}: a point line is not numeric: {exc}") from exc
+        return from_points(pts, os.path.basename(path))
+    raise errors.PolyllaError(
+        f"{path}: unknown Polylla input (expected .node/.ele/.neigh, .off, or a point list "
+        ".xy/.txt/.csv/.npy)")
+
+
+# ------------------------------------------------------------------------------ OFF output
+def write_polygon_off(path: str, points: np.ndarray, offsets: np.ndarray, indices: np.ndarray) -> None:
+    """Write a polygon mesh as OFF (``z = 0``), atomically (temporary file + ``os.replace``)."""
+    points = np.asarray(points, dtype=np.float64)
+    offsets = np.asarray(offsets, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    npoly = offsets.shape[0] - 1
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".polylla-", suffix=".off", dir=d)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(f"OFF\n{points.shape[0]} {npoly} 0\n")
+            np.savetxt(fh, np.column_stack([points[:, :2], np.zeros(points.shape[0])]), fmt="%.17g")
+            sizes = np.diff(offsets)
+            # one line per polygon: size then its vertices (grouped by size for vectorised writes)
+            lines = np.empty(npoly, dtype=object)
+            for k in np.unique(sizes):
+                sel = np.nonzero(sizes == k)[0]
+                rows = indices[offsets[sel][:, None] + np.arange(k)]
+                txt = np.char.add(f"{k} ", _join_rows(rows))
+                lines[sel] = txt
+            if npoly:
+                fh.write("\n".join(lines.tolist()))
+                fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _join_rows(rows: np.ndarray) -> np.ndarray:
+    out = rows[:, 0].astype(str)
+    for j in range(1, rows.shape[1]):
+        out = np.char.add(np.char.add(out, " "), rows[:, j].astype(str))
+    return out
+
+
+def read_polygon_off(path: str) -> tuple[np.ndarray, list[list[int]]]:
+    """``(points (V, 2), polygons)`` of a polygon OFF file (the reference's geomview ``LIST``
+    wrapper ``{ ... }`` is accepted)."""
+    rows = _rows(path)
+    i = 0
+    while i < len(rows) and rows[i][0].upper() != "OFF":
+        i += 1
+    if i == len(rows):
+        raise errors.PolyllaError(f"{path}: no OFF header")
+    nv, nf = int(rows[i + 1][0]), int(rows[i + 1][1])
+    pts = np.array([r[:2] for r in rows[i + 2: i + 2 + nv]], dtype=np.float64)
+    polys = []
+    for j, r in enumerate(rows[i + 2 + nv: i + 2 + nv + nf]):
+        k = int(r[0])
+        if len(r) < k + 1:
+            raise errors.PolyllaError(f"{path}: polygon {j} announces {k} vertices, has {len(r) - 1}")
+        polys.append([int(x) for x in r[1: k + 1]])
+    if len(polys) != nf:
+        raise errors.PolyllaError(f"{path}: header announces {nf} polygons, found {len(polys)}")
+    return pts, polys

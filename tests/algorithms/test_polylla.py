@@ -1,0 +1,405 @@
+"""Polylla (issue 7): conformance with the reference output, grids, random point sets against a
+slow sequential port of the reference algorithm, invariants, I/O and errors, every structure."""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+
+import jax
+import numpy as np
+import pytest
+
+from jaxcds import errors
+from jaxcds.algorithms import polylla as P
+from jaxcds import polylla_io as io
+from jaxcds.structures import registry
+
+SHARED = pathlib.Path(os.environ.get("JAXCDS_SHARED",
+                                     pathlib.Path(__file__).resolve().parents[2].parent / "shared"))
+POLYLLA = SHARED / "polylla"
+
+# Polylla needs borders: the structures of the registry that accept them (pemb once it lands).
+STRUCTURES = [pytest.param(n, marks=pytest.mark.skipif(
+    n not in registry.names(), reason=f"structure {n} not registered yet")) for n in ("halfedge", "pemb")]
+
+
+def _need(path: pathlib.Path) -> str:
+    if not path.exists():
+        pytest.skip(f"{path} not found")
+    return str(path)
+
+
+# ------------------------------------------------------------------------ slow reference port
+def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = False):
+    """Sequential port of the reference (Polylla-Mesh-DCEL ``polylla.hpp``): seeds in dart order,
+    ``travel_triangles``, ``has_BarrierEdgeTip`` (poly[i] == poly[i+2]), ``search_middle_edge``
+    with its even/odd cases, ``barrieredge_tip_reparation``. Plain Python dicts, no protocol.
+    Differences, on purpose: walks close on the starting dart (the reference also stops when it
+    meets the starting *vertex* again, which truncates non-simple polygons), repaired pieces are
+    de-duplicated as cycles, and (unless ``sequential``) the middle edges of all tips of a polygon
+    are chosen before any is marked frontier. The reference marks each one at once, so a tip
+    reached by an earlier tip's middle edge gets its middle edge counted from whichever of its
+    now two frontier edges ``edge_of_vertex`` leads to: order and numbering dependent.
+    Returns ``(polygons, barrier_edge_tips, repaired_polygons)``."""
+    faces = np.asarray(faces)
+    nd = 3 * faces.shape[0]
+    org = faces.ravel().tolist()
+    nxt = [3 * (d // 3) + (d % 3 + 1) % 3 for d in range(nd)]
+    where = {(org[d], org[nxt[d]]): d for d in range(nd)}
+    tw = [where.get((org[nxt[d]], org[d]), -1) for d in range(nd)]
+
+    def length(d):
+        a, b = points[org[d]], points[org[nxt[d]]]
+        return float((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2)
+
+    mx = [False] * nd
+    for f in range(faces.shape[0]):
+        e0, e1, e2 = 3 * f, 3 * f + 1, 3 * f + 2
+        d0, d1, d2 = length(e0), length(e1), length(e2)
+        if (d0 >= d1 and d1 >= d2) or (d0 >= d2 and d2 >= d1):
+            mx[e0] = True
+        elif (d1 >= d0 and d0 >= d2) or (d1 >= d2 and d2 >= d0):
+            mx[e1] = True
+        else:
+            mx[e2] = True
+    frontier = [tw[d] < 0 or not (mx[d] or mx[tw[d]]) for d in range(nd)]
+    seeds = [d for d in range(nd)
+             if (tw[d] >= 0 and mx[d] and mx[tw[d]] and d < tw[d]) or (tw[d] < 0 and mx[d])]
+    cw = lambda e: nxt[tw[e]]  # noqa: E731  CW_edge_to_vertex = next(twin(e))
+    edge_of_vertex = {}
+    for d in range(nd):
+        edge_of_vertex[org[d]] = d
+
+    def search(e):
+        while not frontier[e]:
+            e = cw(e)
+        return e
+
+    def travel(e):
+        e0 = search(e)
+        poly, cur = [], e0
+        while True:
+            poly.append(org[cur])
+            cur = search(nxt[cur])
+            if cur == e0:
+                return poly
+
+    def has_tip(p):
+        return any(p[i] == p[(i + 2) % len(p)] for i in range(len(p)))
+
+    def middle_edge(v):
+        fe = search(edge_of_vertex[v])
+        n, adv = cw(fe), 1
+        while n != fe:
+            n, adv = cw(n), adv + 1
+        adv -= 1
+        adv = adv // 2 - 1 if adv % 2 == 0 else adv // 2
+        n = cw(fe)
+        while adv:
+            n, adv = cw(n), adv - 1
+        return n
+
+    out, tips, repaired = [], 0, 0
+    for e in seeds:
+        poly = travel(e)
+        if not has_tip(poly):
+            out.append(poly)
+            continue
+        repaired += 1
+        starts = []
+        for i in range(len(poly)):
+            if poly[i] == poly[(i + 2) % len(poly)]:
+                tips += 1
+                m = middle_edge(poly[(i + 1) % len(poly)])
+                if sequential:
+                    frontier[m] = frontier[tw[m]] = True
+                starts += [m, tw[m]]
+        for m in starts:
+            frontier[m] = True
+        seen = set()
+        for t in starts:
+            p = travel(t)
+            key = P.canonical_cycle(p)
+            if key not in seen:
+                seen.add(key)
+                out.append(p)
+    return out, tips, repaired
+
+
+# ------------------------------------------------------------------------ helpers
+def grid(k: int, hole: bool = False):
+    """k x k grid points, every cell split by the diagonal (i, j)-(i+1, j+1); ``hole`` removes
+    the central cells (a domain with a hole)."""
+    xs, ys = np.meshgrid(np.arange(k, dtype=float), np.arange(k, dtype=float))
+    pts = np.column_stack([xs.ravel(), ys.ravel()])
+    vid = lambda i, j: j * k + i  # noqa: E731
+    faces = []
+    for j in range(k - 1):
+        for i in range(k - 1):
+            if hole and k // 3 <= i < k - k // 3 - 1 and k // 3 <= j < k - k // 3 - 1:
+                continue
+            a, b, c, d = vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1)
+            faces += [[a, b, c], [a, c, d]]
+    return io.Triangulation2D(points=pts, faces=np.array(faces, np.int32), source="grid")
+
+
+def signed_area(points, poly):
+    p = points[np.asarray(poly)]
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def run_on(tri, structure="halfedge"):
+    s = P.build_structure(tri, structure)
+    return P.polylla(s, tri.points)
+
+
+def check_partition(tri, mesh):
+    """Polygons tile the triangulated domain: areas add up, every polygon is ccw, and each
+    undirected frontier edge is used once per side."""
+    total = sum(signed_area(tri.points, f) for f in tri.faces)
+    areas = [signed_area(tri.points, p) for p in mesh.polygons()]
+    assert min(areas) > 0
+    np.testing.assert_allclose(sum(areas), total, rtol=1e-9)
+    darts = [(p[i], p[(i + 1) % len(p)]) for p in mesh.polygons() for i in range(len(p))]
+    assert len(set(darts)) == len(darts), "a directed edge is used by two polygons"
+
+
+# ------------------------------------------------------------------------ conformance
+@pytest.mark.parametrize("structure", STRUCTURES)
+def test_points50_matches_reference_off(structure):
+    tri = io.read_triangle(_need(POLYLLA / "points50.1.node"))
+    assert (tri.num_vertices, tri.num_faces) == (50, 83)
+    mesh = run_on(tri, structure)
+    _, ref = io.read_polygon_off(_need(POLYLLA / "points50.1.off"))
+    assert len(ref) == 17
+    assert mesh.num_polygons == 17
+    assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref)
+    check_partition(tri, mesh)
+
+
+def test_points50_neigh_optional_and_off_input(tmp_path):
+    node = _need(POLYLLA / "points50.1.node")
+    a = io.read_triangle(node)  # finds and checks .neigh
+    b = io.read_triangle(node, str(POLYLLA / "points50.1.ele"), neigh=None)
+    np.testing.assert_array_equal(a.faces, b.faces)
+    # the same triangulation as a 2D OFF file
+    off = tmp_path / "tri.off"
+    with open(off, "w") as fh:
+        fh.write(f"OFF\n{a.num_vertices} {a.num_faces} 0\n")
+        for x, y in a.points:
+            fh.write(f"{float(x)!r} {float(y)!r} 0\n")
+        for f in a.faces:
+            fh.write(f"3 {f[0]} {f[1]} {f[2]}\n")
+    c = io.read_off_2d(str(off))
+    assert P.polygons_as_cycles(run_on(c).polygons()) == P.polygons_as_cycles(run_on(a).polygons())
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("k", [2, 3, 7])
+def test_grid_gives_quads(structure, k):
+    tri = grid(k)
+    mesh = run_on(tri, structure)
+    assert mesh.num_polygons == (k - 1) ** 2
+    assert np.all(np.diff(mesh.offsets) == 4)
+    assert mesh.barrier_edge_tips == 0 and mesh.repaired_polygons == 0
+    check_partition(tri, mesh)
+
+
+def test_grid_with_hole():
+    tri = grid(9, hole=True)
+    mesh = run_on(tri)
+    cells = (tri.num_faces // 2)
+    assert mesh.num_polygons == cells and np.all(np.diff(mesh.offsets) == 4)
+    check_partition(tri, mesh)
+
+
+# ------------------------------------------------------------------------ random point sets
+@pytest.mark.parametrize("seed", range(3))
+def test_random_points_match_sequential_reference(seed):
+    rng = np.random.default_rng(seed)
+    tri = io.from_points(rng.random((400 + 100 * seed, 2)))
+    mesh = run_on(tri)
+    ref, tips, repaired = reference_polylla(tri.points, tri.faces)
+    assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref)
+    assert mesh.barrier_edge_tips == tips
+    assert mesh.repaired_polygons == repaired
+    assert mesh.num_polygons == len(ref)
+    check_partition(tri, mesh)
+    # the reference's own (sequential) marking finds the same tips and repairs the same regions
+    _, tips_seq, repaired_seq = reference_polylla(tri.points, tri.faces, sequential=True)
+    assert (tips_seq, repaired_seq) == (tips, repaired)
+
+
+def test_random_points_exercise_repair():
+    """The random cases above are not vacuous: barrier-edge tips do occur and are repaired."""
+    rng = np.random.default_rng(1)
+    tri = io.from_points(rng.random((400, 2)))
+    mesh = run_on(tri)
+    assert mesh.barrier_edge_tips > 0 and mesh.repaired_polygons > 0
+    assert mesh.num_polygons > mesh.regions  # repair splits regions into more polygons
+    # after repair no polygon walks up and back a barrier edge
+    for p in mesh.polygons():
+        assert all(p[i] != p[(i + 2) % len(p)] for i in range(len(p))) or len(p) < 3
+
+
+def test_domain_with_holes_random():
+    rng = np.random.default_rng(7)
+    pts = rng.random((600, 2))
+    tri = io.from_points(pts)
+    c = tri.points[tri.faces].mean(axis=1)
+    keep = np.linalg.norm(c - 0.5, axis=1) > 0.2  # punch a round hole
+    from jaxcds.mesh import TriMesh, split_nonmanifold_vertices
+    faces = tri.faces[keep]
+    # drop bow-tie corners the cut may create: keep faces of the largest clean set
+    m = split_nonmanifold_vertices(TriMesh(np.column_stack([tri.points, np.zeros(len(pts))]), faces))
+    tri2 = io.Triangulation2D(points=m.vertices[:, :2], faces=m.faces, source="holed")
+    mesh = run_on(tri2)
+    ref, tips, repaired = reference_polylla(tri2.points, tri2.faces)
+    assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref)
+    check_partition(tri2, mesh)
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+def test_output_independent_of_structure_and_face_order(structure):
+    rng = np.random.default_rng(3)
+    tri = io.from_points(rng.random((500, 2)))
+    a = run_on(tri, "halfedge")
+    perm = rng.permutation(tri.num_faces)
+    rot = rng.integers(0, 3, tri.num_faces)
+    f = tri.faces[perm]
+    f = np.stack([np.roll(r, -k) for r, k in zip(f, rot[perm])])
+    b = run_on(io.Triangulation2D(tri.points, f.astype(np.int32)), structure)
+    # canonical output: identical arrays, not only identical sets of cycles
+    np.testing.assert_array_equal(a.offsets, b.offsets)
+    np.testing.assert_array_equal(a.indices, b.indices)
+    assert (a.barrier_edge_tips, a.repaired_polygons) == (b.barrier_edge_tips, b.repaired_polygons)
+
+
+def test_phases_same_without_jit():
+    rng = np.random.default_rng(11)
+    tri = io.from_points(rng.random((120, 2)))
+    a = run_on(tri)
+    with jax.disable_jit():
+        b = run_on(tri)
+    np.testing.assert_array_equal(a.indices, b.indices)
+    np.testing.assert_array_equal(a.offsets, b.offsets)
+
+
+def test_label_phase_definitions():
+    """Every triangle has exactly one longest edge; frontier is symmetric; seeds = regions."""
+    rng = np.random.default_rng(5)
+    tri = io.from_points(rng.random((200, 2)))
+    s = P.build_structure(tri)
+    with jax.enable_x64(True):
+        mx, fr, sd = (np.asarray(x) for x in P.label_phase(
+            s, jax.numpy.asarray(tri.points), jax.numpy.arange(s.num_vertices, dtype=np.int32)))
+    inner = np.arange(s.num_darts) < 3 * s.num_faces
+    assert np.all(mx[: 3 * s.num_faces].reshape(-1, 3).sum(axis=1) == 1)
+    tw = np.asarray(s.opposite)
+    np.testing.assert_array_equal(fr, fr[tw])
+    assert not np.any(mx & fr & ~np.asarray(s.is_border(tw)))
+    assert np.all(inner[sd])
+    mesh = P.polylla(s, tri.points)
+    assert mesh.regions == int(sd.sum())
+
+
+# ------------------------------------------------------------------------ file to file, errors
+def test_run_writes_off_and_reports(tmp_path):
+    out = tmp_path / "p.off"
+    d = P.run(str(POLYLLA / "points50.1.node") if (POLYLLA / "points50.1.node").exists()
+              else pytest.skip("no points50"), str(out))
+    for key in ("polygons", "barrier_edge_tips", "repaired_polygons", "vertices", "triangles"):
+        assert key in d
+    assert (d["polygons"], d["vertices"], d["triangles"]) == (17, 50, 83)
+    json.dumps(d)
+    pts, polys = io.read_polygon_off(str(out))
+    assert pts.shape == (50, 2) and len(polys) == 17
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".polylla-")]
+
+
+def test_run_on_point_file(tmp_path):
+    rng = np.random.default_rng(2)
+    xy = tmp_path / "pts.xy"
+    np.savetxt(xy, rng.random((100, 2)))
+    d = P.run(str(xy), str(tmp_path / "o.off"))
+    assert d["vertices"] == 100 and d["polygons"] > 0
+
+
+@pytest.mark.parametrize("content, match", [
+    ("", "empty"),
+    ("3 2 0 0\n0 0 0\n1 1 0\n", "only 2"),
+    ("3 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n", "dimension 3"),
+    ("3 2 0 0\n0 0 0\n1 1 0\n5 0 1\n", "consecutively"),
+])
+def test_bad_node_files(tmp_path, content, match):
+    (tmp_path / "a.node").write_text(content)
+    (tmp_path / "a.ele").write_text("1 3 0\n0 0 1 2\n")
+    with pytest.raises(errors.PolyllaError, match=match):
+        io.read_triangle(str(tmp_path / "a.node"))
+
+
+def test_bad_ele_and_neigh(tmp_path):
+    (tmp_path / "a.node").write_text("4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
+    (tmp_path / "a.ele").write_text("2 3 0\n0 0 1 2\n1 0 2 9\n")
+    with pytest.raises(errors.PolyllaError, match="triangle 1 refers to vertex 9"):
+        io.read_triangle(str(tmp_path / "a.node"))
+    (tmp_path / "a.ele").write_text("2 3 0\n0 0 1 2\n1 0 2 3\n")
+    (tmp_path / "a.neigh").write_text("2 3\n0 -1 -1 -1\n1 0 -1 -1\n")
+    with pytest.raises(errors.PolyllaError, match="triangle 1 lists triangle 0 as neighbour 0"):
+        io.read_triangle(str(tmp_path / "a.node"))
+    (tmp_path / "a.neigh").write_text("2 3\n0 -1 1 -1\n1 -1 -1 0\n")
+    assert io.read_triangle(str(tmp_path / "a.node")).num_faces == 2
+
+
+def test_bad_inputs(tmp_path):
+    with pytest.raises(errors.PolyllaError, match="no such file"):
+        P.run(str(tmp_path / "missing.off"))
+    quad = tmp_path / "q.off"
+    quad.write_text("OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
+    with pytest.raises(errors.PolyllaError, match="face 0 has 4 vertices"):
+        P.run(str(quad))
+    flat = tmp_path / "f.off"
+    flat.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n")
+    with pytest.raises(errors.PolyllaError, match="triangle 0 .* zero area"):
+        P.run(str(flat))
+    with pytest.raises(errors.PolyllaError, match="collinear|Delaunay|at least 3"):
+        P.run(np.array([[0.0, 0.0], [1.0, 1.0]]))
+    with pytest.raises(errors.PolyllaError, match="unknown Polylla input"):
+        P.run(str(tmp_path / "x.stl"))
+    # three triangles on one edge: refused by validation, naming the edge
+    nm = tmp_path / "nm.off"
+    nm.write_text("OFF\n5 3 0\n0 0 0\n1 0 0\n0.5 1 0\n0.5 -1 0\n0.5 2 0\n"
+                  "3 0 1 2\n3 1 0 3\n3 0 1 4\n")
+    with pytest.raises(errors.MeshError, match="edge"):
+        P.run(str(nm))
+
+
+def test_cw_input_triangles_are_reoriented():
+    tri = grid(4)
+    flipped = io.Triangulation2D(tri.points, tri.faces[:, ::-1].copy())
+    again = io._make(flipped.points, flipped.faces, "flipped")
+    assert again.flipped == tri.num_faces
+    a, b = run_on(tri), run_on(again)
+    np.testing.assert_array_equal(a.indices, b.indices)
+
+
+def test_off_roundtrip(tmp_path):
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [2, 0.5]], float)
+    off = np.array([0, 4, 7])
+    idx = np.array([0, 1, 2, 3, 1, 4, 2])
+    io.write_polygon_off(str(tmp_path / "p.off"), pts, off, idx)
+    p2, polys = io.read_polygon_off(str(tmp_path / "p.off"))
+    np.testing.assert_array_equal(p2, pts)
+    assert polys == [[0, 1, 2, 3], [1, 4, 2]]
+
+
+@pytest.mark.slow
+def test_random_50k_invariants():
+    rng = np.random.default_rng(42)
+    tri = io.from_points(rng.random((50_000, 2)))
+    mesh = run_on(tri)
+    check_partition(tri, mesh)
+    assert 0.28 < mesh.num_polygons / tri.num_vertices < 0.36  # reference: 322,520 / 1M
