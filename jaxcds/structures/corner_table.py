@@ -125,3 +125,16 @@ class CornerTable(MeshStructure):
     @property
     def references(self) -> int:
         return 2 * self.num_darts + self.num_vertices
+
+    # -------------------------------------------------------------- packed batches (jaxcds.batch)
+    @classmethod
+    def concatenate(cls, parts) -> "CornerTable":
+        """Disjoint union of corner tables with ids shifted, for :func:`jaxcds.batch.concatenate`."""
+        from jaxcds.batch import shift_ids
+
+        nc = [3 * c.num_faces for c in parts]
+        nv = [c.num_vertices for c in parts]
+        return cls(V=jnp.asarray(shift_ids([np.asarray(c.V) for c in parts], nv)),
+                   O=jnp.asarray(shift_ids([np.asarray(c.O) for c in parts], nc)),
+                   vertex_corner=jnp.asarray(shift_ids([np.asarray(c.vertex_corner) for c in parts], nc)),
+                   num_vertices=int(sum(nv)), num_faces=int(sum(c.num_faces for c in parts)))

@@ -114,6 +114,36 @@ class HalfEdge(MeshStructure):
     def references(self) -> int:
         return 3 * self.num_darts + self.num_vertices + self.num_border_darts
 
+    # -------------------------------------------------------------- packed batches (jaxcds.batch)
+    @property
+    def num_primary_darts(self) -> int:
+        """Inner darts ``[0, 3F)``; border darts come after them (``jaxcds.batch`` dart blocks)."""
+        return 3 * self.num_faces
+
+    @classmethod
+    def concatenate(cls, parts) -> "HalfEdge":
+        """Disjoint union of half-edge structures with ids shifted, for
+        :func:`jaxcds.batch.concatenate`: the inner darts of every part, then the border darts
+        of every part (so ``face(e) = e // 3`` for ``e < 3F`` stays true)."""
+        from jaxcds.batch import shift_darts, shift_ids
+
+        p = [3 * h.num_faces for h in parts]
+        x = [h.num_border_darts for h in parts]
+        nv = [h.num_vertices for h in parts]
+
+        def per_dart(field, shift):  # inner rows of every part, then border rows of every part
+            arrs = [np.asarray(getattr(h, field)) for h in parts]
+            return np.concatenate([shift([a[:q] for a, q in zip(arrs, p)]),
+                                   shift([a[q:] for a, q in zip(arrs, p)])])
+
+        darts = lambda arrs: shift_darts(arrs, p, x)  # noqa: E731
+        return cls(next_=jnp.asarray(per_dart("next_", darts)),
+                   opposite=jnp.asarray(per_dart("opposite", darts)),
+                   vertex=jnp.asarray(per_dart("vertex", lambda arrs: shift_ids(arrs, nv))),
+                   vertex_edge=jnp.asarray(darts([np.asarray(h.vertex_edge) for h in parts])),
+                   border_prev=jnp.asarray(darts([np.asarray(h.border_prev) for h in parts])),
+                   num_vertices=int(sum(nv)), num_faces=int(sum(h.num_faces for h in parts)))
+
 
 # ------------------------------------------------------------------ numba builder
 def halfedge_arrays(faces: np.ndarray, num_vertices: int):

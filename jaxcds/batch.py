@@ -1,0 +1,486 @@
+"""Packed batches: many meshes as ONE structure over their disjoint union.
+
+The convention is jraph's ``GraphsTuple`` and PyTorch3D's *packed* meshes: the arrays of every
+mesh are concatenated, ids are shifted so that mesh ``i`` owns a contiguous range of global
+vertex, face and dart ids, and per-mesh counts and offsets say which range. Because the result
+is an ordinary structure (several connected components are allowed by the navigation
+protocol), every operator and every generic algorithm (:func:`jaxcds.algorithms.vertex_normals`,
+:func:`~jaxcds.algorithms.vertex_degrees`, :func:`~jaxcds.algorithms.adjacent`) runs on the whole
+batch in one jitted call, and gradients flow to the positions of every mesh. This is the
+"scene of thousands of small objects" of the CDS paper (Sec. 4.5).
+
+Building (:func:`pack`):
+
+* HalfEdge and CornerTable accept several components, so the batch is built ONCE on the union
+  face list (one numba pass for all meshes); the result is id-for-id the concatenation of the
+  per-mesh builds (tested).
+* Structures that need a connected mesh (CDS family, LR, pemb) are built per mesh and joined by
+  the class's ``concatenate(parts)`` classmethod (ids shifted with :func:`shift_ids` /
+  :func:`shift_darts`). A class without it is refused with :class:`UnsupportedTopologyError`.
+
+Dart blocks. Most structures number the darts of a mesh contiguously, but the HalfEdge puts its
+border darts after all inner darts (``3F ... 3F + B - 1``), which must stay true of the union.
+So a mesh's dart range is split into a *primary* block ``[0, P_i)`` (a structure's
+``num_primary_darts`` attribute; ``num_darts`` when absent) mapped to
+``dart_offsets[i] + d``, and an *extra* block ``[P_i, P_i + X_i)`` mapped after every primary
+dart, to ``sum(P) + extra_dart_offsets[i] + (d - P_i)``. For a closed mesh the extra block is
+empty and a dart id is simply ``dart_offsets[i] + d``.
+
+Absent ids ("one past the end") map to one past the end: a border dart's face ``n_face[i]`` in
+mesh ``i`` is ``num_faces`` in the batch, and back.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any, Optional, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds import errors
+from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
+from jaxcds.structures.base import Int, MeshStructure
+
+__all__ = ["PackedBatch", "pack", "concatenate", "shift_ids", "shift_darts", "OPERATOR_KINDS",
+           "pack_positions"]
+
+#: operator -> (kind of its argument, kind of its result); kinds: dart, vertex, face, bool
+OPERATOR_KINDS = {
+    **{op: ("dart", "dart") for op in (
+        "twin", "next", "prev", "left_front", "left_back", "right_front", "right_back",
+        "ccw_vertex_edge", "cw_vertex_edge", "corner_next", "corner_prev", "corner_opposite",
+        "corner_swing")},
+    **{op: ("dart", "vertex") for op in ("origin", "source", "target", "corner_vertex")},
+    **{op: ("dart", "face") for op in ("face", "face_left", "face_right")},
+    **{op: ("dart", "bool") for op in ("is_border", "dart_valid")},
+    "edge_of_vertex": ("vertex", "dart"),
+    "edge_of_face": ("face", "dart"),
+}
+
+# protocol methods the batch forwards to its union structure (so a structure's faster
+# overrides, e.g. CDS Target in O(1), are the ones that run)
+_FORWARDED = tuple(OPERATOR_KINDS) + ("face_vertices",)
+
+
+@pytree_dataclass
+class PackedBatch(MeshStructure):
+    """``B`` meshes packed as one structure (jraph ``GraphsTuple`` / PyTorch3D packed layout).
+
+    Fields (``B`` meshes; all ``int32`` arrays of shape ``(B,)``):
+      structure: the structure over the disjoint union (HalfEdge, CornerTable, ...): a pytree.
+      n_vertex, n_face: vertices and faces of each mesh.
+      n_dart: darts of each mesh's primary block (all its darts, except HalfEdge border darts).
+      n_extra_dart: darts of each mesh's extra block (HalfEdge border darts; else 0).
+      vertex_offsets, face_offsets, dart_offsets, extra_dart_offsets: exclusive cumulative sums
+        of the counts: mesh ``i``'s local vertex ``v`` is global ``vertex_offsets[i] + v``.
+      num_meshes, num_vertices, num_faces, num_primary_darts: static totals (shapes).
+
+    Every protocol operator takes and returns *global* ids (it is the union structure's);
+    :meth:`query` takes ``(mesh, local id)`` pairs and answers with local ids.
+    """
+
+    structure: Any
+    n_vertex: jnp.ndarray
+    n_face: jnp.ndarray
+    n_dart: jnp.ndarray
+    n_extra_dart: jnp.ndarray
+    vertex_offsets: jnp.ndarray
+    face_offsets: jnp.ndarray
+    dart_offsets: jnp.ndarray
+    extra_dart_offsets: jnp.ndarray
+    num_meshes: int = static_field()
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+    num_primary_darts: int = static_field()
+
+    name = "packed"
+
+    # ------------------------------------------------------------------ protocol: forwarded
+    @property
+    def num_darts(self) -> int:
+        return self.structure.num_darts
+
+    @property
+    def references(self) -> int:
+        return self.structure.references
+
+    @property
+    def vertex_order(self) -> Optional[np.ndarray]:
+        return self.structure.vertex_order
+
+    @property
+    def closed_triangles(self) -> bool:  # type: ignore[override]
+        return type(self.structure).closed_triangles
+
+    def __getattr__(self, attr):
+        # structure-specific extras (a fast ``vertex_degrees()``, ``adjacent``...) are the
+        # union structure's; guard the dataclass's own fields against recursion while unpickling
+        if attr.startswith("__") or attr == "structure":
+            raise AttributeError(attr)
+        return getattr(self.structure, attr)
+
+    @property
+    def num_extra_darts(self) -> int:
+        return self.num_darts - self.num_primary_darts
+
+    # ------------------------------------------------------------------ mesh of each id
+    def vertex_mesh(self) -> Int:
+        """``(num_vertices,)`` int32: the mesh of every global vertex (jraph's node graph index)."""
+        return _segment_ids(self.n_vertex, self.num_vertices)
+
+    def face_mesh(self) -> Int:
+        """``(num_faces,)`` int32: the mesh of every global face."""
+        return _segment_ids(self.n_face, self.num_faces)
+
+    def dart_mesh(self) -> Int:
+        """``(num_darts,)`` int32: the mesh of every global dart (primary darts, then extra)."""
+        return jnp.concatenate([_segment_ids(self.n_dart, self.num_primary_darts),
+                                _segment_ids(self.n_extra_dart, self.num_extra_darts)])
+
+    def mesh_of(self, kind: str, g: Int) -> Int:
+        """Mesh owning global id(s) ``g`` of ``kind`` (``"vertex"``, ``"face"``, ``"dart"``);
+        ``num_meshes`` for an absent id (one past the end)."""
+        g = jnp.asarray(g, jnp.int32)
+        if kind == "dart":
+            extra = g >= self.num_primary_darts
+            m1 = _owner(self.dart_offsets, self.n_dart, g)
+            m2 = _owner(self.extra_dart_offsets, self.n_extra_dart, g - self.num_primary_darts)
+            m = jnp.where(extra, m2, m1)
+            return jnp.where(g >= self.num_darts, self.num_meshes, m)
+        off, cnt, total = self._table(kind)
+        return jnp.where(g >= total, self.num_meshes, _owner(off, cnt, g))
+
+    # ------------------------------------------------------------------ local <-> global
+    def to_global(self, kind: str, mesh: Int, local: Int) -> Int:
+        """Global id of mesh ``mesh``'s local id ``local`` (``kind``: vertex, face, dart).
+        The local sentinel (the mesh's own count) maps to the global one. Broadcasts."""
+        mesh = jnp.asarray(mesh, jnp.int32)
+        local = jnp.asarray(local, jnp.int32)
+        if kind == "dart":
+            p = self.n_dart[mesh]
+            primary = self.dart_offsets[mesh] + local
+            extra = self.num_primary_darts + self.extra_dart_offsets[mesh] + (local - p)
+            g = jnp.where(local < p, primary, extra)
+            return jnp.where(local >= p + self.n_extra_dart[mesh], self.num_darts, g)
+        off, cnt, total = self._table(kind)
+        return jnp.where(local >= cnt[mesh], total, off[mesh] + local).astype(jnp.int32)
+
+    def to_local(self, kind: str, mesh: Int, g: Int) -> Int:
+        """Local id in mesh ``mesh`` of global id ``g``; the global sentinel maps to the mesh's
+        own count (its one past the end). ``mesh`` must own ``g`` (see :meth:`mesh_of`)."""
+        mesh = jnp.asarray(mesh, jnp.int32)
+        g = jnp.asarray(g, jnp.int32)
+        if kind == "dart":
+            p = self.n_dart[mesh]
+            extra = g >= self.num_primary_darts
+            local = jnp.where(extra, g - self.num_primary_darts - self.extra_dart_offsets[mesh] + p,
+                              g - self.dart_offsets[mesh])
+            return jnp.where(g >= self.num_darts, p + self.n_extra_dart[mesh], local)
+        off, cnt, total = self._table(kind)
+        return jnp.where(g >= total, cnt[mesh], g - off[mesh]).astype(jnp.int32)
+
+    def _table(self, kind: str):
+        if kind == "vertex":
+            return self.vertex_offsets, self.n_vertex, self.num_vertices
+        if kind == "face":
+            return self.face_offsets, self.n_face, self.num_faces
+        raise ValueError(f"unknown id kind {kind!r}: 'vertex', 'face' or 'dart'")
+
+    # ------------------------------------------------------------------ batched local queries
+    def query(self, op: str, mesh: Int, local: Int) -> Int:
+        """Operator ``op`` (``"target"``, ``"twin"``, ``"face_left"``, ``"edge_of_vertex"``...)
+        on mesh-local ids: ``mesh`` and ``local`` broadcast together, the answer is local to the
+        same mesh (ids never leave their component). Jittable; ``op`` must be static."""
+        if op not in OPERATOR_KINDS:
+            raise ValueError(f"unknown operator {op!r}; one of {sorted(OPERATOR_KINDS)}")
+        arg_kind, res_kind = OPERATOR_KINDS[op]
+        mesh = jnp.asarray(mesh, jnp.int32)
+        g = self.to_global(arg_kind, mesh, local)
+        r = getattr(self.structure, op)(g)
+        return r if res_kind == "bool" else self.to_local(res_kind, mesh, r)
+
+    def adjacent(self, u: Int, v: Int) -> Int:  # noqa: D401 - forwarded, global ids
+        """``Adjacent(u, v)`` on global vertex ids (the union structure's, or the generic one)."""
+        from jaxcds.algorithms.adjacency import adjacent
+
+        return adjacent(self.structure, u, v)
+
+    def adjacent_local(self, mesh: Int, u: Int, v: Int) -> Int:
+        """``Adjacent(u, v)`` for vertices local to mesh ``mesh``."""
+        return self.adjacent(self.to_global("vertex", mesh, u), self.to_global("vertex", mesh, v))
+
+    # ------------------------------------------------------------------ per-mesh reductions
+    def per_mesh_sum(self, values, kind: str = "vertex"):
+        """``(num_meshes, ...)`` sums of per-vertex (or per-face) ``values`` over each mesh."""
+        seg = self.vertex_mesh() if kind == "vertex" else self.face_mesh()
+        return jax.ops.segment_sum(values, seg, num_segments=self.num_meshes)
+
+    def per_mesh_mean(self, values, kind: str = "vertex"):
+        """Per-mesh means (0 for an empty mesh)."""
+        cnt = self.n_vertex if kind == "vertex" else self.n_face
+        s = self.per_mesh_sum(values, kind)
+        c = jnp.maximum(cnt, 1).astype(s.dtype).reshape((-1,) + (1,) * (s.ndim - 1))
+        return s / c
+
+    # ------------------------------------------------------------------ host side
+    def split(self, values, kind: str = "vertex") -> list:
+        """Host-side list of per-mesh slices of a per-vertex (per-face) array, in each mesh's
+        structure vertex order (use :meth:`unpermute` first for input order)."""
+        values = np.asarray(values)
+        off = np.asarray(self._table(kind)[0])
+        cnt = np.asarray(self._table(kind)[1])
+        return [values[o:o + c] for o, c in zip(off.tolist(), cnt.tolist())]
+
+    def unpermute(self, values):
+        """Per-vertex ``values`` in structure order -> input (packed) order."""
+        order = self.vertex_order
+        if order is None:
+            return values
+        out = jnp.zeros_like(values) if isinstance(values, jax.Array) else np.zeros_like(values)
+        if isinstance(out, jax.Array):
+            return out.at[jnp.asarray(order)].set(values)
+        out[np.asarray(order)] = values
+        return out
+
+    def __repr__(self) -> str:
+        return (f"PackedBatch[{type(self.structure).__name__}](num_meshes={self.num_meshes}, "
+                f"num_vertices={self.num_vertices}, num_faces={self.num_faces}, "
+                f"num_darts={self.num_darts}, references={self.references})")
+
+
+def _make_forward(op):
+    def method(self, x):
+        return getattr(self.structure, op)(x)
+
+    method.__name__ = op
+    method.__doc__ = f"The union structure's ``{op}`` on global ids."
+    return method
+
+
+for _op in _FORWARDED:
+    if _op == "face_vertices":
+        PackedBatch.face_vertices = lambda self: self.structure.face_vertices()  # type: ignore
+    else:
+        setattr(PackedBatch, _op, _make_forward(_op))
+
+
+def _segment_ids(counts, total: int) -> Int:
+    """``[0]*counts[0] + [1]*counts[1] + ...`` of static length ``total`` (jittable)."""
+    b = counts.shape[0]
+    return jnp.repeat(jnp.arange(b, dtype=jnp.int32), counts, total_repeat_length=total)
+
+
+def _owner(offsets, counts, g) -> Int:
+    """Mesh whose range ``[offset, offset + count)`` holds ``g``: the last mesh whose offset is
+    <= ``g`` (an empty mesh shares its offset with the next mesh, which is the one found)."""
+    del counts  # offsets alone decide: kept in the signature for readability at call sites
+    return (jnp.searchsorted(offsets, g, side="right") - 1).astype(jnp.int32)
+
+
+# ---------------------------------------------------------------------------------- id shifting
+def shift_ids(arrays: Sequence[np.ndarray], counts: Sequence[int]) -> np.ndarray:
+    """Concatenate per-part arrays of *ids* (vertex, face or any contiguous id space), shifting
+    part ``i``'s ids by the sum of the previous ``counts``; a part's sentinel (its own count,
+    one past the end) becomes the total. The helper ``concatenate`` classmethods use for
+    vertex- and face-valued fields."""
+    counts = np.asarray(counts, np.int64)
+    off = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    lens = [int(np.asarray(a).size) for a in arrays]
+    cat = np.concatenate([np.asarray(a, np.int64).ravel() for a in arrays]) if arrays else np.zeros(0, np.int64)
+    o = np.repeat(off, lens)
+    c = np.repeat(counts, lens)
+    out = np.where(cat >= c, counts.sum(), cat + o)
+    return _int32(out)
+
+
+def shift_darts(arrays: Sequence[np.ndarray], primary: Sequence[int], extra: Sequence[int]) -> np.ndarray:
+    """Concatenate per-part arrays of *dart* ids into the batch's dart numbering: part ``i``'s
+    primary darts ``[0, P_i)`` follow the previous parts' primary darts, its extra darts
+    ``[P_i, P_i + X_i)`` come after ALL primary darts (see the module docstring); the sentinel
+    ``P_i + X_i`` becomes the total."""
+    p = np.asarray(primary, np.int64)
+    x = np.asarray(extra, np.int64)
+    poff = np.concatenate([[0], np.cumsum(p)[:-1]])
+    xoff = np.concatenate([[0], np.cumsum(x)[:-1]])
+    lens = [int(np.asarray(a).size) for a in arrays]
+    d = np.concatenate([np.asarray(a, np.int64).ravel() for a in arrays]) if arrays else np.zeros(0, np.int64)
+    pi, xi, po, xo = (np.repeat(t, lens) for t in (p, x, poff, xoff))
+    out = np.where(d < pi, po + d, p.sum() + xo + (d - pi))
+    out = np.where(d >= pi + xi, p.sum() + x.sum(), out)
+    return _int32(out)
+
+
+def split_darts(values: np.ndarray, primary: Sequence[int], extra: Sequence[int]) -> list[np.ndarray]:
+    """Inverse layout of :func:`shift_darts` for per-dart arrays: the per-part slices, each the
+    part's primary rows followed by its extra rows (values are not shifted)."""
+    p = np.asarray(primary, np.int64)
+    x = np.asarray(extra, np.int64)
+    pe = np.cumsum(p)
+    xe = p.sum() + np.cumsum(x)
+    out = []
+    for i in range(p.size):
+        out.append(np.concatenate([values[pe[i] - p[i]:pe[i]], values[xe[i] - x[i]:xe[i]]]))
+    return out
+
+
+def _int32(a: np.ndarray) -> np.ndarray:
+    if a.size and a.max() > np.iinfo(np.int32).max:
+        raise errors.StructureError(
+            f"packed batch: id {int(a.max())} exceeds int32; pack fewer meshes per batch")
+    return a.astype(np.int32)
+
+
+def primary_darts(s) -> int:
+    """Darts of ``s``'s primary block (``num_primary_darts`` if the class defines it)."""
+    return int(getattr(s, "num_primary_darts", s.num_darts))
+
+
+# ---------------------------------------------------------------------------------- building
+#: structures built once on the union face list (they accept several components)
+_UNION_BUILDERS = {"halfedge", "corner-table"}
+
+
+def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = True) -> PackedBatch:
+    """Pack ``meshes`` (paths, ``TriMesh``, ``(vertices, faces)`` pairs, trimesh objects) into
+    one :class:`PackedBatch` of structure ``structure`` (a registry name).
+
+    HalfEdge and CornerTable are built once on the union faces; other structures are built per
+    mesh through the registry and joined with their class's ``concatenate`` classmethod.
+
+    Raises:
+      MeshError: a defective mesh; the message names the mesh index and the defect.
+      UnsupportedTopologyError: the structure refuses a mesh, or has no ``concatenate``.
+    """
+    from jaxcds.structures import registry
+
+    ms = [_load(m) for m in meshes]
+    if not ms:
+        raise errors.EmptyMeshError("pack: no meshes given")
+    names = registry.names()
+    if structure not in names:
+        raise errors.JaxcdsError(f"unknown structure {structure!r}; available: {', '.join(names)}")
+    if structure in _UNION_BUILDERS:
+        return _pack_union(ms, structure, check)
+    parts = []
+    for i, m in enumerate(ms):
+        try:
+            parts.append(registry.build(structure, m))
+        except errors.JaxcdsError as exc:
+            raise type(exc)(f"pack: mesh {i} ({m.source}): {exc}") from exc
+        if i == 0:
+            _check_hook(type(parts[0]))  # refuse before building the other meshes
+    return concatenate(parts)
+
+
+def _load(m) -> TriMesh:
+    if isinstance(m, tuple) and len(m) == 2:
+        return load_mesh(*m)
+    return load_mesh(m)
+
+
+def _union(ms: Sequence[TriMesh]) -> TriMesh:
+    nv = np.array([m.num_vertices for m in ms], np.int64)
+    voff = np.concatenate([[0], np.cumsum(nv)[:-1]])
+    faces = np.concatenate([m.faces.astype(np.int64) + o for m, o in zip(ms, voff)])
+    verts = np.concatenate([m.vertices for m in ms])
+    return TriMesh(vertices=verts, faces=_int32(faces), source=f"union of {len(ms)} meshes")
+
+
+def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBatch:
+    from jaxcds.structures import CornerTable, HalfEdge
+
+    u = _union(ms)
+    closed = structure == "corner-table"
+    if check:
+        # one validation of the union (fast); on failure, find the mesh to name it
+        try:
+            validate(u, closed=closed, structure=structure)
+        except errors.MeshError:
+            for i, m in enumerate(ms):
+                try:
+                    validate(m, closed=closed, structure=structure)
+                except errors.MeshError as exc:
+                    raise type(exc)(f"pack: mesh {i} ({m.source}): {exc}") from exc
+            raise
+    cls = HalfEdge if structure == "halfedge" else CornerTable
+    s = cls.from_faces(u.faces, u.num_vertices)
+    nf = np.array([m.num_faces for m in ms], np.int64)
+    if structure == "halfedge":
+        # border darts of mesh i: one per border side of its faces, in face order (the builder
+        # numbers border darts by increasing inner dart, i.e. mesh by mesh)
+        nb_total = s.num_border_darts
+        if nb_total:
+            opp = np.asarray(s.opposite[: 3 * s.num_faces])
+            border_face = np.nonzero(opp >= 3 * s.num_faces)[0] // 3
+            fmesh = np.repeat(np.arange(len(ms)), nf)
+            nx = np.bincount(fmesh[border_face], minlength=len(ms))
+        else:
+            nx = np.zeros(len(ms), np.int64)
+        return _assemble(s, [m.num_vertices for m in ms], nf, 3 * nf, nx)
+    return _assemble(s, [m.num_vertices for m in ms], nf, 3 * nf, np.zeros(len(ms), np.int64))
+
+
+def _assemble(s, nv, nf, nd, nx) -> PackedBatch:
+    nv, nf, nd, nx = (np.asarray(a, np.int64) for a in (nv, nf, nd, nx))
+
+    def off(c):
+        return jnp.asarray(np.concatenate([[0], np.cumsum(c)[:-1]]).astype(np.int32))
+
+    i32 = lambda a: jnp.asarray(a.astype(np.int32))  # noqa: E731
+    if int(nv.sum()) != s.num_vertices or int(nf.sum()) != s.num_faces or \
+            int(nd.sum() + nx.sum()) != s.num_darts:
+        raise errors.StructureError(
+            f"packed batch: counts (V={nv.sum()}, F={nf.sum()}, darts={nd.sum() + nx.sum()}) do not "
+            f"match the union structure (V={s.num_vertices}, F={s.num_faces}, darts={s.num_darts})")
+    return PackedBatch(structure=s, n_vertex=i32(nv), n_face=i32(nf), n_dart=i32(nd),
+                       n_extra_dart=i32(nx), vertex_offsets=off(nv), face_offsets=off(nf),
+                       dart_offsets=off(nd), extra_dart_offsets=off(nx), num_meshes=int(nv.size),
+                       num_vertices=int(nv.sum()), num_faces=int(nf.sum()),
+                       num_primary_darts=int(nd.sum()))
+
+
+def concatenate(parts: Sequence[MeshStructure]) -> PackedBatch:
+    """Join already built structures of ONE class into a :class:`PackedBatch` through the class's
+    ``concatenate(parts)`` classmethod (ids shifted with :func:`shift_ids` / :func:`shift_darts`).
+
+    Raises:
+      UnsupportedTopologyError: mixed classes, or a class without ``concatenate``.
+    """
+    if not parts:
+        raise errors.EmptyMeshError("concatenate: no structures given")
+    cls = type(parts[0])
+    for i, p in enumerate(parts):
+        if type(p) is not cls:
+            raise errors.UnsupportedTopologyError(
+                f"concatenate: structure {i} is a {type(p).__name__}, structure 0 a {cls.__name__}; "
+                "a packed batch holds one structure kind")
+    _check_hook(cls)
+    s = cls.concatenate(list(parts))
+    pd = [primary_darts(p) for p in parts]
+    return _assemble(s, [p.num_vertices for p in parts], [p.num_faces for p in parts], pd,
+                     [p.num_darts - q for p, q in zip(parts, pd)])
+
+
+def _check_hook(cls) -> None:
+    if not hasattr(cls, "concatenate"):
+        raise errors.UnsupportedTopologyError(
+            f"{cls.__name__} ({getattr(cls, 'name', '?')}) cannot be packed: the class has no "
+            "`concatenate(parts)` classmethod; pack the meshes as 'halfedge' or 'corner-table', "
+            "or build one structure per mesh")
+
+
+def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32) -> jnp.ndarray:
+    """``(num_vertices, 3)`` positions of the packed meshes, in the batch structure's vertex
+    order (concatenated, then permuted by ``vertex_order`` when the structure renumbers)."""
+    ms = [m if isinstance(m, np.ndarray) else _load(m).vertices for m in meshes]
+    p = np.concatenate([np.asarray(v, np.float64) for v in ms])
+    if p.shape[0] != batch.num_vertices:
+        raise errors.MeshError(
+            f"pack_positions: {p.shape[0]} positions for a batch of {batch.num_vertices} vertices")
+    order = batch.vertex_order
+    if order is not None:
+        p = p[np.asarray(order)]
+    return jnp.asarray(p, dtype=dtype)

@@ -1,0 +1,244 @@
+"""Packed batches (jaxcds.batch): one structure over the disjoint union of many meshes.
+
+Every check compares the batch with the per-mesh structures built independently (the brute
+force reference): operators through mesh-local ids, degrees, normals, their gradients, and the
+union structure against the HalfEdge with jaxcds.verify.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxcds import batch as B
+from jaxcds import errors
+from jaxcds.algorithms import adjacent, face_list_vertex_normals, vertex_degrees, vertex_normals
+from jaxcds.generators import icosphere, random_planar_triangulation
+from jaxcds.mesh import close_boundaries, load_mesh
+from jaxcds.structures import CornerTable, HalfEdge, registry
+from jaxcds.verify import verify
+
+from conftest import load_shared, octahedron
+
+
+def open_meshes():
+    """Meshes with and without borders, of different sizes (the HalfEdge case)."""
+    return [load_shared("grid.off"), icosphere(1), load_shared("2triangles.off"),
+            random_planar_triangulation(40, seed=3), load_mesh(*octahedron())]
+
+
+def closed_meshes():
+    return [icosphere(1), random_planar_triangulation(40, seed=3), close_boundaries(load_shared("grid.off")),
+            load_mesh(*octahedron()), random_planar_triangulation(7, seed=1)]
+
+
+CASES = [("halfedge", HalfEdge, open_meshes), ("corner-table", CornerTable, closed_meshes)]
+
+
+@pytest.mark.parametrize("name,cls,meshes", CASES)
+def test_union_build_equals_concatenated_parts(name, cls, meshes):
+    ms = meshes()
+    b = B.pack(ms, name)
+    c = B.concatenate([cls.from_mesh(m) for m in ms])
+    for f in jax.tree_util.tree_leaves(b):
+        assert f.dtype == jnp.int32
+    la, ta = jax.tree_util.tree_flatten(b)
+    lb, tb = jax.tree_util.tree_flatten(c)
+    assert ta == tb
+    for x, y in zip(la, lb):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert b.num_meshes == len(ms)
+    assert b.num_vertices == sum(m.num_vertices for m in ms)
+    assert b.num_faces == sum(m.num_faces for m in ms)
+    if name == "halfedge":  # grid.off and 2triangles.off have borders: the extra dart block
+        assert int(np.sum(np.asarray(b.n_extra_dart))) == 32 + 4
+        assert b.num_extra_darts == 36
+
+
+@pytest.mark.parametrize("name,cls,meshes", CASES)
+@pytest.mark.parametrize("jit", [False, True], ids=["eager", "jit"])
+def test_local_queries_equal_per_mesh_structures(name, cls, meshes, jit):
+    ms = meshes()
+    b = B.pack(ms, name)
+    parts = [cls.from_mesh(m) for m in ms]
+    # one query batch mixing every mesh: (mesh, local id) pairs
+    rng = np.random.default_rng(0)
+    mesh_ids = rng.integers(0, len(ms), 300).astype(np.int32)
+    for op, (arg, _) in B.OPERATOR_KINDS.items():
+        size = {"dart": lambda p: p.num_darts, "vertex": lambda p: p.num_vertices,
+                "face": lambda p: p.num_faces}[arg]
+        local = np.array([rng.integers(0, size(parts[i])) for i in mesh_ids], np.int32)
+        q = (jax.jit(lambda s, m, e: s.query(op, m, e)) if jit else
+             (lambda s, m, e: s.query(op, m, e)))
+        got = np.asarray(q(b, jnp.asarray(mesh_ids), jnp.asarray(local)))
+        want = np.zeros_like(got)
+        for i, p in enumerate(parts):  # reference: each mesh's own structure, vectorised
+            sel = mesh_ids == i
+            want[sel] = np.asarray(getattr(p, op)(jnp.asarray(local[sel])))
+        np.testing.assert_array_equal(got, want, err_msg=f"{name}.{op}")
+
+
+def test_local_global_round_trip_and_owner():
+    ms = open_meshes()
+    b = B.pack(ms, "halfedge")
+    for kind, cnt in (("vertex", b.n_vertex), ("face", b.n_face)):
+        m = np.repeat(np.arange(b.num_meshes), np.asarray(cnt))
+        loc = np.concatenate([np.arange(c) for c in np.asarray(cnt)])
+        g = np.asarray(b.to_global(kind, m, loc))
+        np.testing.assert_array_equal(g, np.arange(g.size))  # contiguous, in mesh order
+        np.testing.assert_array_equal(np.asarray(b.mesh_of(kind, g)), m)
+        np.testing.assert_array_equal(np.asarray(b.to_local(kind, m, g)), loc)
+        np.testing.assert_array_equal(np.asarray(b.vertex_mesh() if kind == "vertex" else b.face_mesh()), m)
+    # darts: the border (extra) block of mesh i lies after every inner dart
+    nd = np.asarray(b.n_dart) + np.asarray(b.n_extra_dart)
+    m = np.repeat(np.arange(b.num_meshes), nd)
+    loc = np.concatenate([np.arange(c) for c in nd])
+    g = np.asarray(b.to_global("dart", m, loc))
+    assert np.unique(g).size == b.num_darts == g.size
+    np.testing.assert_array_equal(np.asarray(b.mesh_of("dart", g)), m)
+    np.testing.assert_array_equal(np.asarray(b.dart_mesh())[g], m)
+    np.testing.assert_array_equal(np.asarray(b.to_local("dart", m, g)), loc)
+    # sentinels: one past the end locally <-> globally
+    assert int(b.to_global("face", 0, int(b.n_face[0]))) == b.num_faces
+    assert int(b.to_local("face", 2, b.num_faces)) == int(b.n_face[2])
+    assert int(b.to_global("dart", 1, int(nd[1]))) == b.num_darts
+    assert int(b.mesh_of("vertex", b.num_vertices)) == b.num_meshes
+
+
+@pytest.mark.parametrize("name,cls,meshes", CASES)
+def test_union_structure_passes_verify(name, cls, meshes):
+    ms = meshes()
+    b = B.pack(ms, name)
+    rep = verify(b, B._union(ms))
+    assert rep.ok, str(rep)
+
+
+@pytest.mark.parametrize("name,cls,meshes", CASES)
+def test_degrees_normals_and_gradients_equal_per_mesh(name, cls, meshes):
+    ms = meshes()
+    b = B.pack(ms, name)
+    parts = [cls.from_mesh(m) for m in ms]
+    pos = B.pack_positions(b, ms)
+    np.testing.assert_array_equal(
+        np.asarray(vertex_degrees(b)),
+        np.concatenate([np.asarray(vertex_degrees(p)) for p in parts]))
+    got = np.asarray(vertex_normals(b, pos))
+    want = np.concatenate([np.asarray(vertex_normals(p, jnp.asarray(m.vertices, jnp.float32)))
+                           for p, m in zip(parts, ms)])
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    # the navigation (gather) route turns around every vertex of every mesh in one loop
+    np.testing.assert_allclose(np.asarray(vertex_normals(b, pos, method="gather")), got, atol=1e-5)
+    # the face-list baseline on the union faces agrees as well
+    np.testing.assert_allclose(np.asarray(vertex_normals(b, pos)),
+                               np.asarray(face_list_vertex_normals(pos, jnp.asarray(B._union(ms).faces))),
+                               atol=1e-5)
+    # gradient of one scalar over the whole batch == per-mesh gradients, concatenated
+    w = jnp.asarray(np.random.default_rng(1).normal(size=pos.shape), jnp.float32)
+    g = np.asarray(jax.jit(jax.grad(lambda p: jnp.sum(vertex_normals(b, p) * w)))(pos))
+    wl = b.split(np.asarray(w))
+    for i, (p, m) in enumerate(zip(parts, ms)):
+        gi = jax.grad(lambda q: jnp.sum(vertex_normals(p, q) * wl[i]))(jnp.asarray(m.vertices, jnp.float32))
+        np.testing.assert_allclose(b.split(g)[i], np.asarray(gi), atol=1e-4)
+    assert np.all(np.isfinite(g)) and np.any(g != 0)
+
+
+def test_adjacent_with_local_ids():
+    ms = open_meshes()
+    b = B.pack(ms, "halfedge")
+    parts = [HalfEdge.from_mesh(m) for m in ms]
+    rng = np.random.default_rng(2)
+    mesh_ids = rng.integers(0, len(ms), 300).astype(np.int32)
+    u = np.array([rng.integers(0, ms[i].num_vertices) for i in mesh_ids], np.int32)
+    # half of the pairs are true neighbours, half random
+    v = np.array([rng.integers(0, ms[i].num_vertices) for i in mesh_ids], np.int32)
+    nb = np.asarray(b.query("target", mesh_ids, b.query("edge_of_vertex", mesh_ids, u)))
+    v[::2] = nb[::2]
+    got = np.asarray(jax.jit(lambda s, m, a, c: s.adjacent_local(m, a, c))(b, mesh_ids, u, v))
+    want = np.zeros(got.shape, bool)
+    for i, p in enumerate(parts):
+        sel = mesh_ids == i
+        want[sel] = np.asarray(adjacent(p, u[sel], v[sel]))
+    np.testing.assert_array_equal(got, want)
+    assert got[::2].all()
+    # a vertex is never adjacent to a vertex of another mesh
+    other = np.asarray(b.to_global("vertex", (mesh_ids + 1) % len(ms), 0))
+    assert not np.asarray(adjacent(b, b.to_global("vertex", mesh_ids, u), other)).any()
+
+
+def test_per_mesh_reductions():
+    ms = closed_meshes()
+    b = B.pack(ms, "corner-table")
+    deg = vertex_degrees(b)
+    got = np.asarray(b.per_mesh_sum(deg))
+    # sum of degrees = 2E = 6V - 12 on a closed genus-0 mesh (Euler), per mesh
+    np.testing.assert_array_equal(got, [6 * m.num_vertices - 12 for m in ms])
+    mean = np.asarray(b.per_mesh_mean(deg.astype(jnp.float32)))
+    np.testing.assert_allclose(mean, [6 - 12 / m.num_vertices for m in ms], rtol=1e-6)
+    area2 = np.asarray(b.per_mesh_sum(jnp.ones(b.num_faces), kind="face"))
+    np.testing.assert_array_equal(area2, [m.num_faces for m in ms])
+
+
+def test_same_totals_do_not_recompile():
+    """Counts and offsets are leaves: two batches with the same totals share one compilation."""
+    a = [icosphere(1), random_planar_triangulation(40, seed=3)]
+    c = [random_planar_triangulation(40, seed=4), icosphere(1)]  # same totals, other split
+    ba, bc = B.pack(a, "corner-table"), B.pack(c, "corner-table")
+    traces = []
+
+    @jax.jit
+    def f(s, p):
+        traces.append(1)
+        return s.per_mesh_sum(vertex_normals(s, p)[:, 2])
+
+    f(ba, B.pack_positions(ba, a))
+    out = f(bc, B.pack_positions(bc, c))
+    assert len(traces) == 1
+    assert out.shape == (2,)
+
+
+def test_errors_name_the_mesh():
+    good = icosphere(1)
+    with pytest.raises(errors.NonManifoldEdgeError, match="mesh 1"):
+        B.pack([good, load_shared("cow.off")], "halfedge")
+    with pytest.raises(errors.UnsupportedTopologyError, match="mesh 2.*closed"):
+        B.pack([good, good, load_shared("grid.off")], "corner-table")
+    with pytest.raises(errors.EmptyMeshError):
+        B.pack([], "halfedge")
+    with pytest.raises(errors.JaxcdsError, match="unknown structure"):
+        B.pack([good], "no-such-structure")
+    with pytest.raises(errors.UnsupportedTopologyError, match="one structure kind"):
+        B.concatenate([HalfEdge.from_mesh(good), CornerTable.from_mesh(good)])
+    with pytest.raises(errors.MeshError, match="positions"):
+        B.pack_positions(B.pack([good], "halfedge"), [good, good])
+
+
+def test_class_without_concatenate_is_refused():
+    class NoHook:  # a structure class that did not implement the hook
+        name = "nohook"
+
+    with pytest.raises(errors.UnsupportedTopologyError, match="no `concatenate"):
+        B.concatenate([NoHook(), NoHook()])
+    s = CornerTable.from_mesh(icosphere(1))
+    assert isinstance(B.concatenate([s, s]).structure, CornerTable)
+
+
+COMPACT = [n for n in registry.names() if n not in ("halfedge", "corner-table")]
+
+
+@pytest.mark.parametrize("name", COMPACT or ["(none registered)"])
+def test_registry_structures_pack(name):
+    """Every other registered structure: packed through its ``concatenate`` and checked operator
+    by operator against the HalfEdge of the union. Structures without the hook must be refused
+    with a clear error (listed as 'still to do' in the issue note)."""
+    if name == "(none registered)":
+        pytest.skip("no compact structure registered yet")
+    ms = [random_planar_triangulation(30, seed=s) for s in range(3)]
+    try:
+        b = B.pack(ms, name)
+    except errors.UnsupportedTopologyError as exc:
+        assert "concatenate" in str(exc), str(exc)  # the one refusal allowed here
+        pytest.xfail(f"{name}: {exc}")
+    rep = verify(b, B._union(ms))
+    assert rep.ok, str(rep)
