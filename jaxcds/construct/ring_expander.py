@@ -1,0 +1,422 @@
+"""RING-EXPANDER and the LR tables (Gurung, Luffel, Lindstrom, Rossignac, *LR: Compact connectivity
+representation for triangle meshes*, ACM TOG 2011), numba, linear time.
+
+Everything here works on a corner table (``V``, ``O`` of length ``3n``, corner ``c`` in triangle
+``c // 3``, ``c.n = 3(c//3) + (c+1)%3``, counter-clockwise faces; see
+:class:`jaxcds.structures.corner_table.CornerTable`):
+
+* :func:`ring_expander` -- the stackless depth-first invasion of Sec. 4.2 (Fig. 3);
+* :func:`hybrid_ring_expander` -- the deque version of Sec. 6.1 that restarts breadth-first every
+  ``k`` invasions (``k = 1`` breadth-first, ``k = 0`` meaning infinity: depth-first);
+* :func:`extract_ring` -- the ring (boundary of the invaded disk) in order, oriented so that the
+  invaded triangle of ring edge ``(v, v.n)`` is its right triangle ``v.t_R`` (Sec. 4.4, Fig. 5);
+* :func:`best_ring` -- several seeds, keeping the ring with the fewest isolated vertices (Sec. 4.2);
+* :func:`lr_tables` -- triangle classification (Sec. 4.3: T0, T1, T2, T^i), wart skipping (Sec. 5:
+  T0^w stored in the redundant slot of its T2 wart), corner ids ``8v + i`` (Fig. 5) and the
+  canonical LR corner of every corner-table corner.
+
+Dummy vertices (holes closed by :func:`jaxcds.mesh.close_boundaries`) are marked visited before the
+invasion (Sec. 4.6) so they are never on the ring and no dummy triangle is invaded.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Optional
+
+import numba
+import numpy as np
+
+from jaxcds import errors
+
+__all__ = ["ring_expander", "hybrid_ring_expander", "extract_ring", "best_ring", "Ring",
+           "lr_tables", "LRTables", "reference_ring_expander"]
+
+
+# ------------------------------------------------------------------------------ invasion
+@numba.njit(cache=True, inline="always")
+def _n(c):
+    return 3 * (c // 3) + (c + 1) % 3
+
+
+@numba.njit(cache=True, inline="always")
+def _p(c):
+    return 3 * (c // 3) + (c + 2) % 3
+
+
+@numba.njit(cache=True)
+def _ring_expander(V, O, seed, vm, tm):
+    """Sec. 4.2 listing, verbatim with ``c.r = c.p.o``. Returns the number of invaded triangles,
+    or -1 if the walk did not come back to ``s.o`` (not a closed manifold)."""
+    s = seed
+    c = s
+    vm[V[_n(c)]] = 1
+    vm[V[_p(c)]] = 1
+    so = O[s]
+    invaded = 0
+    limit = 4 * V.shape[0] + 16
+    steps = 0
+    while True:
+        if vm[V[c]] == 0:  # invade c.t
+            vm[V[c]] = 1
+            tm[c // 3] = 1
+            invaded += 1
+        elif tm[c // 3] == 0:  # c.v visited, c.t not invaded: go back one triangle
+            c = O[c]
+        c = O[_p(c)]  # advance to next ring edge on the right: c = c.r
+        if c == so:
+            break
+        steps += 1
+        if steps > limit:
+            return -1
+    return invaded
+
+
+@numba.njit(cache=True)
+def _hybrid_ring_expander(V, O, seed, k, vm, tm):
+    """Sec. 6.1 listing (HYBRID-RING-EXPANDER): deque ``d`` of backtracking corners, pop from the
+    front every ``k`` invasions (breadth-first restart), from the back otherwise (depth-first).
+    ``k <= 0`` means infinity. The seed's third neighbour ``s.o`` is pushed first (the listing
+    starts inside the loop; without it ``s.o.t`` could never be invaded)."""
+    nc = V.shape[0]
+    d = np.empty(nc + 8, dtype=np.int32)  # at most 2 pushes per invasion + 1: never wraps
+    head = 0
+    tail = 0
+    c = seed
+    vm[V[_n(c)]] = 1
+    vm[V[_p(c)]] = 1
+    d[tail] = O[c]
+    tail += 1
+    n = 0
+    while True:
+        if vm[V[c]] == 0:  # has c.v been visited?
+            vm[V[c]] = 1  # invade c.t
+            tm[c // 3] = 1
+            d[tail] = O[_n(c)]  # push c.l
+            tail += 1
+            d[tail] = O[_p(c)]  # push c.r
+            tail += 1
+            n += 1
+        if head == tail:
+            break
+        if k > 0 and n % k == 0:
+            c = d[head]  # breadth-first
+            head += 1
+        else:
+            tail -= 1  # depth-first
+            c = d[tail]
+    return n
+
+
+def _marks(num_vertices: int, num_faces: int, dummy: Optional[np.ndarray]):
+    vm = np.zeros(num_vertices, dtype=np.uint8)
+    if dummy is not None:
+        vm[np.asarray(dummy, dtype=bool)] = 1  # Sec. 4.6: the dummy vertex is never on the ring
+    return vm, np.zeros(num_faces, dtype=np.uint8)
+
+
+def ring_expander(V, O, num_vertices: int, seed: int, dummy=None):
+    """Run RING-EXPANDER (Sec. 4.2) from seed corner ``seed``.
+
+    Returns ``(tm, vm)``: ``(n,)`` uint8 invaded-triangle flags and ``(m,)`` uint8 visited flags
+    (dummy vertices are pre-marked; they are visited but not on the ring)."""
+    V = np.asarray(V, dtype=np.int32)
+    O = np.asarray(O, dtype=np.int32)
+    vm, tm = _marks(num_vertices, V.shape[0] // 3, dummy)
+    if _ring_expander(V, O, np.int32(seed), vm, tm) < 0:
+        raise errors.StructureError(
+            f"RING-EXPANDER from corner {seed} did not return to s.o: the corner table is not a "
+            "closed manifold")
+    return tm, vm
+
+
+def hybrid_ring_expander(V, O, num_vertices: int, seed: int, k: int, dummy=None):
+    """Run HYBRID-RING-EXPANDER (Sec. 6.1) with period ``k`` (0: depth-first). Same outputs as
+    :func:`ring_expander`."""
+    V = np.asarray(V, dtype=np.int32)
+    O = np.asarray(O, dtype=np.int32)
+    vm, tm = _marks(num_vertices, V.shape[0] // 3, dummy)
+    _hybrid_ring_expander(V, O, np.int32(seed), np.int64(k), vm, tm)
+    return tm, vm
+
+
+def reference_ring_expander(V, O, num_vertices: int, seed: int, dummy=None):
+    """Slow, obviously-correct Python twin of :func:`ring_expander` (tests only)."""
+    V = [int(x) for x in V]
+    O = [int(x) for x in O]
+    vm = [False] * num_vertices
+    if dummy is not None:
+        for i, d in enumerate(dummy):
+            vm[i] = bool(d)
+    tm = [False] * (len(V) // 3)
+    nx = lambda c: 3 * (c // 3) + (c + 1) % 3  # noqa: E731
+    pv = lambda c: 3 * (c // 3) + (c + 2) % 3  # noqa: E731
+    s = c = seed
+    vm[V[nx(c)]] = vm[V[pv(c)]] = True
+    while True:
+        if not vm[V[c]]:
+            vm[V[c]] = tm[c // 3] = True
+        elif not tm[c // 3]:
+            c = O[c]
+        c = O[pv(c)]
+        if c == O[s]:
+            break
+    return np.array(tm, np.uint8), np.array(vm, np.uint8)
+
+
+@numba.njit(cache=True)
+def _extract_ring(V, O, tm, num_vertices):
+    """Ring = boundary of the invaded disk. Each boundary dart ``a -> b`` of an invaded triangle
+    (corner ``c`` facing it, ``c.t`` invaded, ``c.o.t`` not) gives ``succ[a] = b`` and the
+    right-slot apex corner ``rc[a] = c``. Returns (order, rc_in_order) or empty arrays when the
+    boundary is not a single simple loop."""
+    nc = V.shape[0]
+    succ = np.full(num_vertices, -1, dtype=np.int32)
+    rc = np.full(num_vertices, -1, dtype=np.int32)
+    count = 0
+    start = -1
+    for c in range(nc):
+        if tm[c // 3] == 1 and tm[O[c] // 3] == 0:
+            a = V[_n(c)]
+            if succ[a] != -1:  # a vertex twice on the boundary: not a simple loop
+                return np.empty(0, np.int32), np.empty(0, np.int32)
+            succ[a] = V[_p(c)]
+            rc[a] = c
+            count += 1
+            start = a
+    order = np.empty(count, dtype=np.int32)
+    corners = np.empty(count, dtype=np.int32)
+    v = start
+    for i in range(count):
+        order[i] = v
+        corners[i] = rc[v]
+        v = succ[v]
+        if v < 0:
+            return np.empty(0, np.int32), np.empty(0, np.int32)
+    if v != start:
+        return np.empty(0, np.int32), np.empty(0, np.int32)
+    return order, corners
+
+
+@dataclasses.dataclass(frozen=True)
+class Ring:
+    """A ring (Sec. 4.2).
+
+    Attributes:
+      order: ``(m_r,)`` int32 input vertex ids in ring order (ring edge ``(order[i], order[i+1])``).
+      right_corner: ``(m_r,)`` int32 corner-table corner facing ring edge ``i`` inside the invaded
+        triangle ``v.t_R`` (its vertex is ``v.r``).
+      seed: seed corner; k: hybrid period (None: the stackless RING-EXPANDER, 0: depth-first deque).
+      num_isolated: ``m_i = m - m_r`` (dummy vertices included).
+    """
+
+    order: np.ndarray
+    right_corner: np.ndarray
+    seed: int
+    k: Optional[int]
+    num_isolated: int
+
+
+def extract_ring(V, O, tm, num_vertices: int, seed: int = -1, k=None) -> Ring:
+    """The ring bounding the invaded triangles ``tm`` (see :func:`_extract_ring`)."""
+    order, corners = _extract_ring(np.asarray(V, np.int32), np.asarray(O, np.int32),
+                                   np.asarray(tm, np.uint8), int(num_vertices))
+    if order.size < 4:
+        raise errors.UnsupportedTopologyError(
+            f"the ring from seed corner {seed} has {order.size} vertices (need >= 4): mesh too "
+            "small for LR (use corner-table)" if order.size else
+            f"the invaded region from seed corner {seed} is not bounded by one simple loop")
+    return Ring(order=order, right_corner=corners, seed=int(seed), k=k,
+                num_isolated=int(num_vertices) - int(order.size))
+
+
+def best_ring(V, O, num_vertices: int, *, seeds=4, k=None, dummy=None, rng_seed: int = 0) -> Ring:
+    """Run RING-EXPANDER (``k is None``) or HYBRID-RING-EXPANDER (period ``k``) from ``seeds``
+    random seed corners (or the given list) and keep the ring with the fewest isolated vertices
+    (Sec. 4.2: "we run RING-EXPANDER several times with random seed corners and retain the seed
+    leading to the smallest m_i"). Seeds are corners of non-dummy triangles."""
+    V = np.asarray(V, dtype=np.int32)
+    O = np.asarray(O, dtype=np.int32)
+    nf = V.shape[0] // 3
+    if np.isscalar(seeds):
+        rng = np.random.default_rng(rng_seed)
+        ok = np.ones(nf, dtype=bool)
+        if dummy is not None:
+            dm = np.asarray(dummy, dtype=bool)
+            ok = ~dm[V.reshape(-1, 3)].any(axis=1)
+        cand = np.nonzero(ok)[0]
+        if cand.size == 0:
+            raise errors.UnsupportedTopologyError("no triangle without a dummy vertex to seed the ring")
+        tris = rng.choice(cand, size=min(int(seeds), cand.size), replace=False)
+        seed_list = [int(3 * t) for t in tris]
+    else:
+        seed_list = [int(s) for s in seeds]
+    best = None
+    for s in seed_list:
+        if k is None:
+            tm, _ = ring_expander(V, O, num_vertices, s, dummy)
+        else:
+            tm, _ = hybrid_ring_expander(V, O, num_vertices, s, k, dummy)
+        r = extract_ring(V, O, tm, num_vertices, s, k)
+        if best is None or r.num_isolated < best.num_isolated:
+            best = r
+        if best.num_isolated == (0 if dummy is None else int(np.sum(dummy))):
+            break  # cannot do better
+    return best
+
+
+# ------------------------------------------------------------------------------ tables
+@numba.njit(cache=True)
+def _tables(V, O, order, rcorner, num_vertices, wart_skipping):
+    nc = V.shape[0]
+    nf = nc // 3
+    m = order.shape[0]
+    cR = rcorner.copy()
+    cL = np.empty(m, np.int32)
+    for i in range(m):
+        cL[i] = O[cR[i]]
+    cnt = np.zeros(nf, np.int8)  # number of ring slots holding each triangle (T0: 0, T1: 1, T2: 2)
+    for i in range(m):
+        cnt[cL[i] // 3] += 1
+        cnt[cR[i] // 3] += 1
+    redL = np.zeros(m, np.uint8)
+    redR = np.zeros(m, np.uint8)
+    for i in range(m):
+        j = (i + 1) % m
+        # T2 canonical on its second ring edge (Sec. 4.4): slot i redundant if slot i+1 holds it too
+        if cL[i] // 3 == cL[j] // 3:
+            redL[i] = 1
+        if cR[i] // 3 == cR[j] // 3:
+            redR[i] = 1
+    t2 = 0
+    for i in range(m):
+        t2 += redL[i] + redR[i]
+    # Sec. 5 wart skipping: a T2 (tip v, canonical in slot v) adjacent across its transversal edge
+    # to a T0 lends its redundant slot v.p to that T0 (now T0^w, a T1 of the ring that skips v).
+    claimed = np.zeros(nf, np.uint8)
+    skL = np.zeros(m, np.uint8)
+    skR = np.zeros(m, np.uint8)
+    if wart_skipping:
+        for i in range(m):
+            ip = (i - 1 + m) % m
+            if redL[ip] == 1:
+                tip = _p(cL[i])  # corner v.0 (at the tip v) of L(v) = (v, v.p, v.n)
+                x = O[tip] // 3
+                if cnt[x] == 0 and claimed[x] == 0:
+                    claimed[x] = 1
+                    skL[ip] = 1
+                    redL[ip] = 0
+                    cL[ip] = O[tip]  # apex corner (at u) of T0^w = (v.p, u, v.n)
+            if redR[ip] == 1:
+                tip = _n(cR[i])  # corner v.6 (at the tip v) of R(v) = (v.n, v.p, v)
+                x = O[tip] // 3
+                if cnt[x] == 0 and claimed[x] == 0:
+                    claimed[x] = 1
+                    skR[ip] = 1
+                    redR[ip] = 0
+                    cR[ip] = O[tip]
+    n0 = 0
+    for t in range(nf):
+        if cnt[t] == 0 and claimed[t] == 0:
+            n0 += 1
+    t0 = np.empty(n0, np.int32)
+    j = 0
+    for t in range(nf):
+        if cnt[t] == 0 and claimed[t] == 0:
+            t0[j] = t
+            j += 1
+    # canonical LR corner of each corner-table corner: L(v) = (v.0, v.1, v.2) at (v, v.l, v.n*),
+    # R(v) = (v.4, v.5, v.6) at (v.n*, v.r, v) (Fig. 5); T0 corners 8 m_r + 4 j + i (Sec. 4.7)
+    lrc = np.full(nc, -1, np.int32)
+    for i in range(m):
+        if redL[i] == 0:
+            d = cL[i]
+            lrc[_p(d)] = 8 * i
+            lrc[d] = 8 * i + 1
+            lrc[_n(d)] = 8 * i + 2
+        if redR[i] == 0:
+            c = cR[i]
+            lrc[_p(c)] = 8 * i + 4
+            lrc[c] = 8 * i + 5
+            lrc[_n(c)] = 8 * i + 6
+    for jj in range(n0):
+        t = t0[jj]
+        for q in range(3):
+            lrc[3 * t + q] = 8 * m + 4 * jj + q
+    # which triangles are T0 after wart skipping; irregular slots: a neighbour is a T0 (Sec. 4.5)
+    is_t0 = np.zeros(nf, np.uint8)
+    for jj in range(n0):
+        is_t0[t0[jj]] = 1
+    irL = np.zeros(m, np.uint8)
+    irR = np.zeros(m, np.uint8)
+    for i in range(m):
+        if redL[i] == 0:
+            d = cL[i]
+            if is_t0[O[d] // 3] or is_t0[O[_n(d)] // 3] or is_t0[O[_p(d)] // 3]:
+                irL[i] = 1
+        if redR[i] == 0:
+            c = cR[i]
+            if is_t0[O[c] // 3] or is_t0[O[_n(c)] // 3] or is_t0[O[_p(c)] // 3]:
+                irR[i] = 1
+    return cL, cR, redL, redR, skL, skR, irL, irR, t0, lrc, t2
+
+
+@dataclasses.dataclass(frozen=True)
+class LRTables:
+    """Everything the LR structure is packed from (input vertex ids, corner-table corners).
+
+    Attributes:
+      order: ``(m_r,)`` ring vertices in ring order (input ids).
+      left_corner / right_corner: ``(m_r,)`` corner-table corner at the apex ``v.l`` / ``v.r`` of
+        slot ``L(v)`` (triangle ``2v``) / ``R(v)`` (triangle ``2v + 1``); for a wart-skipping slot
+        it is the apex of the T0^w.
+      red_left / red_right: ``(m_r,)`` slot holds the redundant copy of a T2 (Sec. 4.4).
+      skip_left / skip_right: ``(m_r,)`` slot holds a T0^w whose ring edge skips the wart tip
+        ``v.n`` (Sec. 5).
+      irr_left / irr_right: ``(m_r,)`` slot triangle is irregular: adjacent to a T0 (T^i, Sec. 4.5).
+      t0: ``(n0,)`` corner-table triangles left as T0 after wart skipping.
+      lr_corner: ``(3n,)`` canonical LR corner id (``8v + i`` / ``8 m_r + 4j + i``) of each
+        corner-table corner (ring vertex ids, not input ids).
+      num_t2: number of T2 triangles (before wart skipping), num_t0_initial: T0 before it.
+    """
+
+    order: np.ndarray
+    left_corner: np.ndarray
+    right_corner: np.ndarray
+    red_left: np.ndarray
+    red_right: np.ndarray
+    skip_left: np.ndarray
+    skip_right: np.ndarray
+    irr_left: np.ndarray
+    irr_right: np.ndarray
+    t0: np.ndarray
+    lr_corner: np.ndarray
+    num_t2: int
+    ring: Ring
+
+    @property
+    def num_ring(self) -> int:
+        return int(self.order.size)
+
+    def stats(self, num_faces: int, num_real_faces: Optional[int] = None) -> dict:
+        """Table 1 percentages (of ``num_real_faces`` triangles when given)."""
+        n = num_real_faces or num_faces
+        n0 = int(self.t0.size)
+        nw = int(self.skip_left.sum() + self.skip_right.sum())
+        ni = int(self.irr_left.sum() + self.irr_right.sum())
+        return {"m_r": self.num_ring, "m_i": self.ring.num_isolated, "T0": n0, "T0w": nw,
+                "Ti": ni, "T2": self.num_t2,
+                "pct_T0": 100.0 * n0 / n, "pct_T0w": 100.0 * nw / n, "pct_Ti": 100.0 * ni / n}
+
+
+def lr_tables(V, O, ring: Ring, num_vertices: int, *, wart_skipping: bool = True) -> LRTables:
+    """Classify triangles against ``ring``, skip warts and number corners (Sec. 4.3-4.5, 5)."""
+    V = np.asarray(V, dtype=np.int32)
+    O = np.asarray(O, dtype=np.int32)
+    cL, cR, redL, redR, skL, skR, irL, irR, t0, lrc, t2 = _tables(
+        V, O, ring.order, ring.right_corner, int(num_vertices), bool(wart_skipping))
+    return LRTables(order=ring.order, left_corner=cL, right_corner=cR,
+                    red_left=redL.astype(bool), red_right=redR.astype(bool),
+                    skip_left=skL.astype(bool), skip_right=skR.astype(bool),
+                    irr_left=irL.astype(bool), irr_right=irR.astype(bool), t0=t0,
+                    lr_corner=lrc, num_t2=int(t2), ring=ring)

@@ -1,0 +1,766 @@
+"""LR, the Laced Ring (Gurung, Luffel, Lindstrom, Rossignac, ACM TOG 2011), and its bit-efficient
+variant ``lr-bits`` (Sec. 6).
+
+A *ring* (Sec. 4.2, built by :mod:`jaxcds.construct.ring_expander`) visits most vertices; ring
+vertices are renumbered ``0 .. m_r - 1`` in ring order (``v.n = v + 1 mod m_r``) and come first,
+isolated vertices after them (:attr:`LR.vertex_order`). Every ring edge ``(v, v.n)`` has a left
+triangle ``v.t_L = 2v = (v, v.l, v.n)`` and a right triangle ``v.t_R = 2v + 1 = (v.n, v.r, v)``
+(Sec. 4.4, Fig. 5) whose only stored vertex is ``L[v]`` / ``R[v]``; their corners are
+``8v + i``: ``v.0, v.1, v.2`` at ``v, v.l, v.n`` and ``v.4, v.5, v.6`` at ``v.n, v.r, v``.
+Triangles with no ring edge (T0) keep a plain corner table ``V0, O0`` with corner ids
+``8 m_r + 4j + i`` (Sec. 4.7). Irregular triangles (adjacent to a T0, T^i) store their apex and two
+opposite corners in ``VO*`` (Sec. 4.5). Wart skipping (Sec. 5): a T0 next to a T2 wart is stored
+in the wart's redundant slot as a T1 whose ring edge skips the wart tip (``v.n* = v.n.n``).
+
+Corner ids are darts of the navigation protocol (:mod:`jaxcds.structures.base`): corner ``c`` is
+the dart leaving ``c.v`` counter-clockwise in ``c.t``. The redundant copy of a T2 (Sec. 4.4,
+"associate the T2 with its second ring edge") is not a valid dart; every operator returns
+canonical corners. Protocol faces are numbered densely (``face(c)`` = rank of the slot ``c >> 2``
+among non-redundant slots, a popcount directory of ``2 ceil(2 m_r / 32)`` words kept outside the
+paper's reference count, see :attr:`LR.aux_references`).
+
+Both classes share one implementation of the operators (:class:`_LRNavigation`); they differ only
+in how a ring vertex's entry is decoded (:meth:`_dec`): 32-bit entries with service bits (``LR``)
+or 16-bit relative offsets with long references through ``VO*`` (``LRBits``, Sec. 6.1-6.2).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Optional, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds import errors
+from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.construct.ring_expander import LRTables, best_ring, lr_tables
+from jaxcds.mesh import TriMesh, close_boundaries, load_mesh, validate
+from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.corner_table import CornerTable
+
+__all__ = ["LR", "LRBits", "build_lr", "render_list", "expand_render_list"]
+
+_VALUE_BITS = 29
+_VALUE_MASK = (1 << _VALUE_BITS) - 1
+_SKIP_BIT = 29  # service bit: wart skip (Sec. 5, Sec. 6.2 "L_w")
+_IRR_BIT = 30  # service bit: irregular T^i, the value is a VO* triplet index (Sec. 4.5)
+_FAIL = np.int32(2**31 - 1)  # "no cheap opposite" (only ever seen at construction)
+
+
+class _Slot(NamedTuple):
+    """Decoded LR entry of ring vertex ``v``: apexes ``l = v.l``, ``r = v.r``; wart-skip flags;
+    irregular flags; ``VO*`` positions of the two stored opposites of the left / right slot."""
+
+    l: Int
+    r: Int
+    skl: Int
+    skr: Int
+    irl: Int
+    irr: Int
+    lo: Int
+    ro: Int
+
+
+# --------------------------------------------------------------------------------- operators
+# Written once for numpy (construction-time check) and jax.numpy (the structure): ``xp`` is the
+# array module, ``dec`` decodes ring vertices, ``m`` = m_r.
+
+
+def _nx(xp, x, m):
+    """``v.n = v + 1 mod m_r``."""
+    return xp.where(x + 1 >= m, x + 1 - m, x + 1)
+
+
+def _pv(xp, x, m):
+    """``v.p = v - 1 mod m_r``."""
+    return xp.where(x == 0, m - 1, x - 1)
+
+
+def _ring_vertex(xp, dec, m, c):
+    """``c.v`` for ring corners ``c < 8 m_r`` (Sec. 4.7): offset ``c mod 8`` selects among
+    ``v, v.l, v.n*, v.r`` (``v.n* = v.n.n`` in a wart-skipping T0^w, Sec. 5)."""
+    v = c >> 3
+    i = c & 7
+    d = dec(v)
+    vn = _nx(xp, v, m)
+    vnn = _nx(xp, vn, m)
+    nl = xp.where(d.skl, vnn, vn)
+    nr = xp.where(d.skr, vnn, vn)
+    # Fig. 5: v.0 = v.6 = v; v.1 = v.l; v.2 = v.n (L side); v.4 = v.n (R side); v.5 = v.r
+    return xp.where(i == 1, d.l, xp.where(i == 5, d.r,
+                    xp.where(i == 2, nl, xp.where(i == 4, nr, v))))
+
+
+def _canonical(xp, dec, m, c):
+    """Map a redundant T2 corner to its canonical copy (Sec. 4.4, Fig. 5 right): slot ``L(v)`` is
+    redundant when ``v.l = v.n.n`` (the T2 lives on its second ring edge, slot ``L(v.n)``),
+    likewise ``R(v)`` when ``v.r = v.n.n``."""
+    ok = (c >= 0) & (c < 8 * m)  # T0 corners and _FAIL pass through
+    w = xp.where(ok, c >> 3, 0)
+    i = c & 7
+    d = dec(w)
+    wn = _nx(xp, w, m)
+    wnn = _nx(xp, wn, m)
+    left = i < 4
+    red = xp.where(left, (d.skl == 0) & (d.l == wnn), (d.skr == 0) & (d.r == wnn))
+    # L(v) = (v, v.n.n, v.n) == L(v.n) = (v.n, v, v.n.n): 0 -> 1, 1 -> 2, 2 -> 0
+    # R(v) = (v.n, v.n.n, v) == R(v.n) = (v.n.n, v, v.n): 4 -> 6, 5 -> 4, 6 -> 5
+    j = xp.where(left, (i + 1) % 3, 4 + (i + 1) % 3)
+    return xp.where(ok & red, 8 * wn + j, c)
+
+
+def _find(xp, dec, m, right, x, y):
+    """The corner facing the transversal edge of the slot triangle that holds the dart
+    ``x -> y`` (left side) or ``y -> x`` (right side), found from the ring alone (Sec. 4.5, Fig. 6):
+
+    * case "v.n.l = v.l": the dart starts at ring vertex ``x`` of a slot ``L(x)`` with apex ``y``
+      (right side: ``R(x)`` with apex ``y``) -> ``x.2`` (``x.4``);
+    * case "v.l.p.l = v.n": slot ``L(y.p)`` (``R(y.p)``) with apex ``x`` -> ``y.p.0`` (``y.p.6``);
+    * the same through a wart-skipping slot (Sec. 5, "we let v.p.n = v.n when accessing a T0^w"):
+      ``L(y.p.p)`` with the skip bit -> ``y.p.p.0`` (``.6``).
+
+    Returns ``_FAIL`` when none holds (the neighbour is a T0: the slot is irregular)."""
+    okx = (x >= 0) & (x < m)
+    oky = (y >= 0) & (y < m)
+    x_ = xp.where(okx, x, 0)
+    y_ = xp.where(oky, y, 0)
+    dx = dec(x_)
+    a = okx & (xp.where(right, dx.r, dx.l) == y)
+    w1 = _pv(xp, y_, m)
+    d1 = dec(w1)
+    b = oky & (xp.where(right, d1.skr, d1.skl) == 0) & (xp.where(right, d1.r, d1.l) == x)
+    w2 = _pv(xp, w1, m)
+    d2 = dec(w2)
+    b2 = oky & (xp.where(right, d2.skr, d2.skl) == 1) & (xp.where(right, d2.r, d2.l) == x)
+    off_a = xp.where(right, 4, 2)
+    off_b = xp.where(right, 6, 0)
+    return xp.where(a, 8 * x_ + off_a,
+                    xp.where(b, 8 * w1 + off_b, xp.where(b2, 8 * w2 + off_b, _FAIL)))
+
+
+def _cheap_opposite(xp, dec, m, c):
+    """``c.o`` for a canonical ring corner ``c < 8 m_r`` of a regular triangle (Sec. 4.5, Fig. 6,
+    Sec. 5), before canonicalisation. Irregular slots take their opposites from ``VO*``."""
+    v = c >> 3
+    i = c & 7
+    d = dec(v)
+    vn = _nx(xp, v, m)
+    vp = _pv(xp, v, m)
+    dp = dec(vp)
+    vnn = _nx(xp, vn, m)
+    nl = xp.where(d.skl, vnn, vn)
+    nr = xp.where(d.skr, vnn, vn)
+    # quad opposites across ring edge (w, w.n): v.1.o = v.5 and v.5.o = v.1 (Sec. 4.5); when the
+    # other side of the edge is a wart (its T0^w sits in this slot's partner), the wart's corner
+    # facing the ring edge: (w.n).4 for a right wart, (w.n).2 for a left one (Sec. 5).
+    quad_l = xp.where(d.skr, 8 * vn + 4, 8 * v + 5)  # v.1.o
+    quad_r = xp.where(d.skl, 8 * vn + 2, 8 * v + 1)  # v.5.o
+    # T0^w apex faces the wart: "conversely for T0^w tip corners" v.p.1.o = v.0 (Sec. 5)
+    o1 = xp.where(d.skl, 8 * vn + 0, quad_l)
+    o5 = xp.where(d.skr, 8 * vn + 6, quad_r)
+    # canonical T2 (v.l = v.p): v.2 faces ring edge (v.p, v): "remap v.2 to v.p.1" and take the
+    # quad opposite of v.p (Sec. 4.5); same for v.4 -> v.p.5
+    t2l = (d.skl == 0) & (d.l == vp)
+    t2r = (d.skr == 0) & (d.r == vp)
+    quad_lp = xp.where(dp.skr, 8 * v + 4, 8 * vp + 5)
+    quad_rp = xp.where(dp.skl, 8 * v + 2, 8 * vp + 1)
+    # transversal corners (Fig. 6): one _find with the dart chosen by the offset
+    right = i >= 4
+    x = xp.where(i == 0, nl, xp.where(i == 2, d.l, xp.where(i == 4, d.r, nr)))
+    y = xp.where(i == 0, d.l, xp.where(i == 2, v, xp.where(i == 4, v, d.r)))
+    f = _find(xp, dec, m, right, x, y)
+    # wart tips (Sec. 5): "v.0.o = v.p.1 and v.6.o = v.p.5" when slot v.p holds the T0^w
+    o0 = xp.where(dp.skl == 1, 8 * vp + 1, f)
+    o2 = xp.where(t2l, quad_lp, f)
+    o4 = xp.where(t2r, quad_rp, f)
+    o6 = xp.where(dp.skr == 1, 8 * vp + 5, f)
+    return xp.where(i == 0, o0, xp.where(i == 1, o1, xp.where(i == 2, o2,
+                    xp.where(i == 4, o4, xp.where(i == 5, o5, o6)))))
+
+
+def _popcount32(x):
+    return jax.lax.population_count(x)
+
+
+class _LRNavigation(MeshStructure):
+    """Operators shared by :class:`LR` and :class:`LRBits` (Sec. 4.7); subclasses provide
+    ``_dec``, ``VOs``, ``V0``, ``O0``, ``C``, the slot directory and the static sizes."""
+
+    closed_triangles = True
+
+    # ---------------------------------------------------------------- paper operators (Fig. 2)
+    def _dec(self, v) -> _Slot:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _t0_index(self, c):
+        # "i = c - floor(c/4) - 6 m_r restores the base to six" (Sec. 4.7)
+        i = c - (c >> 2) - 6 * self.num_ring
+        return jnp.clip(i, 0, max(3 * self.num_t0 - 1, 0))
+
+    def v(self, c: Int) -> Int:
+        """``c.v`` (Sec. 4.7): ``V0`` for T0 corners ``c >= 8 m_r``, else from ``v = c / 8``, the
+        offset ``c mod 8`` and the L/R entry of ``v``."""
+        c = jnp.asarray(c, jnp.int32)
+        m = self.num_ring
+        t0 = c >= 8 * m
+        ring = _ring_vertex(jnp, self._dec, m, jnp.where(t0, 0, c))
+        return jnp.where(t0, self.V0[self._t0_index(c)], ring).astype(jnp.int32)
+
+    def o(self, c: Int) -> Int:
+        """``c.o`` (Sec. 4.7, Fig. 6): ``O0`` for T0 corners; the ``VO*`` record of an irregular
+        slot (Sec. 4.5); otherwise the ring case analysis of :func:`_cheap_opposite`, canonicalised."""
+        c = jnp.asarray(c, jnp.int32)
+        m = self.num_ring
+        t0 = c >= 8 * m
+        cr = jnp.where(t0, 0, c)
+        i = cr & 7
+        d = self._dec(cr >> 3)
+        cheap = _canonical(jnp, self._dec, m, _cheap_opposite(jnp, self._dec, m, cr))
+        # T^i (Sec. 4.5): "VO* holds triplets (v.l, v.0.o, v.2.o) and (v.r, v.4.o, v.6.o)"
+        irr_l = (d.irl == 1) & ((i == 0) | (i == 2))
+        irr_r = (d.irr == 1) & ((i == 4) | (i == 6))
+        k = jnp.where(irr_l, d.lo + (i == 2), jnp.where(irr_r, d.ro + (i == 6), 0))
+        k = jnp.clip(k, 0, self.VOs.shape[0] - 1)
+        ring = jnp.where(irr_l | irr_r, self.VOs[k], cheap)
+        return jnp.where(t0, self.O0[self._t0_index(c)], ring).astype(jnp.int32)
+
+    def n(self, c: Int) -> Int:
+        """``c.n = c - 2`` if ``c mod 4 = 2`` else ``c + 1`` (Sec. 4.7)."""
+        c = jnp.asarray(c, jnp.int32)
+        return jnp.where((c & 3) == 2, c - 2, c + 1).astype(jnp.int32)
+
+    def p(self, c: Int) -> Int:
+        """``c.p = c + 2`` if ``c mod 4 = 0`` else ``c - 1``."""
+        c = jnp.asarray(c, jnp.int32)
+        return jnp.where((c & 3) == 0, c + 2, c - 1).astype(jnp.int32)
+
+    def s(self, c: Int) -> Int:
+        """``c.s = c.n.o.n``: next corner around ``c.v``."""
+        return self.n(self.o(self.n(c)))
+
+    def l(self, c: Int) -> Int:  # noqa: E743 - the paper's name
+        """``c.l = c.n.o``."""
+        return self.o(self.n(c))
+
+    def r(self, c: Int) -> Int:
+        """``c.r = c.p.o``."""
+        return self.o(self.p(c))
+
+    def t(self, c: Int) -> Int:
+        """``c.t = c / 4``: the paper's triangle id (``2v``, ``2v + 1``, ``2 m_r + j``), with the
+        redundant T2 slots as holes (see :meth:`face` for the dense protocol id)."""
+        return (jnp.asarray(c, jnp.int32) >> 2).astype(jnp.int32)
+
+    def tc(self, t: Int) -> Int:
+        """``t.c = 4t``: first corner of paper triangle ``t``."""
+        return (4 * jnp.asarray(t, jnp.int32)).astype(jnp.int32)
+
+    def vc(self, v: Int) -> Int:
+        """``v.c`` (Sec. 4.7): ``C[v - m_r]`` for isolated vertices, else ``v.0 = 8v``
+        canonicalised ("if v.l = v.n.n then v.c = 8 v.n + 1")."""
+        v = jnp.asarray(v, jnp.int32)
+        m = self.num_ring
+        iso = v >= m
+        vr = jnp.where(iso, 0, v)
+        ring = _canonical(jnp, self._dec, m, 8 * vr)
+        ci = jnp.clip(v - m, 0, self.C.shape[0] - 1)
+        return jnp.where(iso, self.C[ci], ring).astype(jnp.int32)
+
+    # ---------------------------------------------------------------- protocol core
+    @property
+    def num_darts(self) -> int:
+        return 8 * self.num_ring + 4 * self.num_t0
+
+    def _redundant_slot(self, t):
+        """True where paper triangle ``t < 2 m_r`` is the redundant copy of a T2."""
+        m = self.num_ring
+        w = t >> 1
+        d = self._dec(w)
+        wnn = _nx(jnp, _nx(jnp, w, m), m)
+        left = (t & 1) == 0
+        return jnp.where(left, (d.skl == 0) & (d.l == wnn), (d.skr == 0) & (d.r == wnn))
+
+    def dart_valid(self, e: Int) -> Int:
+        e = jnp.asarray(e, jnp.int32)
+        inr = (e >= 0) & (e < self.num_darts) & ((e & 3) != 3)
+        ring = e < 8 * self.num_ring
+        t = jnp.where(ring & inr, e >> 2, 0)
+        return inr & ~(ring & self._redundant_slot(t))
+
+    def origin(self, e: Int) -> Int:
+        return self.v(e)
+
+    def next(self, e: Int) -> Int:
+        return self.n(e)
+
+    def prev(self, e: Int) -> Int:
+        return self.p(e)
+
+    def twin(self, e: Int) -> Int:
+        # dart c = (c.v, c.n.v); across it lies c.p.o, whose next corner starts at c.n.v
+        return self.n(self.o(self.p(e)))
+
+    def corner_opposite(self, c: Int) -> Int:
+        return self.o(c)
+
+    def corner_swing(self, c: Int) -> Int:
+        return self.s(c)
+
+    def face(self, e: Int) -> Int:
+        """Dense face id: rank of slot ``e >> 2`` among the non-redundant slots (popcount
+        directory), T0 triangles after the ring slots."""
+        t = jnp.asarray(e, jnp.int32) >> 2
+        two_m = 2 * self.num_ring
+        tr = jnp.clip(t, 0, two_m - 1)
+        word = jax.lax.bitcast_convert_type(self.slot_words[tr >> 5], jnp.uint32)
+        below = word & ((jnp.uint32(1) << (tr & 31).astype(jnp.uint32)) - jnp.uint32(1))
+        rank = self.slot_rank[tr >> 5] + _popcount32(below).astype(jnp.int32)
+        return jnp.where(t < two_m, rank, t - two_m + self.num_ring_faces).astype(jnp.int32)
+
+    def edge_of_face(self, f: Int) -> Int:
+        """Corner ``4t`` of the slot of dense face ``f`` (select by binary search on the rank
+        directory, then in-word binary lifting with popcounts: O(log n))."""
+        f = jnp.asarray(f, jnp.int32)
+        ring = f < self.num_ring_faces
+        fr = jnp.where(ring, f, 0)
+        w = jnp.searchsorted(self.slot_rank, fr, side="right").astype(jnp.int32) - 1
+        w = jnp.clip(w, 0, self.slot_rank.shape[0] - 1)
+        k = (fr - self.slot_rank[w]).astype(jnp.uint32)
+        word = jax.lax.bitcast_convert_type(self.slot_words[w], jnp.uint32)
+        pos = jnp.zeros_like(k)
+        for step in (16, 8, 4, 2, 1):
+            cand = pos + jnp.uint32(step)
+            low = _popcount32(word & ((jnp.uint32(1) << cand) - jnp.uint32(1)))
+            pos = jnp.where(low <= k, cand, pos)
+        slot = 32 * w + pos.astype(jnp.int32)
+        t0 = f - self.num_ring_faces + 2 * self.num_ring
+        return (4 * jnp.where(ring, slot, t0)).astype(jnp.int32)
+
+    def edge_of_vertex(self, v: Int) -> Int:
+        return self.vc(v)
+
+    @property
+    def vertex_order(self) -> np.ndarray:
+        return np.asarray(self.order)
+
+    # ---------------------------------------------------------------- statistics
+    @property
+    def num_isolated(self) -> int:
+        return self.num_vertices - self.num_ring
+
+    @property
+    def aux_references(self) -> int:
+        """Words of the dense-face directory (protocol adapter, not in the paper's count)."""
+        return int(self.slot_words.shape[0] + self.slot_rank.shape[0])
+
+
+def _directory(redundant: np.ndarray):
+    """Popcount rank directory over the ``2 m_r`` ring slots (bit set = canonical slot)."""
+    valid = ~np.asarray(redundant, dtype=bool)
+    nbits = valid.size
+    nw = (nbits + 31) // 32
+    pad = np.zeros(nw * 32, dtype=bool)
+    pad[:nbits] = valid
+    words = np.packbits(pad.reshape(nw, 32), axis=1, bitorder="little").view("<u4").ravel()
+    counts = pad.reshape(nw, 32).sum(axis=1)
+    rank = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int32)
+    return words.view(np.int32), rank, int(valid.sum())
+
+
+def _nonempty(a, dtype=np.int32, size: int = 1):
+    """``a`` padded to at least ``size`` entries (gathers on empty arrays do not trace); the
+    padding is not counted in :attr:`references`."""
+    a = np.asarray(a, dtype=dtype)
+    return a if a.size >= size else np.concatenate([a, np.zeros(size - a.size, dtype=dtype)])
+
+
+# --------------------------------------------------------------------------------- structures
+@pytree_dataclass
+class LR(_LRNavigation):
+    """Standard LR (Sec. 4): about 1.08 references per triangle.
+
+    Fields (``m_r`` ring vertices, ``n0`` T0 triangles, ``n_i`` irregular triangles):
+      L, R: ``(m_r,)`` int32 entries of ``L[v] = v.l`` / ``R[v] = v.r`` (bits 0-28), service bits
+        (Sec. 6.2): bit 29 wart skip (``L_w`` / ``R_w``), bit 30 irregular (bits 0-28 are then a
+        ``VO*`` triplet index).
+      VOs: ``(3 n_i,)`` int32 ``VO*`` triplets ``(v.l, v.0.o, v.2.o)`` / ``(v.r, v.4.o, v.6.o)``.
+      V0, O0: ``(3 n0,)`` int32 corner table of the T0 triangles (corner ``8 m_r + 4j + i`` at
+        index ``3j + i``).
+      C: ``(m_i,)`` int32 a corner of each isolated vertex ``m_r + k`` (``v.c``).
+      slot_words, slot_rank: dense-face directory over the ``2 m_r`` slots (protocol adapter).
+      order: ``(m,)`` int32 input vertex id of each LR vertex (:attr:`vertex_order`).
+    """
+
+    L: jnp.ndarray
+    R: jnp.ndarray
+    VOs: jnp.ndarray
+    V0: jnp.ndarray
+    O0: jnp.ndarray
+    C: jnp.ndarray
+    slot_words: jnp.ndarray
+    slot_rank: jnp.ndarray
+    order: jnp.ndarray
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+    num_ring: int = static_field()
+    num_t0: int = static_field()
+    num_vos: int = static_field()
+    num_ring_faces: int = static_field()
+
+    name = "lr"
+
+    def _dec(self, v) -> _Slot:
+        a = self.L[v]
+        b = self.R[v]
+        skl = (a >> _SKIP_BIT) & 1
+        skr = (b >> _SKIP_BIT) & 1
+        irl = (a >> _IRR_BIT) & 1
+        irr = (b >> _IRR_BIT) & 1
+        ia = a & _VALUE_MASK
+        ib = b & _VALUE_MASK
+        top = self.VOs.shape[0] - 1
+        la = jnp.clip(3 * ia, 0, top)
+        lb = jnp.clip(3 * ib, 0, top)
+        return _Slot(l=jnp.where(irl == 1, self.VOs[la], ia), r=jnp.where(irr == 1, self.VOs[lb], ib),
+                     skl=skl, skr=skr, irl=irl, irr=irr, lo=3 * ia + 1, ro=3 * ib + 1)
+
+    @property
+    def references(self) -> int:
+        """``2 m_r + 6 n0 + 3 n^i + m_i`` (Sec. 8)."""
+        return 2 * self.num_ring + 6 * self.num_t0 + self.num_vos + self.num_isolated
+
+    @property
+    def bits(self) -> int:
+        return 32 * self.references
+
+    @classmethod
+    def from_mesh(cls, mesh, *, seeds=4, check: bool = True, wart_skipping: bool = True) -> "LR":
+        """Build from a mesh; holes are closed with dummy vertices first (Sec. 4.6)."""
+        return build_lr(mesh, bits=False, seeds=seeds, check=check, wart_skipping=wart_skipping)
+
+    @classmethod
+    def from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, check: bool = True,
+                          wart_skipping: bool = True) -> "LR":
+        """Ring and tables from a :class:`CornerTable` (the paper's input, Sec. 8.1)."""
+        return _from_corner_table(cls, ct, dummy=dummy, seeds=seeds, k=None, check=check,
+                                  wart_skipping=wart_skipping)
+
+
+@pytree_dataclass
+class LRBits(_LRNavigation):
+    """Bit-efficient LR (Sec. 6): HYBRID-RING-EXPANDER ring, 16-bit entries.
+
+    Fields:
+      LR16: ``(2 m_r,)`` int16, ``L`` at ``2v`` and ``R`` at ``2v + 1``: bit 0 is the flag
+        (``L_w``, ``R_w`` of Sec. 6.2), bits 1-15 a signed offset ``v.l - v`` (mod ``m_r``).
+        Flags (1, 0) / (0, 1): wart skip on the left / right; (1, 1): *long*: the 30 offset bits
+        of the pair hold ``a << 4 | skip_l | skip_r << 1 | irr_l << 2 | irr_r << 3``, ``a`` a
+        26-bit index of the ``VO*`` record ``[v.l, v.r, (v.0.o, v.2.o), (v.4.o, v.6.o)]``.
+      VOs: ``VO*`` records (32-bit). V0, O0, C, slot directory, order: as in :class:`LR`.
+    """
+
+    LR16: jnp.ndarray
+    VOs: jnp.ndarray
+    V0: jnp.ndarray
+    O0: jnp.ndarray
+    C: jnp.ndarray
+    slot_words: jnp.ndarray
+    slot_rank: jnp.ndarray
+    order: jnp.ndarray
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+    num_ring: int = static_field()
+    num_t0: int = static_field()
+    num_vos: int = static_field()
+    num_ring_faces: int = static_field()
+    num_long: int = static_field()
+    k: int = static_field()
+
+    name = "lr-bits"
+
+    def _dec(self, v) -> _Slot:
+        m = self.num_ring
+        el = self.LR16[2 * v].astype(jnp.int32)
+        er = self.LR16[2 * v + 1].astype(jnp.int32)
+        fl = el & 1
+        fr = er & 1
+        long_ = (fl & fr) == 1
+        payload = (((el >> 1) & 0x7FFF) << 15) | ((er >> 1) & 0x7FFF)
+        a = jnp.where(long_, payload >> 4, 0)
+        a = jnp.clip(a, 0, self.VOs.shape[0] - 2)
+        one = jnp.int32(1)
+        irl = jnp.where(long_, (payload >> 2) & 1, 0)
+        irr = jnp.where(long_, (payload >> 3) & 1, 0)
+        # 15-bit signed offsets modulo m_r (Sec. 6.1)
+        lv = jnp.where(long_, self.VOs[a], (v + (el >> 1)) % m)
+        rv = jnp.where(long_, self.VOs[a + 1], (v + (er >> 1)) % m)
+        return _Slot(l=lv, r=rv,
+                     skl=jnp.where(long_, payload & 1, fl & (one - fr)),
+                     skr=jnp.where(long_, (payload >> 1) & 1, fr & (one - fl)),
+                     irl=irl, irr=irr, lo=a + 2, ro=a + 2 + 2 * irl)
+
+    @property
+    def references(self) -> int:
+        """Entries (16-bit LR entries count as half a reference)."""
+        return self.num_ring + 6 * self.num_t0 + self.num_vos + self.num_isolated
+
+    @property
+    def bits(self) -> int:
+        """``16 * 2 m_r + 32 (6 n0 + |VO*| + m_i)`` (Sec. 8: 32(m_r + 6 n0 + 3 n^i + n^l + m_i))."""
+        return 32 * self.references
+
+    @classmethod
+    def from_mesh(cls, mesh, *, k="auto", seeds=1, check: bool = True) -> "LRBits":
+        return build_lr(mesh, bits=True, k=k, seeds=seeds, check=check)
+
+
+# --------------------------------------------------------------------------------- construction
+_AUTO_K = (16, 32, 64, 128, 256, 512, 1024, 0)
+
+
+def _prepare(mesh) -> TriMesh:
+    mesh = load_mesh(mesh)
+    validate(mesh, connected=True, structure="lr")
+    return close_boundaries(mesh)
+
+
+def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
+             wart_skipping: bool = True):
+    """``LR`` (``bits=False``) or ``LRBits`` from a mesh (holes closed first, Sec. 4.6).
+
+    ``k``: hybrid period for ``LRBits`` (``"auto"`` tries several and keeps the fewest bits, as
+    the paper does, Sec. 8; 0 = depth-first). ``seeds``: number of random seed corners (or a list)."""
+    mesh = _prepare(mesh)
+    ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices)
+    if not bits:
+        return _from_corner_table(LR, ct, dummy=mesh.dummy_vertices, seeds=seeds, k=None,
+                                  check=check, wart_skipping=wart_skipping)
+    ks = _AUTO_K if k == "auto" else ([k] if np.isscalar(k) else list(k))
+    best = None
+    for kk in ks:
+        s = _from_corner_table(LRBits, ct, dummy=mesh.dummy_vertices, seeds=seeds, k=int(kk),
+                               check=False, wart_skipping=wart_skipping)
+        if best is None or s.bits < best.bits:
+            best = s
+    if check:
+        _check_against(best, ct)
+    return best
+
+
+def _from_corner_table(cls, ct: CornerTable, *, dummy, seeds, k, check, wart_skipping,
+                       tables: Optional[LRTables] = None):
+    V = np.asarray(ct.V)
+    O = np.asarray(ct.O)
+    nv = ct.num_vertices
+    if tables is None:
+        ring = best_ring(V, O, nv, seeds=seeds, k=k, dummy=dummy)
+        tables = lr_tables(V, O, ring, nv, wart_skipping=wart_skipping)
+    return _pack(cls, tables, V, O, np.asarray(ct.vertex_corner), nv, check=check,
+                 k=0 if k is None else int(k))
+
+
+def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: int):
+    m = tb.num_ring
+    nf = V.shape[0] // 3
+    if nv >= 1 << _VALUE_BITS:
+        raise errors.UnsupportedTopologyError(f"{nv} vertices: LR entries hold 29-bit vertex ids")
+    # vertex renumbering: ring order first, then isolated vertices (dummies last, Sec. 4.4)
+    new_of_old = np.full(nv, -1, np.int64)
+    new_of_old[tb.order] = np.arange(m)
+    iso = np.nonzero(new_of_old < 0)[0]
+    new_of_old[iso] = m + np.arange(iso.size)
+    order = np.empty(nv, np.int32)
+    order[new_of_old] = np.arange(nv)
+    lrc = tb.lr_corner.astype(np.int64)
+    nxt = lambda c: 3 * (c // 3) + (c + 1) % 3  # noqa: E731
+    prv = lambda c: 3 * (c // 3) + (c + 2) % 3  # noqa: E731
+    cL = tb.left_corner.astype(np.int64)
+    cR = tb.right_corner.astype(np.int64)
+    lv = new_of_old[V[cL]]
+    rv = new_of_old[V[cR]]
+    skl = tb.skip_left.astype(np.int64)
+    skr = tb.skip_right.astype(np.int64)
+    redl, redr = tb.red_left, tb.red_right
+
+    # construction-time check of the ring case analysis (Sec. 4.5, Fig. 6) on every regular
+    # corner; a transversal corner it cannot resolve makes its slot irregular (stored in VO*).
+    zeros = np.zeros(m, np.int64)
+
+    def dec_np(v):
+        return _Slot(l=lv[v], r=rv[v], skl=skl[v], skr=skr[v], irl=zeros[v], irr=zeros[v],
+                     lo=zeros[v], ro=zeros[v])
+
+    truth = {}
+    for i, base, red, fn in ((0, cL, redl, prv), (1, cL, redl, None), (2, cL, redl, nxt),
+                             (4, cR, redr, prv), (5, cR, redr, None), (6, cR, redr, nxt)):
+        ctc = base if fn is None else fn(base)
+        truth[i] = lrc[O[ctc]]
+    irl = tb.irr_left.copy()
+    irr = tb.irr_right.copy()
+    v_all = np.arange(m, dtype=np.int64)
+    unexpected = 0
+    for i in (0, 1, 2, 4, 5, 6):
+        c = 8 * v_all + i
+        got = _canonical(np, dec_np, m, _cheap_opposite(np, dec_np, m, c).astype(np.int64))
+        red = redl if i < 4 else redr
+        bad = (got != truth[i]) & ~red
+        if i in (1, 5):
+            if np.any(bad):
+                w = int(np.nonzero(bad)[0][0])
+                raise errors.StructureError(
+                    f"LR: quad opposite of corner {8 * w + i} (ring vertex {w}) is wrong")
+            continue
+        side = irl if i < 4 else irr
+        unexpected += int(np.sum(bad & ~side))
+        side |= bad
+    # VO* (standard: triplets; bits: records built below)
+    n0 = int(tb.t0.size)
+    t0 = tb.t0.astype(np.int64)
+    ct0 = (3 * t0[:, None] + np.arange(3)).ravel()
+    V0 = new_of_old[V[ct0]].astype(np.int32)
+    O0 = lrc[O[ct0]].astype(np.int32)
+    C = lrc[vertex_corner[order[m:]]].astype(np.int32)
+    redundant = np.empty(2 * m, bool)
+    redundant[0::2] = redl
+    redundant[1::2] = redr
+    words, rank, nring_faces = _directory(redundant)
+    common = dict(V0=jnp.asarray(_nonempty(V0)), O0=jnp.asarray(_nonempty(O0)),
+                  C=jnp.asarray(_nonempty(C)), slot_words=jnp.asarray(words),
+                  slot_rank=jnp.asarray(rank), order=jnp.asarray(order),
+                  num_vertices=int(nv), num_faces=int(nf), num_ring=int(m), num_t0=n0,
+                  num_ring_faces=nring_faces)
+    if cls is LR:
+        il = np.nonzero(irl)[0]
+        ir = np.nonzero(irr)[0]
+        vos = np.empty((il.size + ir.size, 3), np.int64)
+        vos[: il.size] = np.stack([lv[il], truth[0][il], truth[2][il]], axis=1)
+        vos[il.size:] = np.stack([rv[ir], truth[4][ir], truth[6][ir]], axis=1)
+        Lval = lv.copy()
+        Rval = rv.copy()
+        Lval[il] = np.arange(il.size)
+        Rval[ir] = il.size + np.arange(ir.size)
+        Lp = Lval | (skl << _SKIP_BIT) | (irl.astype(np.int64) << _IRR_BIT)
+        Rp = Rval | (skr << _SKIP_BIT) | (irr.astype(np.int64) << _IRR_BIT)
+        s = LR(L=jnp.asarray(Lp.astype(np.int32)), R=jnp.asarray(Rp.astype(np.int32)),
+               VOs=jnp.asarray(_nonempty(vos.ravel())), num_vos=int(vos.size), **common)
+    else:
+        half = m // 2
+
+        def offset(x):
+            d = (x - v_all) % m
+            return np.where(d > half, d - m, d)
+
+        dl, dr = offset(lv), offset(rv)
+        fits = lambda x, d: (x < m) & (d >= -(1 << 14)) & (d < (1 << 14))  # noqa: E731
+        long_ = irl | irr | ~fits(lv, dl) | ~fits(rv, dr)
+        nlong = int(long_.sum())
+        reclen = np.where(long_, 2 + 2 * irl + 2 * irr, 0)
+        start = np.concatenate([[0], np.cumsum(reclen)[:-1]]).astype(np.int64)
+        vos = np.zeros(int(reclen.sum()), np.int64)
+        lg = np.nonzero(long_)[0]
+        vos[start[lg]] = lv[lg]
+        vos[start[lg] + 1] = rv[lg]
+        a_l = lg[irl[lg]]
+        vos[start[a_l] + 2] = truth[0][a_l]
+        vos[start[a_l] + 3] = truth[2][a_l]
+        a_r = lg[irr[lg]]
+        off_r = start[a_r] + 2 + 2 * irl[a_r]
+        vos[off_r] = truth[4][a_r]
+        vos[off_r + 1] = truth[6][a_r]
+        if vos.size >= 1 << 26:
+            raise errors.UnsupportedTopologyError("lr-bits: VO* exceeds the 26-bit long index")
+        payload = (start << 4) | skl | (skr << 1) | (irl.astype(np.int64) << 2) | (irr.astype(np.int64) << 3)
+        el = np.where(long_, (((payload >> 15) & 0x7FFF) << 1) | 1, ((dl & 0x7FFF) << 1) | skl)
+        er = np.where(long_, ((payload & 0x7FFF) << 1) | 1, ((dr & 0x7FFF) << 1) | skr)
+        lr16 = np.empty(2 * m, np.uint16)
+        lr16[0::2] = el
+        lr16[1::2] = er
+        s = LRBits(LR16=jnp.asarray(lr16.view(np.int16)), VOs=jnp.asarray(_nonempty(vos, size=2)),
+                   num_vos=int(vos.size), num_long=nlong, k=int(k), **common)
+    object.__setattr__(s, "_stats", dict(tb.stats(nf), unexpected_irregular=unexpected,
+                                         irregular=int(irl.sum() + irr.sum()), seed=tb.ring.seed,
+                                         _lrc=lrc, _new_of_old=new_of_old))
+    if check:
+        _check(s, V, O, lrc, new_of_old)
+    return s
+
+
+def _check_against(s, ct: CornerTable):
+    st = s._stats
+    _check(s, np.asarray(ct.V), np.asarray(ct.O), st["_lrc"], st["_new_of_old"])
+
+
+def _check(s, V, O, lrc, new_of_old):
+    """Invariant check at construction (typed error): ``c.v`` and ``c.o`` of every canonical
+    corner equal the corner table's."""
+    ct = np.nonzero(lrc >= 0)[0]
+    c = jnp.asarray(lrc[ct].astype(np.int32))
+    # eager (op by op): no compilation per mesh size
+    got_v = np.asarray(s.v(c))
+    got_o = np.asarray(s.o(c))
+    bad = (got_v != new_of_old[V[ct]]) | (got_o != lrc[O[ct]])
+    if np.any(bad):
+        j = int(np.nonzero(bad)[0][0])
+        raise errors.StructureError(
+            f"{s.name}: corner {int(lrc[ct[j]])} (corner-table corner {int(ct[j])}) has "
+            f"c.v={int(got_v[j])}, c.o={int(got_o[j])}, expected {int(new_of_old[V[ct[j]]])}, "
+            f"{int(lrc[O[ct[j]]])}; {int(bad.sum())} corners wrong")
+
+
+def stats(s) -> dict:
+    """Construction statistics of an LR built by :func:`build_lr` (Table 1 quantities)."""
+    return {k: v for k, v in getattr(s, "_stats", {}).items() if not k.startswith("_")}
+
+
+# --------------------------------------------------------------------------------- Sec. 7
+def render_list(s: LR) -> dict:
+    """The renderable index list of Sec. 7: one vertex reference per ring slot (ring vertices
+    implicit), a wart-skip bit per slot, T0 triangles verbatim; redundant T2 copies become
+    degenerate (tip ``v``). Vertex ids are the LR's (``positions[s.vertex_order]``).
+
+    Returns ``{"apex": (2 m_r,) int32, "skip": (2 m_r,) bool, "t0": (n0, 3) int32, "rpt": float}``."""
+    m = s.num_ring
+    v = jnp.arange(m, dtype=jnp.int32)
+    d = s._dec(v)
+    red = np.asarray(s._redundant_slot(jnp.arange(2 * m, dtype=jnp.int32)))
+    apex = np.empty(2 * m, np.int32)
+    apex[0::2] = np.asarray(d.l)
+    apex[1::2] = np.asarray(d.r)
+    vv = np.repeat(np.arange(m, dtype=np.int32), 2)
+    apex = np.where(red, vv, apex)  # degenerate triangle: tip = v
+    skip = np.empty(2 * m, bool)
+    skip[0::2] = np.asarray(d.skl) == 1
+    skip[1::2] = np.asarray(d.skr) == 1
+    t0 = np.asarray(s.V0)[: 3 * s.num_t0].reshape(-1, 3)
+    refs = 2 * m + 3 * s.num_t0
+    return {"apex": apex, "skip": skip, "t0": t0, "rpt": refs / max(s.num_faces, 1)}
+
+
+def expand_render_list(rl: dict) -> np.ndarray:
+    """Triangles ``(F, 3)`` of a :func:`render_list` (what a geometry shader would emit),
+    degenerate redundant copies dropped."""
+    apex, skip, t0 = rl["apex"], rl["skip"], rl["t0"]
+    m = apex.size // 2
+    v = np.arange(m)
+    nxt = np.where(skip.reshape(m, 2), (v[:, None] + 2) % m, (v[:, None] + 1) % m)
+    left = np.stack([v, apex[0::2], nxt[:, 0]], axis=1)
+    right = np.stack([nxt[:, 1], apex[1::2], v], axis=1)
+    tri = np.empty((2 * m, 3), np.int64)
+    tri[0::2] = left
+    tri[1::2] = right
+    keep = ~((tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2]))
+    return np.concatenate([tri[keep], np.asarray(t0, np.int64)]).astype(np.int32)
+
+
+# --------------------------------------------------------------------------------- registry
+def _register():
+    from jaxcds.structures import registry
+
+    registry.register("lr", lambda mesh: LR.from_mesh(mesh), closes_boundaries=True,
+                      description="Laced Ring (Gurung et al. 2011), ~1.08 refs/triangle; any genus")
+    registry.register("lr-bits", lambda mesh: LRBits.from_mesh(mesh), closes_boundaries=True,
+                      description="bit-efficient LR (Sec. 6), 16-bit offsets, ~26 bits/triangle")
+
+
+_register()
