@@ -40,7 +40,9 @@ import numpy as np
 __all__ = ["main", "run", "load_bench_mesh", "machine_info", "time_compiled", "time_call",
            "DEFAULT_MESHES", "QUICK_MESHES"]
 
-DEFAULT_MESHES = ["icosphere:8", "random:1000000"]
+# smallest first: an op far too slow on the first mesh is skipped on the big ones (--max-call)
+DEFAULT_MESHES = ["random:10000", "icosphere:8", "random:1000000"]
+DEFAULT_GENERATORS = [1_000_000, 10_000_000]
 QUICK_MESHES = ["random:1000"]
 
 
@@ -286,12 +288,20 @@ def _bench_structure(name: str, mesh, mesh_name: str, positions: np.ndarray, ref
     for op, (op_args, items, per) in plan.items():
         if args.ops and not any(op.startswith(o) for o in args.ops):
             continue
+        per_item = args.seen.get((name, op))
+        if per_item is not None and args.max_call_s and per_item * items > args.max_call_s:
+            reason = (f"predicted {per_item * items:.3g} s per call from the smaller mesh "
+                      f"({per_item * 1e9:,.0f} ns per {per}) > --max-call {args.max_call_s:g} s")
+            skipped.append({"mesh": mesh_name, "impl": name, "op": op, "reason": reason})
+            _log(f"  {name} {op}: skipped, {reason}")
+            continue
         try:
             t = time_compiled(ops[op], op_args, args.repeats, args.budget)
         except Exception as exc:  # a structure missing an operator: report, keep going
             skipped.append({"mesh": mesh_name, "impl": name, "op": op, "reason": f"{type(exc).__name__}: {exc}"})
             _log(f"  {name} {op}: failed ({type(exc).__name__}: {exc})")
             continue
+        args.seen[(name, op)] = t["median_s"] / items
         row = _row(mesh_name, name, "structure", op, items, per, t, args)
         if op.startswith("vertex_normals"):
             row["max_err"] = _max_err(ops[op](*op_args), ref_normals, order)
@@ -360,7 +370,8 @@ def _bench_peers(mesh, mesh_name, ref_normals, args, rows, skipped) -> None:
 def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
         peers: Optional[Sequence[str]] = None, repeats: int = 7, queries: int = 1 << 20,
         dtype: str = "float32", ops: Optional[Sequence[str]] = None, command: str = "",
-        budget_s: Optional[float] = 30.0) -> dict:
+        budget_s: Optional[float] = 30.0, max_call_s: Optional[float] = 60.0,
+        generators: Sequence[int] = ()) -> dict:
     """Run the benchmarks and return the results (the ``--json`` object).
 
     Keys: ``machine`` (cpu, cores, versions, date), ``command``, ``settings``, ``meshes``
@@ -369,12 +380,15 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
     for normals), ``memory`` (one row per mesh x structure), ``skipped`` (what could not run,
     with the reason), ``summary`` (fastest normals formulation per mesh).
 
-    ``budget_s`` caps the timed runs of one op (fewer repeats, at least one, for slow ops)."""
+    ``budget_s`` caps the timed runs of one op (fewer repeats, at least one, for slow ops);
+    an op whose time per item on an earlier (smaller) mesh predicts more than ``max_call_s``
+    seconds per call is skipped, with the prediction as reason. ``generators``: sizes at which
+    to time the Poulalhon--Schaeffer sampler (``generators`` key of the result)."""
     from benchmarks import peers as P
     from jaxcds.structures import registry
 
     ns = argparse.Namespace(repeats=int(repeats), queries=int(queries), dtype=np.dtype(dtype).type,
-                            budget=budget_s,
+                            budget=budget_s, max_call_s=max_call_s, seen={},
                             ops=list(ops or []),
                             peers=list(P.PEERS) if peers is None else list(peers))
     unknown = [p for p in ns.peers if p not in P.PEERS]
@@ -390,8 +404,8 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
     out = {"machine": machine_info(), "command": command,
            "settings": {"repeats": ns.repeats, "queries": ns.queries, "dtype": np.dtype(dtype).name,
                         "structures": structures, "peers": ns.peers, "ops": ns.ops,
-                        "budget_s": budget_s},
-           "meshes": [], "timings": [], "memory": [], "skipped": []}
+                        "budget_s": budget_s, "max_call_s": max_call_s},
+           "meshes": [], "timings": [], "memory": [], "skipped": [], "generators": []}
     for spec in meshes:
         t0 = time.perf_counter()
         name, mesh = load_bench_mesh(spec)
@@ -404,8 +418,35 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
             _bench_structure(sname, mesh, name, mesh.vertices, ref, ns, out["timings"], out["memory"],
                              out["skipped"])
         _bench_peers(mesh, name, ref, ns, out["timings"], out["skipped"])
+    for n in generators:
+        out["generators"].append(_bench_generator(int(n)))
     out["summary"] = summarize(out)
     return out
+
+
+def _bench_generator(n: int) -> dict:
+    """Time (and peak RSS of) the Poulalhon--Schaeffer sampler at ``n`` vertices: the faces
+    alone, then the whole TriMesh with random sphere positions; degree-6 share vs CDS Sec. 4.4."""
+    from jaxcds import generators as gen
+
+    gen.random_planar_triangulation_faces(16, 0)  # numba compilation / cache load
+    before = _proc_status().get("VmRSS")
+    ok = _reset_peak_rss()
+    t0 = time.perf_counter()
+    f = gen.random_planar_triangulation_faces(n, 1)
+    faces_s = time.perf_counter() - t0
+    after = _proc_status().get("VmHWM")
+    deg6 = float(np.mean(np.bincount(f.ravel(), minlength=n) == 6))
+    del f
+    t0 = time.perf_counter()
+    m = gen.random_planar_triangulation(n, 1)
+    mesh_s = time.perf_counter() - t0
+    del m
+    row = {"generator": "random_planar_triangulation", "vertices": n, "faces_s": faces_s,
+           "mesh_s": mesh_s, "peak_rss_faces_bytes": (after - before) if ok and before and after else None,
+           "degree6_share": deg6, "degree6_law": float(gen.degree_law(6)[0])}
+    _log(f"generator n={n}: faces {faces_s:.2f} s, mesh {mesh_s:.2f} s, degree 6: {deg6:.4f}")
+    return row
 
 
 def summarize(res: dict) -> dict:
@@ -449,6 +490,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--queries", type=int, help="batch size of the query ops (default 2^20, quick 4096)")
     p.add_argument("--budget", type=float, default=30.0, metavar="S",
                    help="at most about S seconds of timed runs per op (fewer repeats for slow ops)")
+    p.add_argument("--max-call", type=float, default=60.0, metavar="S",
+                   help="skip an op predicted (from a smaller mesh) to take more than S s per call")
+    p.add_argument("--generators", type=float, nargs="*", metavar="N",
+                   help="time the Poulalhon-Schaeffer sampler at these sizes (default: 1e6 1e7; "
+                        "quick: none; `--generators` alone: none)")
     p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
                    help="positions dtype (float64 enables jax_enable_x64)")
     p.add_argument("--out", metavar="DIR",
@@ -476,12 +522,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     repeats = a.repeats or (3 if a.quick else 7)
     queries = a.queries or (4096 if a.quick else 1 << 20)
     command = " ".join(["jaxcds bench"] + argv)
+    if a.generators is None:
+        gens = [] if a.quick else DEFAULT_GENERATORS
+    else:
+        gens = [int(x) for x in a.generators]
     from jaxcds import errors
 
     try:
         res = run(meshes, structures=_split(a.structures), peers=_split(a.peers), repeats=repeats,
                   queries=queries, dtype=a.dtype, ops=_split(a.ops), command=command,
-                  budget_s=a.budget)
+                  budget_s=a.budget, max_call_s=a.max_call, generators=gens)
     except errors.JaxcdsError as exc:
         print(f"jaxcds bench: error: {exc}", file=sys.stderr)
         return 2

@@ -60,7 +60,10 @@ def plain_jax_variants(vertices: np.ndarray, faces: np.ndarray, dtype=np.float32
     * ``sorted_scatter``: corners pre-sorted by vertex once (host), then ``segment_sum`` with
       ``indices_are_sorted=True``;
     * ``padded_gather``: a ``(V, max_degree)`` table of incident faces (padded with a zero face)
-      built once on the host; each vertex gathers and sums its face normals -- no scatter at all.
+      built once on the host; each vertex gathers and sums its face normals -- no scatter at all;
+    * ``flat_gather``: the corner positions fetched by one 1-D gather of ``9F`` floats from the
+      flattened positions (XLA:CPU gathers of 3-float rows are several times slower per float
+      than 1-D gathers), then the baseline scatter.
     """
     import jax
     import jax.numpy as jnp
@@ -98,8 +101,18 @@ def plain_jax_variants(vertices: np.ndarray, faces: np.ndarray, dtype=np.float32
         fn = jnp.concatenate([face_normals(p, f), jnp.zeros((1, 3), p.dtype)])
         return normalize(jnp.sum(fn[table], axis=1))
 
+    idx9 = jnp.asarray((3 * faces.astype(np.int64)[:, :, None] + np.arange(3)).reshape(-1), jnp.int32)
+
+    @jax.jit
+    def flat_gather(p, f, idx9):
+        q = p.reshape(-1)[idx9].reshape(-1, 3, 3)
+        fn = jnp.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
+        return normalize(jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), f.reshape(-1), num_segments=nv))
+
     return {
         "vertex_normals[scatter]": (functools.partial(scatter, p, f), "segment_sum, face order"),
+        "vertex_normals[flat_gather]": (functools.partial(flat_gather, p, f, idx9),
+                                        "one 1-D gather of the 9F corner coordinates + segment_sum"),
         "vertex_normals[sorted_scatter]": (functools.partial(sorted_scatter, p, f, sorted_v, sorted_face),
                                            "segment_sum, corners pre-sorted by vertex"),
         "vertex_normals[padded_gather]": (functools.partial(padded_gather, p, f, table),

@@ -114,6 +114,15 @@ def markdown(res: dict, plots: List[str] = ()) -> str:
         L += ["", "Build time: second build (the first pays numba compilation). Peak RSS: rise of "
               "the process's high-water mark during that build (`/proc/self/clear_refs`); memory "
               "freed earlier and reused is not counted.", ""]
+    if res.get("generators"):
+        L += ["## Generator: Poulalhon-Schaeffer uniform random planar triangulations", "",
+              "| vertices | faces only (s) | TriMesh with positions (s) | peak RSS, faces (MiB) | "
+              "degree-6 share | CDS Sec. 4.4 law |", "|---:|---:|---:|---:|---:|---:|"]
+        for g in res["generators"]:
+            L.append(f"| {g['vertices']:,} | {g['faces_s']:.2f} | {g['mesh_s']:.2f} | "
+                     f"{_mb(g['peak_rss_faces_bytes'])} | {100 * g['degree6_share']:.2f}% | "
+                     f"{100 * g['degree6_law']:.2f}% |")
+        L.append("")
     if res["skipped"]:
         L += ["## Skipped", ""]
         seen = set()
