@@ -29,16 +29,18 @@ that accepts borders (HalfEdge, pemb):
    the middle of the tip's fan (reference ``search_middle_edge``: ``deg // 2`` clockwise turns from
    the barrier edge) becomes frontier, and only the successors around the new frontier darts
    change (two short rotations per new dart).
-4. :func:`walk_polygons`: one lane per seed and per new frontier dart walks its cycle (length,
-   canonical start), duplicates are dropped, and a second walk writes the CSR arrays.
+4. :func:`cycles_to_csr`: the cycles of the successor map become CSR arrays by pointer doubling
+   (smallest directed edge of each cycle, then list ranking), ``O(log L)`` gathers for polygons
+   of up to ``L`` vertices; no per-polygon loop.
 
 Output is canonical and independent of the structure's dart numbering: every polygon starts at
 its lexicographically smallest directed edge ``(origin, target)`` (input vertex ids) and the
 polygons are sorted by that edge, so HalfEdge and pemb give identical arrays.
 
-Host-side parts (said here, as the issue asks): choosing the lane bucket sizes between phases
-(two scalars read back), and counting the repaired polygons (connected components of the pieces
-joined by the new middle edges, scipy on a graph with one edge per barrier-edge tip).
+Host-side parts (said here, as the issue asks): reading back the tip darts (a ``nonzero``) and
+the number of frontier darts to size the compacted arrays between phases, sorting the polygons
+by their first edge (numpy ``lexsort``, optional), and counting the repaired polygons (connected
+components of the pieces joined by the new middle edges, scipy, one graph edge per tip).
 
 Ties between equally long edges of a triangle are broken by the smaller input vertex-id pair
 ``(min id, max id)`` (the reference breaks them by the triangle's corner order, which depends on
@@ -49,6 +51,7 @@ float64, ``jax.enable_x64``, to reproduce the reference's decisions exactly: :fu
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from typing import Optional
 
@@ -59,7 +62,7 @@ import numpy as np
 from jaxcds import errors
 
 __all__ = ["PolyllaMesh", "polylla", "label_phase", "traversal_phase", "barrier_tips",
-           "middle_edges", "repair_phase", "walk_polygons", "polygons_as_cycles",
+           "middle_edges", "repair_phase", "cycles_to_csr", "polygons_as_cycles",
            "canonical_cycle"]
 
 _BIG = np.int32(np.iinfo(np.int32).max)
@@ -138,10 +141,10 @@ def traversal_phase(s, frontier):
     """Traversal phase as a successor map (paper Alg. 2, reference ``travel_triangles``).
 
     Returns:
-      ``(succ, turn, rounds)``: ``succ`` ``(num_darts,)`` int32, for every frontier dart ``f``
+      ``(succ, rounds)``: ``succ`` ``(num_darts,)`` int32, for every frontier dart ``f``
       with an inner left face the next frontier dart of its polygon (first frontier dart turning
-      clockwise around ``target(f)`` from ``next(f)``), ``num_darts`` elsewhere; ``turn`` the
-      turn-to-frontier table (used to start the walks from seeds); ``rounds`` doubling rounds.
+      clockwise around ``target(f)`` from ``next(f)``), ``num_darts`` elsewhere; ``rounds`` the
+      number of doubling rounds.
       Jittable.
     """
     e = _darts(s)
@@ -150,7 +153,7 @@ def traversal_phase(s, frontier):
     q = jnp.where(active, s.next(e), s.num_darts)
     turn, rounds = _turn_to_frontier(s, frontier, q)
     succ = jnp.where(active, turn[jnp.minimum(q, s.num_darts - 1)], s.num_darts)
-    return succ.astype(jnp.int32), turn, rounds
+    return succ.astype(jnp.int32), rounds
 
 
 @jax.jit
@@ -247,75 +250,86 @@ def repair_phase(s, frontier, succ, middle, mask):
 
 
 # ------------------------------------------------------------------------------ 4. polygons
-@jax.jit
-def walk_polygons(s, succ, starts, mask, vertex_ids):
-    """Walk the cycle of every lane; keep one lane per cycle; write the polygons in CSR.
+@functools.partial(jax.jit, static_argnames=("size",))
+def cycles_to_csr(s, succ, vertex_ids, size: int):
+    """The cycles of ``succ`` (the polygons) as CSR arrays, by pointer doubling (jittable).
 
-    Args:
-      succ: the successor map (after repair).
-      starts: ``(L,)`` frontier darts, one or more on every polygon (seeds' first frontier darts
-        and the new middle darts), padded; ``mask`` ``(L,)`` the real lanes.
-      vertex_ids: ``(V,)`` int32 input ids.
+    Frontier darts are first compacted to ``size`` lanes (a static bound >= their number). Then
+    (a) every lane finds the smallest directed edge ``(origin, target)`` (input vertex ids) of its
+    cycle, the polygon's *head*, with ``O(log L)`` doubling rounds (a round that changes nothing
+    means the windows cover every cycle: the lane ``2^k`` steps before the head would change);
+    (b) list ranking: distance of every lane to the head's predecessor, again by doubling; its
+    position in the polygon follows, and one scatter writes the vertex ids.
 
-    Returns ``(offsets (L+1,), indices (num_darts,), num_polygons, total, polygon_of_lane (L,))``:
-    the first ``num_polygons + 1`` offsets and the first ``total`` indices are the polygons,
-    sorted by their smallest directed edge, each starting there. Jittable; two ``while_loop`` s of
-    as many steps as the longest polygon.
+    Returns ``(offsets (size+1,), indices (size,), num_polygons, total, polygon_of_lane (size,),
+    lane_of_dart (num_darts,), is_permutation)``: polygons in the order of their head darts'
+    ids, each starting at its head; ``is_permutation`` False flags a broken successor map.
     """
     E = s.num_darts
-    L = starts.shape[0]
-    lane = jnp.arange(L, dtype=jnp.int32)
-    starts = jnp.where(mask, starts, 0).astype(jnp.int32)
-    vid = lambda d: vertex_ids[s.origin(d)]  # noqa: E731
+    e = _darts(s)
+    active = succ < E
+    na = jnp.sum(active).astype(jnp.int32)
+    lane_of_dart = (jnp.cumsum(active) - 1).astype(jnp.int32)
+    idx = jnp.nonzero(active, size=size, fill_value=0)[0].astype(jnp.int32)
+    lanes = jnp.arange(size, dtype=jnp.int32)
+    valid = lanes < na
+    cs = jnp.where(valid, lane_of_dart[succ[idx]], lanes)  # padding lanes are fixed points
+    indeg = jnp.zeros((size,), jnp.int32).at[cs].add(1)
+    is_perm = jnp.all(indeg == 1)
+    vo = jnp.where(valid, vertex_ids[s.origin(idx)], _BIG)
+    vt = vo[cs]
 
-    def cond(c):
-        return jnp.any(~c[-2]) & (c[-1] < E)
+    # (a) head = smallest (origin, target) of the cycle
+    def cond_a(c):
+        return c[3] & (c[4] < 64)
 
-    def body(c):
-        cur, vo, n, dmin, bo, bt, bd, done, k = c
-        nxt = succ[cur]
-        vn = vid(nxt)
-        better = (vo < bo) | ((vo == bo) & (vn < bt))
-        upd = ~done
-        bo = jnp.where(upd & better, vo, bo)
-        bt = jnp.where(upd & better, vn, bt)
-        bd = jnp.where(upd & better, cur, bd)
-        dmin = jnp.where(upd, jnp.minimum(dmin, cur), dmin)
-        n = jnp.where(upd, n + 1, n)
-        cur = jnp.where(upd, nxt, cur)
-        vo = jnp.where(upd, vn, vo)
-        return cur, vo, n, dmin, bo, bt, bd, done | (cur == starts), k + 1
+    def body_a(c):
+        mo, mt, p, _, k = c
+        a, b = mo[p], mt[p]
+        better = (a < mo) | ((a == mo) & (b < mt))
+        return (jnp.where(better, a, mo), jnp.where(better, b, mt), p[p], jnp.any(better), k + 1)
 
-    big = jnp.full((L,), _BIG, jnp.int32)
-    init = (starts, vid(starts), jnp.zeros((L,), jnp.int32), starts, big, big, starts, ~mask,
-            jnp.int32(0))
-    _, _, n, dmin, bo, bt, bd, _, _ = jax.lax.while_loop(cond, body, init)
-    # one lane per cycle: the first lane whose cycle has this smallest dart
-    winner = jnp.full((E,), _BIG, jnp.int32).at[jnp.where(mask, dmin, E)].min(lane, mode="drop")
-    keep = mask & (winner[dmin] == lane)
-    order = jnp.lexsort((bt, jnp.where(keep, bo, _BIG)))
-    rank = jnp.zeros((L,), jnp.int32).at[order].set(lane)
-    npoly = jnp.sum(keep).astype(jnp.int32)
-    sizes = jnp.where(keep, n, 0)[order]
-    offsets = jnp.concatenate([jnp.zeros((1,), jnp.int32), jnp.cumsum(sizes).astype(jnp.int32)])
-    total = offsets[-1]
-    polygon_of_lane = jnp.where(mask, rank[winner[dmin]], L)
+    mo, mt, _, _, _ = jax.lax.while_loop(cond_a, body_a, (vo, vt, cs, jnp.bool_(True), jnp.int32(0)))
+    head = valid & (vo == mo) & (vt == mt)
 
-    first = bd[order]
-    base = offsets[:-1]
+    # (b) list ranking: w = steps to the last lane of the cycle (the head's predecessor)
+    last = head[cs] | ~valid
+    q0 = jnp.where(last, lanes, cs)
+    w0 = jnp.where(last, 0, 1).astype(jnp.int32)
 
-    def cond2(c):
-        return jnp.any(c[1] < sizes)
+    def cond_b(c):
+        return c[2] & (c[3] < 64)
 
-    def body2(c):
-        cur, k, out = c
-        go = k < sizes
-        out = out.at[jnp.where(go, base + k, E)].set(vid(cur), mode="drop")
-        return jnp.where(go, succ[cur], cur), k + 1, out
+    def body_b(c):
+        q, w, _, k = c
+        qq = q[q]
+        return qq, w + w[q], jnp.any(qq != q), k + 1
 
-    _, _, out = jax.lax.while_loop(
-        cond2, body2, (first, jnp.zeros((L,), jnp.int32), jnp.zeros((E,), jnp.int32)))
-    return offsets, out, npoly, total, polygon_of_lane
+    q, w, _, _ = jax.lax.while_loop(cond_b, body_b, (q0, w0, jnp.bool_(True), jnp.int32(0)))
+    length = jnp.where(head, w + 1, 0)
+    start = (jnp.cumsum(length) - length).astype(jnp.int32)  # exclusive, in head order
+    pid = (jnp.cumsum(head) - 1).astype(jnp.int32)
+    npoly = jnp.sum(head).astype(jnp.int32)
+    hd = cs[q]  # the head of every lane's cycle
+    position = start[hd] + length[hd] - 1 - w
+    out = jnp.zeros((size,), jnp.int32).at[jnp.where(valid, position, size)].set(vo, mode="drop")
+    offsets = jnp.full((size + 1,), na, jnp.int32).at[jnp.where(head, pid, size + 1)].set(
+        start, mode="drop")
+    polygon_of_lane = jnp.where(valid, pid[hd], size)
+    return offsets, out, npoly, na, polygon_of_lane, lane_of_dart, is_perm
+
+
+def _canonical_order(offsets: np.ndarray, indices: np.ndarray):
+    """Polygons sorted by their first directed edge (host numpy; each polygon starts at its
+    smallest directed edge already)."""
+    first = indices[offsets[:-1]]
+    second = indices[offsets[:-1] + 1]
+    order = np.lexsort((second, first))
+    sizes = np.diff(offsets)[order]
+    new_off = np.zeros(offsets.size, np.int64)
+    np.cumsum(sizes, out=new_off[1:])
+    src = np.repeat(offsets[:-1][order] - new_off[:-1], sizes) + np.arange(new_off[-1])
+    return new_off, indices[src], order
 
 
 # ------------------------------------------------------------------------------ driver
@@ -368,6 +382,12 @@ def _bucket(n: int) -> int:
     return max(64, 1 << max(int(n) - 1, 0).bit_length())
 
 
+def _bucket_fine(n: int) -> int:
+    """Sizes rounded up to 1/16 of their power of two (>= 64): < 7% padding, few recompiles."""
+    step = max(64, 1 << max(int(n).bit_length() - 4, 0))
+    return max(step, -(-int(n) // step) * step)
+
+
 def _pad(x: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     out = np.zeros(size, np.int32)
     out[: x.size] = x
@@ -376,7 +396,7 @@ def _pad(x: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     return out, mask
 
 
-def polylla(s, positions, *, sync_timings: bool = True) -> PolyllaMesh:
+def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) -> PolyllaMesh:
     """Run Polylla on structure ``s`` (any structure with borders) and 2D ``positions``.
 
     Args:
@@ -410,10 +430,10 @@ def polylla(s, positions, *, sync_timings: bool = True) -> PolyllaMesh:
         t1 = done(seed)
     t["label"] = t1 - t0
 
-    succ, turn, _ = traversal_phase(s, frontier)
-    tips = barrier_tips(s, succ)
-    seeds = np.nonzero(np.asarray(seed))[0].astype(np.int32)
-    tip_darts = np.nonzero(np.asarray(tips))[0].astype(np.int32)
+    n_frontier = int(jnp.sum(frontier)) // 2  # undirected, before repair
+    regions = int(jnp.sum(seed))
+    succ, _ = traversal_phase(s, frontier)
+    tip_darts = np.nonzero(np.asarray(barrier_tips(s, succ)))[0].astype(np.int32)
     t2 = done(succ)
     t["traversal"] = t2 - t1
 
@@ -428,51 +448,31 @@ def polylla(s, positions, *, sync_timings: bool = True) -> PolyllaMesh:
     t3 = done(succ)
     t["repair"] = t3 - t2
 
-    # lanes: first frontier dart of every seed's fan (reference e_init), then the new darts
-    turn_h = turn
-    cand = jnp.stack([turn_h[seeds], turn_h[s.next(jnp.asarray(seeds))],
-                      turn_h[s.prev(jnp.asarray(seeds))]]) if seeds.size else jnp.zeros((3, 0), jnp.int32)
-    fr = np.asarray(frontier)
-    cand = np.asarray(cand)
-    ok = fr[cand]
-    pick = np.argmax(ok, axis=0)
-    start_seed = cand[pick, np.arange(seeds.size)]
-    starts = np.concatenate([start_seed, new_darts]).astype(np.int32)
-    lanes, lmask = _pad(starts, _bucket(starts.size))
-    offsets, out, npoly, total, pol = walk_polygons(s, succ, jnp.asarray(lanes), jnp.asarray(lmask),
-                                                    vids_j)
+    size = _bucket_fine(int(jnp.sum(succ < s.num_darts)))
+    offsets, out, npoly, total, pol, lane_of_dart, is_perm = cycles_to_csr(s, succ, vids_j, size)
     npoly, total = int(npoly), int(total)
+    if not bool(is_perm):
+        raise errors.StructureError(
+            "Polylla: the successor map on frontier darts is not a permutation "
+            f"({total} frontier darts, {regions} seeds, {T} barrier-edge tips)")
     offsets = np.asarray(offsets[: npoly + 1]).astype(np.int64)
     indices = np.asarray(out[:total]).astype(np.int32)
     t4 = clock()
     t["polygons"] = t4 - t3
-
-    active = int(np.sum(np.asarray(succ) < s.num_darts))
-    if total != active:
-        raise errors.StructureError(
-            f"Polylla walks covered {total} of the {active} frontier darts "
-            f"({seeds.size} seeds, {T} barrier-edge tips): successor map is not a set of cycles")
+    if canonical:
+        offsets, indices, _ = _canonical_order(offsets, indices)
+    t5 = clock()
+    t["order"] = t5 - t4
 
     repaired = 0
     if T:
-        pol = np.asarray(pol)
-        a = pol[seeds.size: seeds.size + T]
-        b = pol[seeds.size + T: seeds.size + 2 * T]
-        repaired = _count_components(a, b)
-    t["repair_count"] = clock() - t4
+        lanes_new = np.asarray(lane_of_dart)[new_darts]
+        pol = np.asarray(pol)[lanes_new]
+        repaired = _count_components(pol[:T], pol[T:])
+    t["repair_count"] = clock() - t5
     return PolyllaMesh(points=pos, offsets=offsets, indices=indices, barrier_edge_tips=int(T),
-                       repaired_polygons=int(repaired), regions=int(seeds.size),
-                       frontier_edges=_undirected_frontier(s, fr, new_darts),
-                       triangles=int(s.num_faces), timings=t)
-
-
-def _undirected_frontier(s, fr: np.ndarray, new_darts: np.ndarray) -> int:
-    """Frontier edges before repair (each undirected edge once; border edges have one inner
-    dart and one border dart, both flagged)."""
-    fr = fr.copy()
-    if new_darts.size:
-        fr[np.unique(new_darts)] = False
-    return int(fr.sum()) // 2
+                       repaired_polygons=int(repaired), regions=regions,
+                       frontier_edges=n_frontier, triangles=int(s.num_faces), timings=t)
 
 
 def _count_components(a: np.ndarray, b: np.ndarray) -> int:
