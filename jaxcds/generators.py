@@ -15,7 +15,7 @@ Algorithmica 46(3-4), 2006). The sampler is the PS bijection:
    exactly two *stems* (dangling half-edges), planted at a corner of its root. Such trees are
    counted by ``T = z / (1 - T)^3``, i.e. ``(1/(4k-1)) C(4k-1, k)`` of them; they are drawn in
    linear time with the cycle lemma (:func:`_blossoming_word`);
-2. *partial closure*: walking ccw around the tree, every stem followed by two edge sides is
+2. *partial closure*: walking around the tree (contour order), every stem followed by two edge sides is
    closed into a triangle (a stack makes this one linear pass, :func:`_closure`);
 3. *complete closure*: two new vertices ``A`` and ``B`` (joined by an edge) receive the stems
    left open; the two places where two open stems are consecutive split them between ``A`` and
@@ -33,8 +33,6 @@ proportional to ``2 E / |Aut+(T)|`` (checked exhaustively for ``n <= 8`` in
 from __future__ import annotations
 
 import math
-from typing import Optional
-
 import numba
 import numpy as np
 
@@ -51,11 +49,6 @@ __all__ = [
     "degree_law",
     "random_sphere_points",
 ]
-
-# contour letters of a blossoming tree
-_STEM = np.int8(1)  # "b": a stem, sitting at a vertex
-_SIDE = np.int8(0)  # "a": a side of an edge, from a vertex to the next one along the contour
-
 
 # ---------------------------------------------------------------------------------- simple ones
 def icosphere(subdivisions: int = 3, radius: float = 1.0) -> TriMesh:
@@ -93,16 +86,18 @@ def sphere_hull(n: int, seed: int = 0) -> TriMesh:
     p = random_sphere_points(n, seed)
     hull = ConvexHull(p)
     f = np.ascontiguousarray(hull.simplices, dtype=np.int32)
-    f = _orient_outward(p, f)
+    # qhull's facet equations carry outward normals (the origin may lie outside the hull of few
+    # points, so "normal . centroid > 0" is not a safe test)
+    f = _orient_like(p, f, hull.equations[:, :3])
     if np.unique(f).size != n:  # pragma: no cover - probability 0 on the sphere
         raise errors.StructureError(f"sphere_hull: only {np.unique(f).size} of {n} points on the hull")
     return TriMesh(vertices=p, faces=f, source=f"sphere_hull({n}, seed={seed})")
 
 
-def _orient_outward(p: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Flip faces of a convex polytope around the origin so their normals point outward."""
+def _orient_like(p: np.ndarray, f: np.ndarray, outward: np.ndarray) -> np.ndarray:
+    """Flip the faces whose normal points against ``outward`` (one vector per face)."""
     a, b, c = p[f[:, 0]], p[f[:, 1]], p[f[:, 2]]
-    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), a + b + c) < 0
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), outward) < 0
     f = f.copy()
     f[inward] = f[inward][:, [0, 2, 1]]
     return f
@@ -213,8 +208,9 @@ def _rotate_word(z):
 
 @numba.njit(cache=True)
 def _contour(w, k):
-    """Contour of the tree of word ``w``: for each of the ``4k - 2`` letters, its kind (stem or
-    side) and its vertices (``u``: where it starts; ``v``: where a side ends). Vertices are
+    """Contour of the tree of word ``w``: for each of the ``4k - 2`` letters, its kind (``1``: a
+    stem, sitting at a vertex; ``0``: a side of an edge, from a vertex to the next one along the
+    contour) and its vertices (``u``: where it starts; ``v``: where a side ends). Vertices are
     numbered in preorder. The walk keeps the tree on its right."""
     L = 4 * k - 2
     kind = np.empty(L, dtype=np.int8)
