@@ -1,0 +1,197 @@
+"""Sharding a structure and its queries across devices with JAX's own SPMD partitioner.
+
+Nothing here distributes work by hand: the structure's arrays and the query batch are placed on
+a :class:`jax.sharding.Mesh` with :class:`~jax.sharding.NamedSharding` (split along their first
+axis, ``PartitionSpec(axis)``), and the ordinary jitted operators and reductions run on them;
+XLA's partitioner inserts the collectives. For a gather ``table[ids]`` with both sides sharded it
+all-gathers the *ids* (not the table), gathers locally with a mask and all-reduces the answers, so
+no device ever holds more than ``1/D`` of the structure (checked in ``tests/test_sharding.py``).
+
+JAX only shards an axis that the device count divides, so every array is padded at its end to a
+multiple of ``D`` (with ``PAD``, an id no structure stores). Padding must not change what the
+structure means, so the padded structure is wrapped in :class:`ShardedStructure`, which keeps the
+logical ``num_darts`` and refuses padded darts in ``dart_valid`` (every operator on a valid id
+reads only unpadded entries; reductions over the dart space skip the rest).
+
+Memory per device for an ``n``-vertex closed mesh: ``4 * R / D`` bytes of structure (``R`` the
+structure's references: 19n half-edge, 13n corner table, 6n CDS6n...) plus ``4 * Q`` bytes of
+query ids and answers during a query (the all-gathered batch) and ``12 n / D`` of positions when
+they are sharded too.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from jaxcds._dataclass import pytree_dataclass, replace, static_field
+from jaxcds.structures.base import Int, MeshStructure
+
+__all__ = ["device_mesh", "ShardedStructure", "shard_structure", "shard_rows", "sharded_query",
+           "sharded_vertex_normals", "PAD"]
+
+#: padding value of structure arrays: far outside every id space, small enough that the
+#: arithmetic of the operators (``3 * (c // 3)``...) cannot overflow int32
+PAD = 1 << 29
+
+
+def device_mesh(devices: Optional[Sequence] = None, axis: str = "d") -> Mesh:
+    """A one-axis :class:`~jax.sharding.Mesh` over ``devices`` (all devices by default)."""
+    devs = np.array(jax.devices() if devices is None else list(devices))
+    return Mesh(devs, (axis,))
+
+
+def _row_sharding(mesh: Mesh, ndim: int) -> NamedSharding:
+    axis = mesh.axis_names[0]
+    return NamedSharding(mesh, PartitionSpec(axis, *([None] * (ndim - 1))))
+
+
+def _pad_rows(x: np.ndarray, multiple: int, value) -> np.ndarray:
+    n = x.shape[0]
+    extra = (-n) % multiple
+    if not extra:
+        return x
+    pad = np.full((extra,) + x.shape[1:], value, dtype=x.dtype)
+    return np.concatenate([x, pad])
+
+
+def shard_rows(x, mesh: Mesh, value=0) -> jax.Array:
+    """``x`` padded along axis 0 to a multiple of the device count (with ``value``) and placed
+    with ``NamedSharding(mesh, P(axis))``: each device holds ``ceil(len / D)`` rows."""
+    x = np.asarray(x)
+    d = mesh.devices.size
+    return jax.device_put(_pad_rows(x, d, value), _row_sharding(mesh, max(x.ndim, 1)))
+
+
+@pytree_dataclass
+class ShardedStructure(MeshStructure):
+    """A structure whose arrays are padded to a multiple of the device count and sharded.
+
+    Fields:
+      structure: the padded structure (same class as the input; its arrays are sharded).
+      order: the input structure's ``vertex_order`` (replicated), or ``None``.
+      num_vertices, num_faces: the input structure's sizes (static, unpadded).
+      logical_darts: the input structure's ``num_darts`` (darts past it are padding).
+      logical_references: the input structure's ``references``.
+      num_devices: devices of the mesh the arrays are sharded over.
+    """
+
+    structure: Any
+    order: Any
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+    logical_darts: int = static_field()
+    logical_references: int = static_field()
+    num_devices: int = static_field()
+
+    name = "sharded"
+
+    @property
+    def num_darts(self) -> int:
+        return self.logical_darts
+
+    @property
+    def references(self) -> int:
+        return self.logical_references
+
+    @property
+    def vertex_order(self):
+        return None if self.order is None else np.asarray(self.order)
+
+    @property
+    def closed_triangles(self) -> bool:  # type: ignore[override]
+        return type(self.structure).closed_triangles
+
+    def dart_valid(self, e: Int) -> Int:
+        return (e >= 0) & (e < self.logical_darts) & self.structure.dart_valid(e)
+
+    def __getattr__(self, attr):
+        if attr.startswith("__") or attr == "structure":
+            raise AttributeError(attr)
+        return getattr(self.structure, attr)
+
+
+def _forward(op):
+    def method(self, x):
+        return getattr(self.structure, op)(x)
+
+    method.__name__ = op
+    return method
+
+
+for _op in ("origin", "source", "target", "twin", "next", "prev", "face", "face_left",
+            "face_right", "is_border", "edge_of_vertex", "edge_of_face", "left_front", "left_back",
+            "right_front", "right_back", "ccw_vertex_edge", "cw_vertex_edge", "corner_vertex",
+            "corner_next", "corner_prev", "corner_opposite", "corner_swing"):
+    setattr(ShardedStructure, _op, _forward(_op))
+# face_vertices stays the protocol's generic route (edge_of_face, next, origin): the structures'
+# fast overrides reshape whole arrays, which padding has lengthened
+
+
+def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
+    """Every array of ``s`` padded to a multiple of the device count and split along its first
+    axis over ``mesh`` (``NamedSharding(mesh, P(axis))``); 0-d leaves are replicated.
+
+    Works for any structure whose sizes are static fields or array lengths and whose operators
+    read, for a valid id, only entries of the unpadded arrays (true of every structure in the
+    registry: padding lies past every id they store). A :class:`jaxcds.batch.PackedBatch` keeps
+    its per-mesh tables replicated and gets its union structure sharded."""
+    mesh = device_mesh() if mesh is None else mesh
+    d = int(mesh.devices.size)
+    from jaxcds.batch import PackedBatch
+
+    if isinstance(s, PackedBatch):
+        # the union structure is split; the per-mesh tables (B entries) are replicated
+        rep = NamedSharding(mesh, PartitionSpec())
+        tables = {f: jax.device_put(getattr(s, f), rep) for f in (
+            "n_vertex", "n_face", "n_dart", "n_extra_dart", "vertex_offsets", "face_offsets",
+            "dart_offsets", "extra_dart_offsets")}
+        return replace(s, structure=shard_structure(s.structure, mesh), **tables)
+    order = s.vertex_order
+
+    def place(x):
+        x = np.asarray(x)
+        if x.ndim == 0:
+            return jax.device_put(x, NamedSharding(mesh, PartitionSpec()))
+        return jax.device_put(_pad_rows(x, d, PAD if x.dtype.kind in "iu" else 0),
+                              _row_sharding(mesh, x.ndim))
+
+    padded = jax.tree_util.tree_map(place, s)
+    return ShardedStructure(
+        structure=padded,
+        order=None if order is None else jax.device_put(
+            jnp.asarray(order, jnp.int32), NamedSharding(mesh, PartitionSpec())),
+        num_vertices=s.num_vertices, num_faces=s.num_faces, logical_darts=s.num_darts,
+        logical_references=s.references, num_devices=d)
+
+
+def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None) -> jax.Array:
+    """Operator ``op`` on a batch of ``ids``, the batch split over the devices like the
+    structure (padded with id 0, the padding answers dropped). Equal to ``getattr(s, op)(ids)``
+    unsharded. Answers are left sharded (``P(axis)``)."""
+    mesh = device_mesh() if mesh is None else mesh
+    ids = np.asarray(ids, np.int32)
+    q = shard_rows(ids, mesh, value=0)
+    out = _query(s, q, op)
+    return out[: ids.shape[0]]
+
+
+def _query_impl(s, q, op):
+    return getattr(s, op)(q)
+
+
+_query = jax.jit(_query_impl, static_argnums=2)
+
+
+def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatter"):
+    """:func:`jaxcds.algorithms.vertex_normals` on a sharded structure; ``positions`` may be
+    replicated or sharded (``shard_rows`` pads them; the padding rows are sliced off before the
+    call). Per-vertex sums run as a partitioned ``segment_sum`` (an all-reduce of the sums)."""
+    from jaxcds.algorithms import vertex_normals
+
+    p = positions[: s.num_vertices] if positions.shape[0] != s.num_vertices else positions
+    return vertex_normals(s, p, method=method)

@@ -1,0 +1,147 @@
+"""Sharding (jaxcds.sharding) on 4 simulated CPU devices, in a separate process.
+
+``XLA_FLAGS=--xla_force_host_platform_device_count=4`` must be set before JAX starts, so the
+checks run in a child process (this file executed as a script); the pytest side starts it and
+reads the JSON report it prints. Every check compares the sharded run with the unsharded one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DEVICES = 4
+
+
+@pytest.fixture(scope="module")
+def report():
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={DEVICES}").strip()
+    env["JAX_PLATFORMS"] = "cpu"
+    env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{ROOT / 'tests'}{os.pathsep}" + env.get("PYTHONPATH", "")
+    r = subprocess.run([sys.executable, __file__], env=env, capture_output=True, text=True, timeout=170)
+    assert r.returncode == 0, r.stderr[-4000:]
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def test_four_devices(report):
+    assert report["devices"] == DEVICES
+
+
+@pytest.mark.parametrize("name", ["halfedge", "corner-table", "packed-halfedge"])
+def test_arrays_are_split_not_replicated(report, name):
+    r = report[name]
+    # every structure array: each device holds exactly 1/D of the padded rows
+    assert r["leaves"] > 0
+    assert r["split_leaves"] == r["leaves"], r
+    assert r["bytes_per_device"] * DEVICES == r["bytes_padded"]
+
+
+@pytest.mark.parametrize("name", ["halfedge", "corner-table", "packed-halfedge"])
+def test_queries_and_reductions_equal_unsharded(report, name):
+    r = report[name]
+    assert r["ops_checked"] >= 20
+    assert r["op_mismatches"] == {}, r["op_mismatches"]
+    assert r["degrees_equal"]
+    assert r["normals_max_err"] < 1e-5
+    assert r["gather_normals_max_err"] < 1e-5
+    assert r["grad_max_err"] < 1e-4
+    assert r["answers_sharded"]
+
+
+def test_partitioner_never_gathers_the_structure(report):
+    # the gathers of a query all-gather the (small) query batch, never a structure array
+    r = report["halfedge"]
+    assert r["allgather_sizes"], "expected the partitioner to all-gather the query ids"
+    assert set(r["allgather_sizes"]) == {r["query_rows"]}, r
+    assert r["query_rows"] not in r["structure_rows"], r
+
+
+def test_packed_batch_local_queries_sharded(report):
+    r = report["packed-halfedge"]
+    assert r["local_query_mismatches"] == 0
+
+
+# ---------------------------------------------------------------------------------- child
+def _child() -> dict:
+    import re
+
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from jaxcds import batch as B
+    from jaxcds import sharding as S
+    from jaxcds.algorithms import vertex_degrees, vertex_normals
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.mesh import load_mesh
+    from jaxcds.structures import CornerTable, HalfEdge
+
+    from conftest import load_shared
+
+    out = {"devices": len(jax.devices())}
+    mesh = S.device_mesh()
+    rng = np.random.default_rng(0)
+    grid = load_shared("grid.off")  # borders: 32 border darts
+    rpt = random_planar_triangulation(301, seed=5)  # 301 vertices: not a multiple of 4
+
+    def check(name, s, pos):
+        ss = S.shard_structure(s, mesh)
+        inner = ss.structure.structure if isinstance(ss, B.PackedBatch) else ss.structure
+        leaves = [x for x in jax.tree_util.tree_leaves(inner) if x.ndim > 0]
+        split = [x for x in leaves
+                 if {sh.data.shape[0] for sh in x.addressable_shards} == {x.shape[0] // DEVICES}]
+        r = {"leaves": len(leaves), "split_leaves": len(split),
+             "bytes_padded": int(sum(x.nbytes for x in leaves)),
+             "bytes_per_device": int(sum(x.addressable_shards[0].data.nbytes for x in leaves)),
+             "structure_rows": sorted({int(x.shape[0]) for x in leaves})}
+        mism, n = {}, 0
+        for op, (arg, _) in B.OPERATOR_KINDS.items():
+            size = {"dart": s.num_darts, "vertex": s.num_vertices, "face": s.num_faces}[arg]
+            ids = rng.integers(0, size, 37).astype(np.int32)  # 37: not a multiple of 4
+            got = np.asarray(S.sharded_query(ss, op, ids, mesh))
+            want = np.asarray(getattr(s, op)(jnp.asarray(ids)))
+            n += 1
+            if not np.array_equal(got, want):
+                mism[op] = int(np.sum(got != want))
+        r["ops_checked"], r["op_mismatches"] = n, mism
+        q = S.shard_rows(np.arange(44, dtype=np.int32), mesh)
+        r["query_rows"] = int(q.shape[0])
+        r["answers_sharded"] = bool(S._query(ss, q, "twin").sharding.spec[0] == "d")
+        hlo = S._query.lower(ss, q, "target").compile().as_text()
+        r["allgather_sizes"] = [int(m.group(1)) for m in re.finditer(r"= s32\[(\d+)[,\]][^=]*all-gather\(", hlo)]
+        r["degrees_equal"] = bool(np.array_equal(np.asarray(vertex_degrees(ss)), np.asarray(vertex_degrees(s))))
+        want_n = np.asarray(vertex_normals(s, pos))
+        ps = jax.device_put(pos)  # replicated positions
+        r["normals_max_err"] = float(np.abs(np.asarray(S.sharded_vertex_normals(ss, ps)) - want_n).max())
+        r["gather_normals_max_err"] = float(np.abs(
+            np.asarray(S.sharded_vertex_normals(ss, ps, method="gather")) - want_n).max())
+        w = jnp.asarray(rng.normal(size=pos.shape), jnp.float32)
+        g1 = jax.grad(lambda p: jnp.sum(vertex_normals(s, p) * w))(pos)
+        g2 = jax.jit(jax.grad(lambda p: jnp.sum(vertex_normals(ss, p) * w)))(ps)
+        r["grad_max_err"] = float(np.abs(np.asarray(g1) - np.asarray(g2)).max())
+        out[name] = r
+        return ss
+
+    check("halfedge", HalfEdge.from_mesh(grid), jnp.asarray(grid.vertices, jnp.float32))
+    check("corner-table", CornerTable.from_mesh(rpt), jnp.asarray(rpt.vertices, jnp.float32))
+    ms = [grid, rpt, load_shared("2triangles.off")]
+    b = B.pack(ms, "halfedge")
+    bs = check("packed-halfedge", b, B.pack_positions(b, ms))
+    mids = rng.integers(0, 3, 50).astype(np.int32)
+    loc = np.array([rng.integers(0, int(b.n_vertex[i])) for i in mids], np.int32)
+    qf = jax.jit(lambda s, m, v: s.query("edge_of_vertex", m, v))
+    got = np.asarray(qf(bs, S.shard_rows(mids, mesh), S.shard_rows(loc, mesh)))[:50]
+    want = np.asarray(b.query("edge_of_vertex", mids, loc))
+    out["packed-halfedge"]["local_query_mismatches"] = int(np.sum(got != want))
+    return out
+
+
+if __name__ == "__main__":
+    print(json.dumps(_child()))
