@@ -1,0 +1,213 @@
+"""Maximal Schnyder woods (CDS paper, Definition 1 and Appendix A).
+
+The numba conquest is checked against a hand-worked example (the octahedron), against the slow
+Python reference :func:`schnyder_wood_reference` (same rule, rescanning the boundary every step),
+and against the independent checker of Definition 1 + "no clockwise triangle" on every accepted
+shared mesh, icospheres and random planar triangulations.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from jaxcds import errors
+from jaxcds.construct.schnyder import (BLACK, BLUE, RED, check_schnyder_wood, schnyder_wood,
+                                       schnyder_wood_reference)
+from jaxcds.generators import icosphere, random_planar_triangulation_faces
+from jaxcds.mesh import close_boundaries, validate
+from jaxcds.structures.halfedge import HalfEdge
+
+from conftest import CLOSED_GENUS0, HOLED_GENUS0, load_shared, mesh_params, octahedron
+
+
+# ---------------------------------------------------------------- hand-worked fixture
+def test_octahedron_by_hand():
+    """Root face (0, 2, 4): V_red = 0, V_black = 2, V_blue = 4. Worked by hand (Appendix A rule):
+    conquer 2 (fan 1, 5 get black edges to 2), then 1 (closest to V_blue; 3 gets black to 1, the
+    chord 3-0 appears), then 5 (3 is not free; the fan of 5 is empty and the chord 3-0 becomes a
+    boundary edge), then 3."""
+    _, f = octahedron()
+    w = schnyder_wood(f, 6, root_face=0)
+    assert (w.v_red, w.v_blue, w.v_black) == (0, 4, 2)
+    n = 6
+    want = np.array([
+        [n, n, n],  # 0 = V_red: no outgoing edge
+        [5, 4, 2],  # 1: red -> 5, blue -> 4 (V_blue), black -> 2 (V_black)
+        [0, 4, n],  # 2 = V_black: outer edges (V_black, V_red) red, (V_black, V_blue) blue
+        [0, 4, 1],  # 3
+        [0, n, n],  # 4 = V_blue: outer edge (V_blue, V_red) red
+        [0, 3, 2],  # 5
+    ])
+    np.testing.assert_array_equal(w.out, want)
+    np.testing.assert_array_equal(w.conquest_order, [2, 1, 5, 3])
+    assert check_schnyder_wood(w, f) == []
+    # rotation of inner vertex 1, ccw from its red edge: out red 5, in black 3 (3 -> 1 black),
+    # out blue 4, in red: none, out black 2, in blue: none
+    a, b = w.offsets[1], w.offsets[2]
+    assert w.neighbors[a:b].tolist() == [5, 3, 4, 2]
+    assert w.colour[a:b].tolist() == [RED, BLACK, BLUE, BLACK]
+    assert w.outgoing[a:b].tolist() == [True, False, True, True]
+
+
+def test_cube_by_hand():
+    """cube.off with its first face as root: 8 vertices, 3n - 6 = 18 edges, every inner vertex
+    with its three outgoing edges, matching the slow reference."""
+    m = load_shared("cube.off")
+    w = schnyder_wood(m.faces, m.num_vertices)
+    assert w.num_edges == 18
+    inner = [u for u in range(8) if u not in w.outer]
+    assert np.all(w.out[inner] < 8)
+    np.testing.assert_array_equal(w.out, schnyder_wood_reference(m.faces, 8))
+    assert check_schnyder_wood(w, m.faces) == []
+
+
+# ---------------------------------------------------------------- structure of the result
+def test_fields_and_rotations_match_halfedge():
+    m = icosphere(2)
+    w = schnyder_wood(m.faces, m.num_vertices, root_face=5)
+    n = m.num_vertices
+    assert w.out.shape == (n, 3) and w.out.dtype == np.int32
+    assert w.edges().shape == (3 * n - 6, 3)
+    assert w.conquest_order.shape == (n - 2,) and sorted(w.conquest_order.tolist() + [w.v_red, w.v_blue]) == list(range(n))
+    he = HalfEdge.from_faces(m.faces, n)
+    e0 = np.asarray(he.vertex_edge)
+    for u in range(n):
+        rot = w.neighbors[w.offsets[u]:w.offsets[u + 1]].tolist()
+        # walk the half-edge ccw around u
+        e = int(e0[u])
+        ring = []
+        for _ in range(len(rot)):
+            ring.append(int(he.target(e)))
+            e = int(he.ccw_vertex_edge(e))
+        k = ring.index(rot[0])
+        assert ring[k:] + ring[:k] == rot
+        start = w.out[u, RED] if u != w.v_red else w.v_blue
+        assert rot[0] == start
+    # in-degrees: every edge counted once as incoming
+    assert sum(int(w.in_degree(c).sum()) for c in range(3)) == 3 * n - 6
+
+
+def test_outer_vertices_follow_root_face():
+    m = icosphere(1)
+    for root in (0, 7, 19):
+        w = schnyder_wood(m.faces, m.num_vertices, root_face=root)
+        a, b, c = m.faces[root]
+        assert (w.v_red, w.v_black, w.v_blue) == (a, b, c)
+        assert w.out[w.v_blue, RED] == w.v_red
+        assert w.out[w.v_black, RED] == w.v_red and w.out[w.v_black, BLUE] == w.v_blue
+
+
+# ---------------------------------------------------------------- checker
+def test_checker_rejects_corrupted_woods():
+    m = icosphere(1)
+    w = schnyder_wood(m.faces, m.num_vertices)
+    assert check_schnyder_wood(w, m.faces) == []
+    u = next(x for x in range(m.num_vertices) if x not in w.outer)
+    # swap the colours of two outgoing edges of u: local rule and colours break
+    out = w.out.copy()
+    out[u, [RED, BLUE]] = out[u, [BLUE, RED]]
+    bad = dataclasses.replace(w, out=out)
+    assert check_schnyder_wood(bad, m.faces)
+    col = w.colour.copy()
+    j = w.offsets[u]
+    col[j] = BLACK
+    assert check_schnyder_wood(dataclasses.replace(w, colour=col), m.faces)
+
+
+def test_non_maximal_wood_is_valid_but_has_cw_triangles():
+    """The other conquest order gives a Schnyder wood (Definition 1 holds) with clockwise oriented
+    triangles, which the maximal rule avoids: the checker sees the difference."""
+    m = icosphere(2)
+    w = schnyder_wood(m.faces, m.num_vertices, maximal=False)
+    assert check_schnyder_wood(w, m.faces, maximal=False) == []
+    cw = check_schnyder_wood(w, m.faces, maximal=True)
+    assert cw and all("clockwise" in p for p in cw)
+    wm = schnyder_wood(m.faces, m.num_vertices, maximal=True)
+    assert check_schnyder_wood(wm, m.faces, maximal=True) == []
+
+
+# ---------------------------------------------------------------- meshes
+@pytest.mark.parametrize("name", mesh_params(CLOSED_GENUS0 + HOLED_GENUS0))
+def test_maximal_wood_on_shared_meshes(name):
+    m = load_shared(name)
+    if name in HOLED_GENUS0:
+        m = close_boundaries(m)
+    validate(m, closed=True, connected=True)
+    w = schnyder_wood(m.faces, m.num_vertices)
+    assert check_schnyder_wood(w, m.faces) == []
+    assert w.num_edges == 3 * m.num_vertices - 6
+
+
+@pytest.mark.parametrize("k", [0, 1, 2, 3])
+def test_icospheres_match_reference(k):
+    m = icosphere(k)
+    for root in (0, m.num_faces // 2, m.num_faces - 1):
+        w = schnyder_wood(m.faces, m.num_vertices, root_face=root)
+        np.testing.assert_array_equal(w.out, schnyder_wood_reference(m.faces, m.num_vertices, root))
+        assert check_schnyder_wood(w, m.faces) == []
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(4, 120), seed=st.integers(0, 2**31 - 1), root=st.integers(0, 10**6))
+def test_random_triangulations_match_reference(n, seed, root):
+    f = random_planar_triangulation_faces(n, seed)
+    r = root % f.shape[0]
+    w = schnyder_wood(f, n, root_face=r)
+    np.testing.assert_array_equal(w.out, schnyder_wood_reference(f, n, r))
+    assert check_schnyder_wood(w, f) == []
+    w2 = schnyder_wood(f, n, root_face=r, maximal=False)
+    assert check_schnyder_wood(w2, f, maximal=False) == []
+
+
+@pytest.mark.slow
+def test_random_triangulation_5000():
+    f = random_planar_triangulation_faces(5000, 11)
+    w = schnyder_wood(f, 5000)
+    assert check_schnyder_wood(w, f) == []
+
+
+# ---------------------------------------------------------------- refusals
+def test_refuses_meshes_with_holes_and_wrong_counts():
+    m = load_shared("grid.off")
+    with pytest.raises(errors.UnsupportedTopologyError, match="genus-0|close_boundaries"):
+        schnyder_wood(m.faces, m.num_vertices)
+    m = load_shared("rocker-arm.obj")
+    with pytest.raises(errors.UnsupportedTopologyError, match="'lr' or 'halfedge'"):
+        schnyder_wood(m.faces, m.num_vertices)
+
+
+def test_refuses_bad_root_and_indices():
+    _, f = octahedron()
+    with pytest.raises(errors.InvalidIndexError, match="root_face"):
+        schnyder_wood(f, 6, root_face=8)
+    with pytest.raises(errors.InvalidIndexError):
+        schnyder_wood(f + 1, 6)
+
+
+@pytest.mark.parametrize("name,genus", [("rocker-arm.obj", 1), ("3holes.off", 3)])
+def test_prepare_mesh_names_the_genus(name, genus):
+    from jaxcds.construct.schnyder import prepare_mesh
+
+    with pytest.raises(errors.UnsupportedTopologyError, match=f"genus {genus}") as exc:
+        prepare_mesh(load_shared(name))
+    assert "lr" in str(exc.value) and "halfedge" in str(exc.value)
+
+
+def test_prepare_mesh_refuses_non_manifold_cow():
+    from jaxcds.construct.schnyder import prepare_mesh
+
+    with pytest.raises(errors.MeshError, match="edge|vertex"):
+        prepare_mesh(load_shared("cow.off"))
+
+
+def test_prepare_mesh_closes_holes():
+    from jaxcds.construct.schnyder import prepare_mesh
+
+    m, closed = prepare_mesh(load_shared("2triangles.off"))
+    assert closed and m.num_vertices == 5 and m.num_faces == 6
+    w = schnyder_wood(m.faces, m.num_vertices)
+    assert check_schnyder_wood(w, m.faces) == []
