@@ -1,0 +1,1083 @@
+"""Compact data structures from Schnyder woods (Castelli Aleardi & Devillers, JoCG 2018).
+
+Paper: ``../shared/seeds/000_db4616a06e23a922.txt``, Sec. 2.1-2.6. Four structures, one family:
+
+=============  ===========  =====================================================  =============
+class          registry     paper                                                  references
+=============  ===========  =====================================================  =============
+CDS6n          ``cds6n``    Thm 2 (Sec. 2.1, Fig. 3): S/C of both front edges      6n (+n faces)
+CDS5n          ``cds5n``    Thm 4 (Sec. 2.2, Fig. 4): maximal wood, S_red^toleft   5n (+n faces)
+CDS4n          ``cds4n``    Thm 5 (Sec. 2.3, Fig. 5): cwBFS order, no red RF       4n (+n faces)
+CDS5nO1        ``cds5n-o1`` Thm 6 (Sec. 2.4, Fig. 6): D, W; Target/Adjacent O(1)   5n (+n faces)
+=============  ===========  =====================================================  =============
+
+Edges and darts
+---------------
+An edge is named by its Schnyder source ``u`` and colour ``c`` (``u_c`` in the paper, colours
+``RED = 0, BLUE = 1, BLACK = 2``, :mod:`jaxcds.construct.schnyder`): edge id ``e = 3u + c``. The
+protocol works on darts: **dart** ``d = 2e + r``; ``r = 0`` is the edge in its Schnyder orientation
+``u -> v``, ``r = 1`` the reverse ``v -> u``. So ``twin(d) = d ^ 1`` and
+
+* ``next(2e) = LeftFront(e)``, ``prev(2e) = LeftBack(e)``,
+* ``next(2e + 1) = RightBack(e)``, ``prev(2e + 1) = RightFront(e)``
+
+(reversing an edge swaps left and right: ``left_front(twin e) = right_back(e)`` ...). The paper's
+operators return unoriented edges; ours return the dart that runs ccw around the named face, and
+the orientation is read off the colour case analysis, in O(1), from the Schnyder local rule
+(Definition 1) -- e.g. ``LeftFront(u_c)`` has colour ``c`` (then it is the edge ``w_c`` entering
+``v``: ``r = 1``) or ``next(c)`` (then it is ``v_next(c)``: ``r = 0``). Ids of the six absent edges
+(every colour at ``V_red``, blue/black at ``V_blue``, black at ``V_black``) are holes:
+``dart_valid`` is False there. ``num_darts = 6n``.
+
+The three outer darts (the root face ``(V_red, V_black, V_blue)``, ccw in the mesh) are
+``D0 = V_blue -> V_red`` (``2(3 V_blue + red)``), ``D1 = V_red -> V_black``
+(``2(3 V_black + red) + 1``), ``D2 = V_black -> V_blue`` (``2(3 V_black + blue)``); the proofs
+leave the exterior edges to "a special manner" (Thm 4, last paragraph): the four outer cases that
+the local rule does not cover are written as explicit ``jnp.where`` (``_EXTERIOR`` comments).
+
+References encoding (Sec. 2.1): each table row stores vertex indices in the low 30 bits of an int32
+and at most two service bits (``I_c``, ``C``) in bits 30 and 31, so a structure is exactly
+``k`` int32 per vertex (``k = 6, 5, 4, 5``) plus ``F_blue`` (one per vertex) for the face map of
+Thm 7. Up to ``2^30`` vertices.
+
+Faces (Thm 7) and corners (Thm 8)
+---------------------------------
+Face *slots* follow Thm 7: the red triangle of ``u`` (left of ``u_red``) is slot ``u``, the black
+triangle of ``u`` is ``n + u``, the blue triangle of ``u`` is ``n + F_blue[u]``; 4 of the ``2n``
+slots are unused (``V_red``'s red slot and three black slots). The protocol wants dense face ids
+``0 .. 2n-5``, so ``face(d)`` returns the slot minus the number of unused slots below it (4 static
+ints, O(1)), and :meth:`face_slot` the raw Thm 7 slot (index of the paper's size-``2n`` face array).
+``F_blue`` is filled so that it is also its own inverse where needed (``edge_of_face`` is O(1)):
+``F_blue[u] = u`` when ``u``'s black slot is free, otherwise ``F_blue[u] = v`` and
+``F_blue[v] = u`` for a free slot ``v`` whose own blue triangle is not blue.
+
+Corners: a corner is a dart (the dart leaving the corner's vertex ccw in its triangle, as in
+:mod:`jaxcds.structures.base`); :meth:`corner_index` maps it to Thm 8's numbering
+``u + n (c + 3 r)`` (source-corner of ``u_c``: ``u + cn``; target-corner: ``u + (3 + c) n``) and
+:meth:`corner_dart` back, both O(1) and with no extra reference.
+
+Target
+------
+CDS6n / CDS5n / CDS4n: ``Target(u_c)`` turns cw around the target with ``LeftFront`` until an
+edge leaving it shows up (Thm 2, "Operator Target"), a masked ``while_loop`` over the batch: O(d).
+CDS5nO1: O(1) (Thm 6). Whole-mesh queries (``face_vertices``, used by the normals) compute all
+``3n`` targets at once by pointer jumping along the same ``LeftFront`` chains (O(n log d)).
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import jax
+import jax.numpy as jnp
+import numba
+import numpy as np
+
+from jaxcds import errors
+from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
+from jaxcds.structures import registry
+from jaxcds.structures.base import Int, MeshStructure
+
+__all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
+           "edge_fronts", "face_slots"]
+
+_IDX = (1 << 30) - 1
+_MAX_VERTICES = 1 << 30
+
+
+# ====================================================================================== builder
+@numba.njit(cache=True)
+def _dart_at(x, j, nbr, col, outg):
+    y = nbr[j]
+    c = col[j]
+    if outg[j]:
+        return 2 * (3 * x + c)
+    return 2 * (3 * y + c) + 1
+
+
+@numba.njit(cache=True)
+def _fronts(offsets, nbr, col, outg, out, n):
+    lf = np.full((n, 3), -1, dtype=np.int64)
+    rf = np.full((n, 3), -1, dtype=np.int64)
+    lf2 = np.full((n, 3), -1, dtype=np.int64)
+    for u in range(n):
+        for c in range(3):
+            v = out[u, c]
+            if v >= n:
+                continue
+            a = offsets[v]
+            d = offsets[v + 1] - a
+            j = -1
+            for k in range(d):
+                if nbr[a + k] == u:
+                    j = k
+                    break
+            # w: cw of u around v (LeftFront = v -> w); z: ccw of u (RightFront = z -> v)
+            lf[u, c] = _dart_at(v, a + (j - 1) % d, nbr, col, outg)
+            rf[u, c] = _dart_at(v, a + (j + 1) % d, nbr, col, outg) ^ 1
+            lf2[u, c] = _dart_at(v, a + (j - 2) % d, nbr, col, outg)
+    return lf, rf, lf2
+
+
+def edge_fronts(wood: SchnyderWood):
+    """Ground truth from the rotation system: ``(LF, RF, LF2)``, ``(n, 3)`` int64 darts
+    (``-1`` for absent edges): ``LF[u, c]`` = the dart ``(v, w)`` of ``LeftFront(u_c)``,
+    ``RF[u, c]`` = the dart ``(z, v)`` of ``RightFront(u_c)``, ``LF2[u, c]`` = the dart ``(v, q)``
+    one more step cw around ``v`` (Sec. 2.2's ``q``)."""
+    return _fronts(wood.offsets, wood.neighbors, wood.colour, wood.outgoing, wood.out,
+                   wood.num_vertices)
+
+
+def _src(d):
+    return (d >> 1) // 3
+
+
+def _col(d):
+    return (d >> 1) % 3
+
+
+def _pack(s, b30=None, b31=None) -> np.ndarray:
+    x = np.asarray(s, dtype=np.int64) & _IDX
+    if b30 is not None:
+        x = x | (np.asarray(b30, dtype=np.int64) << 30)
+    if b31 is not None:
+        x = x | (np.asarray(b31, dtype=np.int64) << 31)
+    return x.astype(np.uint32).view(np.int32)
+
+
+@numba.njit(cache=True)
+def _cwbfs(offsets, nbr, col, outg, n, v_red):
+    label = np.full(n, -1, dtype=np.int64)
+    order = np.empty(n, dtype=np.int64)
+    label[v_red] = 0
+    order[0] = v_red
+    head = 0
+    tail = 1
+    while head < tail:
+        v = order[head]
+        head += 1
+        # children: incoming red edges, cw (= reverse of the ccw rotation)
+        for j in range(offsets[v + 1] - 1, offsets[v] - 1, -1):
+            if col[j] == 0 and not outg[j]:
+                x = nbr[j]
+                label[x] = tail
+                order[tail] = x
+                tail += 1
+    return order, label, tail
+
+
+def cw_bfs_order(wood: SchnyderWood) -> np.ndarray:
+    """cwBFS of the red tree (Sec. 2.3): ``order[i]`` = vertex with label ``i``. The children of a
+    vertex get consecutive labels, cw around it starting after its outgoing black edge (at
+    ``V_red``: ``V_black`` first, ``V_blue`` last)."""
+    order, _, count = _cwbfs(wood.offsets, wood.neighbors, wood.colour, wood.outgoing,
+                             wood.num_vertices, wood.v_red)
+    if count != wood.num_vertices:
+        raise errors.StructureError(f"cwBFS reached {count} of {wood.num_vertices} vertices: the red "
+                                    "tree does not span the mesh")
+    return order.astype(np.int32)
+
+
+def relabel_wood(wood: SchnyderWood, order: np.ndarray) -> SchnyderWood:
+    """The same wood with vertex ``order[i]`` renamed ``i`` (rotation arrays permuted too)."""
+    import dataclasses
+
+    n = wood.num_vertices
+    order = np.asarray(order, dtype=np.int64)
+    label = np.empty(n, dtype=np.int64)
+    label[order] = np.arange(n)
+    out = np.full((n, 3), n, dtype=np.int32)
+    has = wood.out < n
+    relab = np.where(has, label[np.minimum(wood.out, n - 1)], n)
+    out[:] = relab[order]
+    deg = np.diff(wood.offsets)[order]
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(deg, out=offsets[1:])
+    src = np.repeat(wood.offsets[:-1][order] - offsets[:-1], deg) + np.arange(offsets[-1])
+    return dataclasses.replace(
+        wood, out=out, offsets=offsets, neighbors=label[wood.neighbors[src]].astype(np.int32),
+        colour=wood.colour[src], outgoing=wood.outgoing[src],
+        v_red=int(label[wood.v_red]), v_blue=int(label[wood.v_blue]), v_black=int(label[wood.v_black]),
+        conquest_order=label[wood.conquest_order].astype(np.int32))
+
+
+def face_slots(wood: SchnyderWood, lf: np.ndarray, rf: np.ndarray):
+    """Thm 7's face map from the ground truth: ``(F_blue, unused)``.
+
+    Every face gets the slot of the first rule that applies: red (left of a red edge, slot of its
+    source), black (left of a black edge, ``n +`` source), blue (``n + F_blue[source]``)."""
+    n = wood.num_vertices
+    lfc = np.where(lf >= 0, _col(lf), -1)
+    vk, vb, vr = wood.v_black, wood.v_blue, wood.v_red
+    u = np.arange(n)
+    has_black = wood.out[:, BLACK] < n
+    # black triangle of u: left face of u_black is not red (its LeftFront is not red, Thm 7)
+    black_matched = has_black & (lfc[:, BLACK] == BLACK)
+    avail = ~black_matched
+    # blue triangle of u: left face of u_blue neither red (LeftBack red) nor black (LeftFront black)
+    has_blue = wood.out[:, BLUE] < n
+    # LeftBack(u_blue) is red iff u has an incoming red edge (local rule: ccw after out blue)
+    ired = np.zeros(n, dtype=bool)
+    src, dst, c = wood.edges().T
+    ired[dst[c == RED]] = True
+    blue_matched = has_blue & ~ired & (lfc[:, BLUE] == BLUE)
+    blue_matched[vk] = False  # the left face of (V_black, V_blue) is the outer face, red slot V_blue
+    fb = np.zeros(n, dtype=np.int64)
+    own = blue_matched & avail
+    fb[own] = u[own]
+    need = np.nonzero(blue_matched & ~avail)[0]
+    free = np.nonzero(avail & ~blue_matched)[0]
+    if free.size < need.size + 3:
+        raise errors.StructureError(f"face map: {need.size} blue triangles but {free.size} free slots")
+    fb[need] = free[: need.size]
+    fb[free[: need.size]] = need
+    unused_black = free[need.size:]
+    unused = np.sort(np.concatenate([[vr], n + unused_black])).astype(np.int64)
+    return fb.astype(np.int32), tuple(int(x) for x in unused)
+
+
+# ====================================================================================== base
+def _ids(x):
+    return jnp.asarray(x, dtype=jnp.int32)
+
+
+def _dart(u, c, r=0):
+    return (2 * (3 * u + c) + r).astype(jnp.int32)
+
+
+def _fld(x):
+    """vertex index of a packed reference"""
+    return x & _IDX
+
+
+def _bit30(x):
+    return ((x >> 30) & 1).astype(bool)
+
+
+def _bit31(x):
+    return ((x >> 31) & 1).astype(bool)
+
+
+class _CDS(MeshStructure):
+    """Operators shared by the CDS family: everything is written from three primitives that each
+    structure implements with its own tables -- ``_lf(e)`` (dart ``(v, w)`` of ``LeftFront(e)``),
+    ``_rf(e)`` (dart ``(z, v)`` of ``RightFront(e)``) and ``_inc(u, c)`` (``I_c[u]``) -- following
+    the proof of Thm 2 for ``LeftBack`` / ``RightBack``."""
+
+    num_vertices: int
+    num_faces: int
+    v_red: int
+    v_blue: int
+    v_black: int
+    unused_slots: tuple
+    boundaries_closed: bool
+
+    # ---- subclass primitives
+    def _lf(self, e):
+        raise NotImplementedError
+
+    def _rf(self, e):
+        raise NotImplementedError
+
+    def _inc(self, u, c):
+        raise NotImplementedError
+
+    def _edge_target(self, e):
+        return self._target_walk(e)
+
+    # ---- exterior darts
+    @property
+    def _e_br(self):  # (V_blue, V_red) red
+        return 3 * self.v_blue + RED
+
+    @property
+    def _e_kr(self):  # (V_black, V_red) red
+        return 3 * self.v_black + RED
+
+    @property
+    def _e_kb(self):  # (V_black, V_blue) blue
+        return 3 * self.v_black + BLUE
+
+    @property
+    def _d0(self):
+        return 2 * self._e_br
+
+    @property
+    def _d1(self):
+        return 2 * self._e_kr + 1
+
+    @property
+    def _d2(self):
+        return 2 * self._e_kb
+
+    # ---- the four front/back routes, edge -> dart
+    def left_front_edge(self, e: Int) -> Int:
+        """``LeftFront(u_c)`` for edge ids ``e = 3u + c``: the dart ``(v, w)``."""
+        e = _ids(e)
+        d = self._lf(e)
+        # _EXTERIOR: the left faces of (V_black, V_blue) and (V_blue, V_red) are the outer face:
+        # LeftFront = (V_blue, V_red), resp. (V_red, V_black) (cwBFS: V_blue is V_red's last child)
+        d = jnp.where(e == self._e_br, self._d1, d)
+        return jnp.where(e == self._e_kb, self._d0, d).astype(jnp.int32)
+
+    def right_front_edge(self, e: Int) -> Int:
+        """``RightFront(u_c)``: the dart ``(z, v)``."""
+        e = _ids(e)
+        d = self._rf(e)
+        # _EXTERIOR: the right face of (V_black, V_red) is the outer face: RightFront = (V_blue, V_red)
+        return jnp.where(e == self._e_kr, self._d0, d).astype(jnp.int32)
+
+    def left_back_edge(self, e: Int) -> Int:
+        """``LeftBack(u_c)``: the dart ``(w, u)`` -- Thm 2, three cases."""
+        e = _ids(e)
+        u, c = e // 3, e % 3
+        cn, cp = (c + 1) % 3, (c + 2) % 3
+        lf = self.left_front_edge(e)
+        # Case 1: no incoming edge of colour prev(c) at u: LeftBack is u_next(c), toward w
+        case1 = _dart(u, cn, 1)
+        # Case 2: LeftFront has colour c (w -> v): LeftBack is w_prev(c), w = Source(LeftFront)
+        case2 = _dart(_src(lf), cp, 0)
+        # Case 3: LeftFront is v_next(c) (v -> w): LeftBack = LeftFront(LeftFront(e))
+        case3 = self.left_front_edge(lf >> 1)
+        d = jnp.where(~self._inc(u, cp), case1, jnp.where((lf & 1) == 1, case2, case3))
+        # _EXTERIOR: LeftBack((V_blue, V_red)) = (V_black, V_blue); LeftBack((V_black, V_blue)) = (V_red, V_black)
+        d = jnp.where(e == self._e_br, self._d2, jnp.where(e == self._e_kb, self._d1, d))
+        return d.astype(jnp.int32)
+
+    def right_back_edge(self, e: Int) -> Int:
+        """``RightBack(u_c)``: the dart ``(u, z)`` -- Thm 2 by symmetry."""
+        e = _ids(e)
+        u, c = e // 3, e % 3
+        cn, cp = (c + 1) % 3, (c + 2) % 3
+        rf = self.right_front_edge(e)
+        # Case 1: no incoming edge of colour next(c) at u: RightBack is u_prev(c)
+        case1 = _dart(u, cp, 0)
+        # Case 2: RightFront has colour c (z -> v): RightBack is z_next(c) entering u, reversed
+        case2 = _dart(_src(rf), cn, 1)
+        # Case 3: RightFront is v_prev(c) (v -> z): RightBack = RightFront(RightFront(e))
+        case3 = self.right_front_edge(rf >> 1)
+        d = jnp.where(~self._inc(u, cn), case1, jnp.where((rf & 1) == 0, case2, case3))
+        # _EXTERIOR: RightBack((V_black, V_red)) = (V_black, V_blue)
+        d = jnp.where(e == self._e_kr, self._d2, d)
+        return d.astype(jnp.int32)
+
+    # ---- Target
+    def _target_walk(self, e):
+        """Thm 2 "Operator Target": turn cw around ``v`` through the incoming edges of colour
+        ``c`` (``LeftFront`` of colour ``c``) until ``LeftFront`` leaves ``v``: its source is
+        ``v``. O(d): a ``while_loop`` whose lanes stop independently (masked)."""
+        e = _ids(e)
+        vr, vb = self.v_red, self.v_blue
+
+        def stop(cur):
+            lf = self._lf(cur)
+            fin = (lf & 1) == 0
+            t = _src(lf)
+            # _EXTERIOR: walking cw around V_red ends at (V_blue, V_red); around V_blue at (V_black, V_blue)
+            t = jnp.where(cur == self._e_br, vr, jnp.where(cur == self._e_kb, vb, t))
+            fin = fin | (cur == self._e_br) | (cur == self._e_kb)
+            return fin, t, lf >> 1
+
+        fin0, t0, nxt0 = stop(e)
+
+        def cond(state):
+            return jnp.any(~state[2])
+
+        def body(state):
+            cur, t, done = state
+            fin, t2, nxt = stop(cur)
+            t = jnp.where(done, t, t2)
+            newdone = done | fin
+            cur = jnp.where(newdone, cur, nxt)
+            return cur, t, newdone
+
+        cur0 = jnp.where(fin0, e, nxt0)
+        _, t, _ = jax.lax.while_loop(cond, body, (cur0, t0, fin0))
+        return t.astype(jnp.int32)
+
+    def all_edge_targets(self) -> Int:
+        """``(3n,)`` ``Target(u_c)`` of every edge id (garbage on absent ids), all at once by
+        pointer jumping along the ``LeftFront`` chains of the Target walk: O(n log d)."""
+        e = jnp.arange(3 * self.num_vertices, dtype=jnp.int32)
+        valid = self.edge_valid(e)
+        lf = self._lf(e)
+        fin = ((lf & 1) == 0) | ~valid
+        t = jnp.where(valid, _src(lf), 0)
+        t = jnp.where(e == self._e_br, self.v_red, jnp.where(e == self._e_kb, self.v_blue, t))
+        fin = fin | (e == self._e_br) | (e == self._e_kb)
+        ptr = jnp.where(fin, e, lf >> 1)
+
+        def cond(state):
+            _, _, fin = state
+            return jnp.any(~fin)
+
+        def body(state):
+            t, ptr, fin = state
+            t2 = jnp.where(fin, t, t[ptr])
+            fin2 = fin | fin[ptr]
+            ptr2 = jnp.where(fin, ptr, ptr[ptr])
+            return t2, ptr2, fin2
+
+        t, _, _ = jax.lax.while_loop(cond, body, (t, ptr, fin))
+        return t.astype(jnp.int32)
+
+    # ---- protocol core
+    @property
+    def num_darts(self) -> int:
+        return 6 * self.num_vertices
+
+    def edge_valid(self, e: Int) -> Int:
+        """True where edge id ``e = 3u + c`` names an edge (``u_c`` exists)."""
+        e = _ids(e)
+        u, c = e // 3, e % 3
+        ok = (e >= 0) & (e < 3 * self.num_vertices)
+        roots = ((u == self.v_red)
+                 | ((u == self.v_blue) & (c != RED))
+                 | ((u == self.v_black) & (c == BLACK)))
+        return ok & ~roots
+
+    def dart_valid(self, d: Int) -> Int:
+        d = _ids(d)
+        return (d >= 0) & self.edge_valid(d >> 1)
+
+    def edge_target(self, e: Int) -> Int:
+        """``Target(u_c)`` for edge ids."""
+        return self._edge_target(_ids(e))
+
+    def origin(self, d: Int) -> Int:
+        d = _ids(d)
+        e = d >> 1
+        return jnp.where((d & 1) == 0, e // 3, self._edge_target(e)).astype(jnp.int32)
+
+    def target(self, d: Int) -> Int:
+        d = _ids(d)
+        e = d >> 1
+        return jnp.where((d & 1) == 0, self._edge_target(e), e // 3).astype(jnp.int32)
+
+    def twin(self, d: Int) -> Int:
+        return _ids(d) ^ 1
+
+    def next(self, d: Int) -> Int:
+        d = _ids(d)
+        e = d >> 1
+        return jnp.where((d & 1) == 0, self.left_front_edge(e), self.right_back_edge(e))
+
+    def prev(self, d: Int) -> Int:
+        d = _ids(d)
+        e = d >> 1
+        return jnp.where((d & 1) == 0, self.left_back_edge(e), self.right_front_edge(e))
+
+    def left_front(self, d: Int) -> Int:
+        return self.next(d)
+
+    def left_back(self, d: Int) -> Int:
+        return self.prev(d)
+
+    def right_front(self, d: Int) -> Int:
+        return self.prev(_ids(d) ^ 1)
+
+    def right_back(self, d: Int) -> Int:
+        return self.next(_ids(d) ^ 1)
+
+    def edge_of_vertex(self, v: Int) -> Int:
+        """``Edge(u)``: ``u_red`` (Thm 2); ``V_red`` has no outgoing edge: ``(V_red, V_blue)``."""
+        v = _ids(v)
+        return jnp.where(v == self.v_red, self._d0 ^ 1, _dart(v, RED, 0)).astype(jnp.int32)
+
+    def point(self, positions, v: Int):
+        """``Point(u)``: the coordinates of ``u`` (positions in the structure's vertex order)."""
+        return positions[_ids(v)]
+
+    # ---- adjacency
+    def _out_targets(self, u):
+        ts = []
+        for c in range(3):
+            e = 3 * u + c
+            ts.append(jnp.where(self.edge_valid(e), self._edge_target(jnp.where(self.edge_valid(e), e, 3 * self.v_black)),
+                                self.num_vertices))
+        return ts
+
+    def adjacent(self, u: Int, v: Int) -> Int:
+        """``Adjacent(u, v)`` (Sec. 1.3, Thm 6): every edge leaves one of its endpoints, so ``u``
+        and ``v`` are adjacent iff ``v`` is the target of one of the 3 edges leaving ``u`` or the
+        converse -- 6 Target calls (O(1) each for CDS5n-O(1), O(d) otherwise)."""
+        u, v = _ids(u), _ids(v)
+        tu = self._out_targets(u)
+        tv = self._out_targets(v)
+        hit = jnp.zeros(u.shape if u.ndim >= v.ndim else v.shape, bool)
+        for t in tu:
+            hit = hit | (t == v)
+        for t in tv:
+            hit = hit | (t == u)
+        return hit & (u != v)
+
+    # ---- faces (Thm 7)
+    def _face_left_slot(self, e):
+        u, c = e // 3, e % 3
+        n = self.num_vertices
+        lf = self.left_front_edge(e)
+        lb = self.left_back_edge(e)
+        fb = self.F_blue
+        # red: Face_left(u_red) is u_red^tri
+        red = u
+        # black: LeftFront red -> Source(LeftFront)_red^tri, else u_black^tri
+        black = jnp.where(_col(lf) == RED, _src(lf), n + u)
+        # blue: LeftBack red -> Source(LeftBack)_red^tri; else LeftFront black ->
+        # Source(LeftFront)_black^tri; else u_blue^tri (slot n + F_blue[u])
+        blue = jnp.where((_col(lb) == RED) & ((lb & 1) == 0), _src(lb),
+                         jnp.where(_col(lf) == BLACK, n + _src(lf), n + fb[u]))
+        s = jnp.where(c == RED, red, jnp.where(c == BLACK, black, blue))
+        # _EXTERIOR: left of (V_black, V_blue) is the outer face = left of (V_blue, V_red): slot V_blue
+        return jnp.where(e == self._e_kb, self.v_blue, s)
+
+    def _face_right_slot(self, e):
+        u, c = e // 3, e % 3
+        n = self.num_vertices
+        rf = self.right_front_edge(e)
+        rb = self.right_back_edge(e)
+        fb = self.F_blue
+        # red: RightFront red -> Source(RightFront)_red^tri, else u_black^tri (no cw triangle)
+        red = jnp.where(_col(rf) == RED, _src(rf), n + u)
+        # black: RightFront black -> Source(RightFront)_black^tri, else Source(RightBack)_blue^tri
+        black = jnp.where(_col(rf) == BLACK, n + _src(rf), n + fb[_src(rb)])
+        # blue: RightBack red -> Source(RightBack)_red^tri, else Source(RightFront)_blue^tri
+        blue = jnp.where(_col(rb) == RED, _src(rb), n + fb[_src(rf)])
+        return jnp.where(c == RED, red, jnp.where(c == BLACK, black, blue))
+
+    def _compact(self, slot):
+        k = jnp.zeros_like(slot)
+        for x in self.unused_slots:
+            k = k + (slot > x)
+        return (slot - k).astype(jnp.int32)
+
+    def _expand(self, f):
+        s = f
+        for x in self.unused_slots:  # sorted
+            s = s + (s >= x)
+        return s
+
+    def face_slot(self, d: Int) -> Int:
+        """Thm 7 slot (index into a size-``2n`` face array) of the left face of dart ``d``."""
+        d = _ids(d)
+        e = d >> 1
+        return jnp.where((d & 1) == 0, self._face_left_slot(e), self._face_right_slot(e)).astype(jnp.int32)
+
+    def face(self, d: Int) -> Int:
+        return self._compact(self.face_slot(d))
+
+    def face_left(self, d: Int) -> Int:
+        return self.face(d)
+
+    def face_right(self, d: Int) -> Int:
+        return self.face(_ids(d) ^ 1)
+
+    def edge_of_face(self, f: Int) -> Int:
+        """``Edge(f)`` (Thm 7): the edge matched with the face, as its ``r = 0`` dart."""
+        s = self._expand(_ids(f))
+        n = self.num_vertices
+        b = jnp.clip(s - n, 0, n - 1)
+        black_matched = (_col(self._lf(3 * b + BLACK)) == BLACK) & self.edge_valid(3 * b + BLACK)
+        owner = self.F_blue[b]
+        d = jnp.where(s < n, _dart(s, RED), jnp.where(black_matched, _dart(b, BLACK), _dart(owner, BLUE)))
+        return d.astype(jnp.int32)
+
+    # ---- corners (Thm 8)
+    def corner_index(self, d: Int) -> Int:
+        """Thm 8 corner number of dart/corner ``d``: ``u + n (c + 3 r)``."""
+        d = _ids(d)
+        e = d >> 1
+        return (e // 3 + self.num_vertices * (e % 3 + 3 * (d & 1))).astype(jnp.int32)
+
+    def corner_dart(self, k: Int) -> Int:
+        """Inverse of :meth:`corner_index`."""
+        k = _ids(k)
+        n = self.num_vertices
+        u, q = k % n, k // n
+        return _dart(u, q % 3, q // 3)
+
+    # ---- whole mesh
+    def face_vertices(self) -> Int:
+        """``(F, 3)`` vertices of every face, ccw, with all targets computed at once."""
+        t = self.all_edge_targets()
+        f = jnp.arange(self.num_faces, dtype=jnp.int32)
+        d0 = self.edge_of_face(f)
+        d1 = self.next(d0)
+        d2 = self.prev(d0)
+
+        def org(d):
+            e = d >> 1
+            return jnp.where((d & 1) == 0, e // 3, t[e])
+
+        return jnp.stack([org(d0), org(d1), org(d2)], axis=-1).astype(jnp.int32)
+
+    # ---- metadata
+    @property
+    def core_references(self) -> int:
+        """References of the connectivity tables alone (``k n``, ``k = 6, 5, 4, 5``)."""
+        return int(np.prod(self.refs.shape))
+
+    @property
+    def references(self) -> int:
+        """Tables + the face map ``F_blue`` (Thm 7, one reference per vertex)."""
+        return self.core_references + int(self.F_blue.shape[0])
+
+
+# ====================================================================================== CDS6n
+@pytree_dataclass
+class CDS6n(_CDS):
+    """Thm 2 (Sec. 2.1, Fig. 3): 6 references per vertex (+1 for faces).
+
+    Fields:
+      refs: ``(n, 6)`` int32 packed references, row ``u``: column ``2c`` = ``S_c^left[u]`` (bit 30:
+        ``C_c^left[u]``, bit 31: ``I_c[u]``), column ``2c + 1`` = ``S_c^right[u]`` (bit 30:
+        ``C_c^right[u]``), where ``S_c^left[u] = Source(LeftFront(u_c))``, ``C_c^left[u]`` = it has
+        colour ``c`` (else ``next(c)``), ``S_c^right[u] = Source(RightFront(u_c))``,
+        ``C_c^right[u]`` = colour ``c`` (else ``prev(c)``), ``I_c[u]`` = ``u`` has an incoming edge
+        of colour ``c``.
+      F_blue: ``(n,)`` int32 face map of Thm 7.
+    """
+
+    refs: jnp.ndarray
+    F_blue: jnp.ndarray
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+    v_red: int = static_field()
+    v_blue: int = static_field()
+    v_black: int = static_field()
+    unused_slots: tuple = static_field()
+    boundaries_closed: bool = static_field(default=False)
+
+    name = "cds6n"
+
+    def _inc(self, u, c):
+        return _bit31(jnp.take_along_axis(self.refs[u], (2 * c)[..., None], axis=-1)[..., 0])
+
+    def _lf(self, e):
+        u, c = e // 3, e % 3
+        x = self.refs[u, 2 * c]
+        s = _fld(x)
+        # C_c^left true: LeftFront is w_c entering v (r = 1); false: v_next(c) leaving v (r = 0)
+        return jnp.where(_bit30(x), _dart(s, c, 1), _dart(s, (c + 1) % 3, 0))
+
+    def _rf(self, e):
+        u, c = e // 3, e % 3
+        x = self.refs[u, 2 * c + 1]
+        s = _fld(x)
+        # C_c^right true: RightFront is z_c entering v (r = 0); false: v_prev(c) leaving v (r = 1)
+        return jnp.where(_bit30(x), _dart(s, c, 0), _dart(s, (c + 2) % 3, 1))
+
+    @classmethod
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS6n":
+        """Build from a (maximal, for the face map) Schnyder wood in linear time."""
+        t = _Tables(wood)
+        n = wood.num_vertices
+        cols = []
+        for c in range(3):
+            cols.append(_pack(t.src(t.lf[:, c]), t.lf_same[:, c], t.inc[:, c]))
+            cols.append(_pack(t.src(t.rf[:, c]), t.rf_same[:, c]))
+        return cls(refs=jnp.asarray(np.stack(cols, axis=1)), F_blue=jnp.asarray(t.fblue),
+                   **t.static(boundaries_closed))
+
+    @classmethod
+    def from_mesh(cls, mesh, root_face: Optional[int] = None) -> "CDS6n":
+        return build_cds(cls, mesh, root_face=root_face)
+
+
+class _Tables:
+    """Host-side ground truth for the builders (linear time)."""
+
+    def __init__(self, wood: SchnyderWood):
+        n = wood.num_vertices
+        if n >= _MAX_VERTICES:
+            raise errors.UnsupportedTopologyError(f"{n} vertices: the packed references hold at most 2^30")
+        self.wood = wood
+        self.n = n
+        self.lf, self.rf, self.lf2 = edge_fronts(wood)
+        has = wood.out < n
+        self.has = has
+        c = np.arange(3)[None, :]
+        self.lf_same = has & ((self.lf & 1) == 1)
+        self.rf_same = has & ((self.rf & 1) == 0)
+        inc = np.zeros((n, 3), dtype=bool)
+        src, dst, col = wood.edges().T
+        inc[dst, col] = True
+        self.inc = inc
+        self.fblue, self.unused = face_slots(wood, self.lf, self.rf)
+
+    @staticmethod
+    def src(d):
+        return np.where(d >= 0, (d >> 1) // 3, 0)
+
+    @staticmethod
+    def col(d):
+        return np.where(d >= 0, (d >> 1) % 3, -1)
+
+    def static(self, boundaries_closed):
+        w = self.wood
+        return dict(num_vertices=w.num_vertices, num_faces=2 * w.num_vertices - 4, v_red=w.v_red,
+                    v_blue=w.v_blue, v_black=w.v_black, unused_slots=self.unused,
+                    boundaries_closed=bool(boundaries_closed))
+
+    def toleft(self):
+        """Sec. 2.2: ``(S_red^toleft, C_red^toleft)`` with ``C`` in {0 red, 1 blue, 2 black}."""
+        lf, lf2 = self.lf[:, RED], self.lf2[:, RED]
+        red = self.col(lf) == RED
+        # {v, q} black (q -> v) when the dart (v, q) is a reversed black edge
+        black = ~red & (self.col(lf2) == BLACK) & ((lf2 & 1) == 1)
+        s = np.where(red, self.src(lf), np.where(black, self.src(lf2), self.src(lf)))
+        ctl = np.where(red, 0, np.where(black, 2, 1))
+        ctl = np.where(self.has[:, RED], ctl, 0)
+        return s, ctl
+
+    def blue_single(self):
+        """Sec. 2.2: ``S_blue``/``C_blue``: LeftFront if ``I_red[u]``, else RightFront."""
+        use_left = self.inc[:, RED]
+        s = np.where(use_left, self.src(self.lf[:, BLUE]), self.src(self.rf[:, BLUE]))
+        cc = np.where(use_left, self.lf_same[:, BLUE], self.rf_same[:, BLUE])
+        return s, cc & self.has[:, BLUE]
+
+
+# ====================================================================================== CDS5n
+class _Tables5:
+    """Shared table decoding of Thm 4 / 5 / 6 (columns located by subclass constants)."""
+
+
+@pytree_dataclass
+class CDS5n(_CDS):
+    """Thm 4 (Sec. 2.2, Fig. 4): 5 references per vertex (+1 for faces), maximal wood.
+
+    Fields:
+      refs: ``(n, 5)`` int32 packed, row ``u``:
+        0: ``S_red^toleft[u]``, bits 30-31 ``C_red^toleft[u]`` (0 red, 1 blue, 2 black);
+        1: ``S_red^right[u]``, bit 30 ``C_red^right[u]``, bit 31 ``I_red[u]``;
+        2: ``S_blue[u]``, bit 30 ``C_blue[u]``, bit 31 ``I_blue[u]`` (LeftFront if ``I_red[u]``,
+           else RightFront);
+        3: ``S_black^left[u]``, bit 30 ``C_black^left[u]``, bit 31 ``I_black[u]``;
+        4: ``S_black^right[u]``, bit 30 ``C_black^right[u]``.
+      F_blue: ``(n,)`` int32 face map of Thm 7.
+    """
+
+    refs: jnp.ndarray
+    F_blue: jnp.ndarray
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+    v_red: int = static_field()
+    v_blue: int = static_field()
+    v_black: int = static_field()
+    unused_slots: tuple = static_field()
+    boundaries_closed: bool = static_field(default=False)
+
+    name = "cds5n"
+    _COL_TOLEFT, _COL_BLUE, _COL_BLACK_L, _COL_BLACK_R = 0, 2, 3, 4
+
+    # incoming bits
+    def _inc(self, u, c):
+        row = self.refs[u]
+        return jnp.where(c == RED, _bit31(row[..., 1]),
+                         jnp.where(c == BLUE, _bit31(row[..., 2]), _bit31(row[..., 3])))
+
+    # black: both fronts stored (Fig. 4 top-left)
+    def _lf_black(self, u):
+        x = self.refs[u, self._COL_BLACK_L]
+        s = _fld(x)
+        return jnp.where(_bit30(x), _dart(s, BLACK, 1), _dart(s, RED, 0))
+
+    def _rf_black(self, u):
+        x = self.refs[u, self._COL_BLACK_R]
+        s = _fld(x)
+        return jnp.where(_bit30(x), _dart(s, BLACK, 0), _dart(s, BLUE, 1))
+
+    def _toleft(self, u):
+        x = self.refs[u, self._COL_TOLEFT]
+        return _fld(x), (x >> 30) & 3
+
+    def _lf_red(self, u):
+        s, ctl = self._toleft(u)
+        # C_red^toleft = red: LeftFront is w_red entering v, S = w
+        red = _dart(s, RED, 1)
+        # C_red^toleft = blue: LeftFront is v_blue, S = v
+        blue = _dart(s, BLUE, 0)
+        # C_red^toleft = black: S = q, LeftFront = (v, w) = twin(RightFront(q_black)) = v_blue
+        black = _dart(_fld(self.refs[s, self._COL_BLACK_R]), BLUE, 0)
+        return jnp.where(ctl == 0, red, jnp.where(ctl == 1, blue, black))
+
+    def _rf_red(self, u):
+        x = self.refs[u, 1]
+        s = _fld(x)
+        return jnp.where(_bit30(x), _dart(s, RED, 0), _dart(s, BLACK, 1))
+
+    def _blue_stored(self, u):
+        x = self.refs[u, self._COL_BLUE]
+        return _fld(x), _bit30(x)
+
+    def _lf_blue(self, u):
+        s, same = self._blue_stored(u)
+        stored = jnp.where(same, _dart(s, BLUE, 1), _dart(s, BLACK, 0))
+        # Case 1 (I_red[u] false, {u, w} black toward w): LeftFront = RightFront(u_black)
+        case1 = self._rf_black(u)
+        return jnp.where(self._inc(u, RED), stored, case1)
+
+    def _rf_blue(self, u):
+        s, same = self._blue_stored(u)
+        # I_red[u] false: RightFront stored (colour blue -> z_blue, else v_red leaving v)
+        stored = jnp.where(same, _dart(s, BLUE, 0), _dart(s, RED, 1))
+        # Case 2a ({u, z} red toward z, I_black[u] false): RightFront = LeftFront(u_red)
+        case2a = self._lf_red(u)
+        # Case 2b ({u, z} black toward u): z is stored at w_red (C_red^toleft[w] = black);
+        # w = Source(LeftFront(LeftFront(e))) if LeftFront(e) is black, else Source(LeftFront(e))
+        lf = jnp.where(same, _dart(s, BLUE, 1), _dart(s, BLACK, 0))
+        w = jnp.where(_col(lf) == BLACK, _src(self._lf_black(_src(lf))), _src(lf))
+        z, _ = self._toleft(w)
+        case2b = _dart(z, BLUE, 0)
+        return jnp.where(~self._inc(u, RED), stored, jnp.where(~self._inc(u, BLACK), case2a, case2b))
+
+    def _lf(self, e):
+        u, c = e // 3, e % 3
+        return jnp.where(c == RED, self._lf_red(u), jnp.where(c == BLUE, self._lf_blue(u), self._lf_black(u)))
+
+    def _rf(self, e):
+        u, c = e // 3, e % 3
+        return jnp.where(c == RED, self._rf_red(u), jnp.where(c == BLUE, self._rf_blue(u), self._rf_black(u)))
+
+    @classmethod
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5n":
+        """Build from a maximal Schnyder wood in linear time."""
+        if not wood.maximal:
+            raise errors.StructureError("CDS5n needs the maximal Schnyder wood (Thm 4)")
+        t = _Tables(wood)
+        s_tl, c_tl = t.toleft()
+        s_b, c_b = t.blue_single()
+        refs = np.stack([
+            _pack(s_tl, c_tl & 1, c_tl >> 1),
+            _pack(t.src(t.rf[:, RED]), t.rf_same[:, RED], t.inc[:, RED]),
+            _pack(s_b, c_b, t.inc[:, BLUE]),
+            _pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLACK]),
+            _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK]),
+        ], axis=1)
+        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(t.fblue), **t.static(boundaries_closed))
+
+    @classmethod
+    def from_mesh(cls, mesh, root_face: Optional[int] = None) -> "CDS5n":
+        return build_cds(cls, mesh, root_face=root_face)
+
+
+# ====================================================================================== CDS4n
+@pytree_dataclass
+class CDS4n(CDS5n):
+    """Thm 5 (Sec. 2.3, Fig. 5): 4 references per vertex (+1 for faces); vertices renumbered by
+    the cwBFS of the red tree (``vertex_order``), no RightFront reference for red edges.
+
+    Fields:
+      refs: ``(n, 4)`` int32 packed, row ``u`` (cwBFS label):
+        0: ``S_red^toleft[u]``, bits 30-31 ``C_red^toleft[u]``;
+        1: ``S_blue[u]``, bit 30 ``C_blue[u]``, bit 31 ``I_red[u]``;
+        2: ``S_black^left[u]``, bit 30 ``C_black^left[u]``, bit 31 ``I_blue[u]``;
+        3: ``S_black^right[u]``, bit 30 ``C_black^right[u]``, bit 31 ``I_black[u]``.
+      F_blue: ``(n,)`` int32 face map of Thm 7.
+      order: ``(n,)`` int32, ``order[i]`` = input vertex of label ``i`` (the user's map back; not
+        a reference of the structure: the paper permutes the input instead).
+    """
+
+    order: jnp.ndarray = None
+
+    name = "cds4n"
+    _COL_TOLEFT, _COL_BLUE, _COL_BLACK_L, _COL_BLACK_R = 0, 1, 2, 3
+
+    @property
+    def vertex_order(self):
+        return np.asarray(self.order)
+
+    def _inc(self, u, c):
+        row = self.refs[u]
+        return jnp.where(c == RED, _bit31(row[..., 1]),
+                         jnp.where(c == BLUE, _bit31(row[..., 2]), _bit31(row[..., 3])))
+
+    def _rf_red(self, u):
+        # RightFront(u_red) red => it is (u - 1)_red, which holds iff LeftFront((u-1)_red) = u_red
+        um = jnp.maximum(u - 1, 0)
+        sib = (u >= 2) & (self.left_front_edge(3 * um + RED) == _dart(u, RED, 1))
+        # otherwise {v, z} and {u, z} are black (no cw triangle): RightFront = LeftFront(u_black)
+        return jnp.where(sib, _dart(um, RED, 0), self._lf_black(u))
+
+    @classmethod
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS4n":
+        """Relabel ``wood`` by cwBFS (Sec. 2.3) and build, in linear time."""
+        if not wood.maximal:
+            raise errors.StructureError("CDS4n needs the maximal Schnyder wood (Thm 5)")
+        order = cw_bfs_order(wood)
+        w = relabel_wood(wood, order)
+        t = _Tables(w)
+        s_tl, c_tl = t.toleft()
+        s_b, c_b = t.blue_single()
+        refs = np.stack([
+            _pack(s_tl, c_tl & 1, c_tl >> 1),
+            _pack(s_b, c_b, t.inc[:, RED]),
+            _pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLUE]),
+            _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK], t.inc[:, BLACK]),
+        ], axis=1)
+        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(t.fblue), order=jnp.asarray(order),
+                   **t.static(boundaries_closed))
+
+    @property
+    def references(self) -> int:
+        return self.core_references + int(self.F_blue.shape[0])
+
+
+# ====================================================================================== CDS5n-O(1)
+@pytree_dataclass
+class CDS5nO1(CDS4n):
+    """Thm 6 (Sec. 2.4, Fig. 6): 5 references per vertex (+1 for faces), cwBFS order, Target
+    and Adjacent in O(1) worst case.
+
+    Fields: as :class:`CDS4n`, except
+      refs[:, 0]: ``S_red^left[u]`` = ``Target(u_red)`` when ``C_red^toleft`` is red or blue (the
+        stored ``w`` of the red case is ``u + 1`` by cwBFS, Sec. 2.4), ``q`` when it is black
+        (then ``Target(u_red) = Source(RightFront(q_black))``, and Thm 4's Case 2b still reads
+        ``q``);
+      refs[:, 4]: ``W[u]`` (Thm 6), bit 30 ``D[u]`` (depth of ``u`` in the red tree is even).
+    """
+
+    name = "cds5n-o1"
+
+    def _lf_red(self, u):
+        s, ctl = self._toleft(u)
+        # C_red^toleft = red: LeftFront is w_red with w = u + 1 (next cw sibling, cwBFS)
+        red = _dart(u + 1, RED, 1)
+        # blue: LeftFront = v_blue with v = Target(u_red) = S
+        blue = _dart(s, BLUE, 0)
+        # black: S = q; LeftFront = v_blue with v = Source(RightFront(q_black))
+        black = _dart(_fld(self.refs[s, self._COL_BLACK_R]), BLUE, 0)
+        return jnp.where(ctl == 0, red, jnp.where(ctl == 1, blue, black))
+
+    def _w(self, u):
+        x = self.refs[u, 4]
+        return _fld(x), _bit30(x)
+
+    def _target_red(self, u):
+        s, ctl = self._toleft(u)
+        return jnp.where(ctl == 2, _fld(self.refs[s, self._COL_BLACK_R]), s)
+
+    def _leaf_blue(self, u):
+        # I_red[u] false: W[u] = Target(u_{Color(LeftFront(u_blue))})
+        lf = self._lf_blue(u)
+        w, _ = self._w(u)
+        # LeftFront(u_blue) blue (w' -> v): Target in W; black (v -> w'): its source is v
+        t_blue = jnp.where((lf & 1) == 1, w, _src(lf))
+        # Target(u_black) = w' = Source(LeftFront(u_blue)) if blue, else W[u]
+        t_black = jnp.where((lf & 1) == 1, _src(lf), w)
+        return t_blue, t_black
+
+    def _target_blue(self, u):
+        w, even = self._w(u)
+        leaf_b, _ = self._leaf_blue(u)
+        lf = self._lf_blue(u)
+        x = _src(lf)  # w' (odd depth) when LeftFront is blue
+        wx, _ = self._w(x)
+        leaf_x, _ = self._leaf_blue(x)
+        t_x = jnp.where(self._inc(x, RED), wx, leaf_x)
+        # I_red[u] false: leaf case; D[u] odd: W[u]; D even: LeftFront black -> its source,
+        # LeftFront blue (w' -> v) -> Target(w'_blue), w' of odd depth (W or leaf rule)
+        nonleaf = jnp.where(~even, w, jnp.where((lf & 1) == 0, _src(lf), t_x))
+        return jnp.where(self._inc(u, RED), nonleaf, leaf_b)
+
+    def _target_black(self, u):
+        w, even = self._w(u)
+        _, leaf_k = self._leaf_blue(u)
+        rf = self._rf_black(u)
+        z = _src(rf)  # z' (even depth) when RightFront is black
+        wz, _ = self._w(z)
+        _, leaf_z = self._leaf_blue(z)
+        t_z = jnp.where(self._inc(z, RED), wz, leaf_z)
+        # D[u] even: W[u]; odd: RightFront(u_black) blue (v -> z') -> its source v,
+        # black (z' -> v) -> Target(z'_black) (W or leaf rule)
+        nonleaf = jnp.where(even, w, jnp.where((rf & 1) == 1, _src(rf), t_z))
+        return jnp.where(self._inc(u, RED), nonleaf, leaf_k)
+
+    def _edge_target(self, e):
+        """Thm 6 Target: O(1), no loop."""
+        e = _ids(e)
+        u, c = e // 3, e % 3
+        t = jnp.where(c == RED, self._target_red(u),
+                      jnp.where(c == BLUE, self._target_blue(u), self._target_black(u)))
+        # _EXTERIOR: Target((V_black, V_blue)) = V_blue
+        return jnp.where(e == self._e_kb, self.v_blue, t).astype(jnp.int32)
+
+    def all_edge_targets(self) -> Int:
+        return self._edge_target(jnp.arange(3 * self.num_vertices, dtype=jnp.int32))
+
+    @classmethod
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5nO1":
+        if not wood.maximal:
+            raise errors.StructureError("CDS5n-O(1) needs the maximal Schnyder wood (Thm 6)")
+        order = cw_bfs_order(wood)
+        w = relabel_wood(wood, order)
+        t = _Tables(w)
+        n = w.num_vertices
+        s_tl, c_tl = t.toleft()
+        tgt = np.where(w.out < n, w.out, 0)
+        s0 = np.where(c_tl == 2, s_tl, tgt[:, RED])
+        s_b, c_b = t.blue_single()
+        # depth parity in the red tree (labels are BFS order: parents come first)
+        depth = np.zeros(n, dtype=np.int64)
+        par = w.out[:, RED]
+        for_ = np.arange(n)
+        has_par = par < n
+        # BFS order: process labels increasing
+        depth = _depths(par.astype(np.int64), n, w.v_red)
+        even = depth % 2 == 0
+        lfc_blue = t.col(t.lf[:, BLUE])
+        leaf = ~t.inc[:, RED]
+        W = np.where(leaf, np.where(lfc_blue == BLUE, tgt[:, BLUE], tgt[:, BLACK]),
+                     np.where(even, tgt[:, BLACK], tgt[:, BLUE]))
+        refs = np.stack([
+            _pack(s0, c_tl & 1, c_tl >> 1),
+            _pack(s_b, c_b, t.inc[:, RED]),
+            _pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLUE]),
+            _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK], t.inc[:, BLACK]),
+            _pack(W, even),
+        ], axis=1)
+        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(t.fblue), order=jnp.asarray(order),
+                   **t.static(boundaries_closed))
+
+
+@numba.njit(cache=True)
+def _depths(par, n, root):
+    depth = np.full(n, -1, dtype=np.int64)
+    depth[root] = 0
+    stack = np.empty(n, dtype=np.int64)
+    for v in range(n):
+        k = 0
+        x = v
+        while depth[x] < 0:
+            stack[k] = x
+            k += 1
+            x = par[x]
+        d = depth[x]
+        for i in range(k - 1, -1, -1):
+            d += 1
+            depth[stack[i]] = d
+    return depth
+
+
+# ====================================================================================== registry
+def build_cds(cls, mesh, root_face: Optional[int] = None):
+    """Validate (closing holes if any), compute the maximal Schnyder wood, build ``cls``.
+
+    Raises:
+      UnsupportedTopologyError: genus > 0 (naming it and suggesting ``lr`` / ``halfedge``),
+        several components, or fewer than 4 vertices; other :class:`MeshError` for defects.
+    """
+    from jaxcds.construct.schnyder import prepare_mesh
+
+    m, closed = prepare_mesh(mesh, structure=f"{cls.name} (Schnyder woods)")
+    wood = schnyder_wood(m.faces, m.num_vertices, root_face=root_face, maximal=True)
+    return cls.from_wood(wood, boundaries_closed=closed or m.closed_boundaries)
+
+
+for _cls, _desc in ((CDS6n, "Schnyder-wood compact structure, Thm 2 (6n + n references)"),
+                    (CDS5n, "Schnyder-wood compact structure, Thm 4 (5n + n references)"),
+                    (CDS4n, "Schnyder-wood compact structure, Thm 5, cwBFS order (4n + n references)"),
+                    (CDS5nO1, "Thm 6: O(1) Target and Adjacent, cwBFS order (5n + n references)")):
+    registry.register(_cls.name, (lambda c: (lambda mesh: build_cds(c, mesh)))(_cls),
+                      description=_desc)
