@@ -159,6 +159,9 @@ class PackedBatch(MeshStructure):
         The local sentinel (the mesh's own count) maps to the global one. Broadcasts."""
         mesh = jnp.asarray(mesh, jnp.int32)
         local = jnp.asarray(local, jnp.int32)
+        if kind == "dart" and self.num_extra_darts == 0:  # static: one contiguous block per mesh
+            return jnp.where(local >= self.n_dart[mesh], self.num_darts,
+                             self.dart_offsets[mesh] + local).astype(jnp.int32)
         if kind == "dart":
             p = self.n_dart[mesh]
             primary = self.dart_offsets[mesh] + local
@@ -173,6 +176,8 @@ class PackedBatch(MeshStructure):
         own count (its one past the end). ``mesh`` must own ``g`` (see :meth:`mesh_of`)."""
         mesh = jnp.asarray(mesh, jnp.int32)
         g = jnp.asarray(g, jnp.int32)
+        if kind == "dart" and self.num_extra_darts == 0:
+            return jnp.where(g >= self.num_darts, self.n_dart[mesh], g - self.dart_offsets[mesh])
         if kind == "dart":
             p = self.n_dart[mesh]
             extra = g >= self.num_primary_darts

@@ -1,0 +1,193 @@
+"""Packed batches of many meshes: time per vertex against a Python loop and the face-list batch.
+
+    .venv/bin/python benchmarks/bench_batch.py                    # 300 meshes (2-core default)
+    .venv/bin/python benchmarks/bench_batch.py --meshes 10000     # the issue's size (~27M vertices)
+
+Meshes: uniform random planar triangulations (Poulalhon-Schaeffer, ``jaxcds.generators``) with a
+vertex count drawn uniformly in ``[--min, --max]`` (500 to 5,000). Timed, per vertex of the batch
+(median of ``--repeat`` runs after a warm-up; compile time reported apart):
+
+* ``normals``: area-weighted vertex normals of the whole batch in ONE jitted call:
+  - ``face-list``: the plain-JAX baseline ``face_list_vertex_normals(positions, union_faces)``;
+  - ``packed/<structure>``: ``vertex_normals(PackedBatch, positions)`` (scatter route);
+  - ``loop/<structure>``: a Python loop calling ``vertex_normals`` mesh by mesh (jitted, warm
+    cache: every distinct mesh size is one compilation, counted apart), timed on the first
+    ``--loop-meshes`` meshes and reported per vertex of those meshes.
+* ``target``: ``--queries`` Target queries given as (mesh, local dart) pairs:
+  - ``face-list``: ``faces[(c // 3), (c + 1) % 3]`` after shifting ids (plain JAX);
+  - ``packed/<structure>``: ``PackedBatch.query("target", mesh, local)``.
+* ``build``: ``pack(check=False)`` (one numba pass on the union) against building per mesh;
+  the validation ``pack(check=True)`` adds is timed on its own.
+
+Prints a JSON line per measurement and a markdown table for benchmarks/RESULTS.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds import batch as B
+from jaxcds.algorithms import face_list_vertex_normals, vertex_normals
+from jaxcds.generators import random_planar_triangulation
+from jaxcds.mesh import validate
+from jaxcds.structures import CornerTable, HalfEdge
+
+
+def timeit(fn, repeat: int):
+    """(compile+first run seconds, median seconds of ``repeat`` warm runs)."""
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn())
+    first = time.perf_counter() - t0
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn())
+        ts.append(time.perf_counter() - t0)
+    return first, statistics.median(ts)
+
+
+def make_meshes(k: int, lo: int, hi: int, seed: int):
+    rng = np.random.default_rng(seed)
+    sizes = rng.integers(lo, hi + 1, k)
+    return [random_planar_triangulation(int(n), seed=seed * 100_003 + i) for i, n in enumerate(sizes)]
+
+
+def run(args) -> list[dict]:
+    rows = []
+
+    def emit(**kw):
+        rows.append(kw)
+        print(json.dumps(kw), flush=True)
+
+    t0 = time.perf_counter()
+    ms = make_meshes(args.meshes, args.min, args.max, args.seed)
+    nv = sum(m.num_vertices for m in ms)
+    emit(what="generate", meshes=len(ms), vertices=nv, seconds=time.perf_counter() - t0)
+
+    union = B._union(ms)
+    if not args.no_check:  # pack(check=True) validates the union once: timed apart
+        t0 = time.perf_counter()
+        validate(union, closed=True)
+        emit(what="build", impl="validate union (pack check=True)", vertices=nv,
+             seconds=time.perf_counter() - t0)
+    faces = jnp.asarray(union.faces)
+    pos = jnp.asarray(union.vertices, jnp.float32)
+
+    # ---- normals: face-list baseline on the union
+    first, t = timeit(lambda: face_list_vertex_normals(pos, faces), args.repeat)
+    emit(what="normals", impl="face-list", vertices=nv, seconds=t, ns_per_vertex=1e9 * t / nv,
+         first_call_s=first)
+    base_normals = t
+
+    qrng = np.random.default_rng(1)
+    qm = qrng.integers(0, len(ms), args.queries).astype(np.int32)
+    nd = np.array([3 * m.num_faces for m in ms], np.int64)
+    qd = (qrng.random(args.queries) * nd[qm]).astype(np.int32)
+    qm_j, qd_j = jnp.asarray(qm), jnp.asarray(qd)
+    foff = jnp.asarray(np.concatenate([[0], np.cumsum([m.num_faces for m in ms])[:-1]]).astype(np.int32))
+    voff = jnp.asarray(np.concatenate([[0], np.cumsum([m.num_vertices for m in ms])[:-1]]).astype(np.int32))
+
+    @jax.jit
+    def face_list_target(faces, foff, voff, m, c):
+        g = 3 * foff[m] + c
+        return faces[g // 3, (g + 1) % 3] - voff[m]
+
+    first, t = timeit(lambda: face_list_target(faces, foff, voff, qm_j, qd_j), args.repeat)
+    emit(what="target", impl="face-list", queries=args.queries, seconds=t,
+         ns_per_query=1e9 * t / args.queries, first_call_s=first)
+    base_target = t
+    want_target = np.asarray(face_list_target(faces, foff, voff, qm_j, qd_j))
+
+    for name, cls in (("corner-table", CornerTable), ("halfedge", HalfEdge)):
+        t0 = time.perf_counter()
+        b = B.pack(ms, name, check=False)
+        emit(what="build", impl=f"packed/{name}", vertices=nv, seconds=time.perf_counter() - t0)
+        k = min(args.loop_meshes, len(ms))
+        t0 = time.perf_counter()
+        parts = [cls.from_faces(m.faces, m.num_vertices) for m in ms[:k]]
+        tb = time.perf_counter() - t0
+        nv_loop = sum(m.num_vertices for m in ms[:k])
+        emit(what="build", impl=f"loop/{name}", vertices=nv_loop, seconds=tb,
+             seconds_scaled_to_batch=tb * nv / nv_loop)
+
+        f = jax.jit(lambda s, p: vertex_normals(s, p))
+        first, t = timeit(lambda: f(b, pos), args.repeat)
+        err = float(jnp.max(jnp.abs(f(b, pos) - face_list_vertex_normals(pos, faces))))
+        emit(what="normals", impl=f"packed/{name}", vertices=nv, seconds=t, ns_per_vertex=1e9 * t / nv,
+             vs_face_list=t / base_normals, first_call_s=first, max_abs_diff_vs_face_list=err)
+
+        # Python loop over meshes (warm: compile every distinct size first, timed apart)
+        ppos = [jnp.asarray(m.vertices, jnp.float32) for m in ms[:k]]
+        t0 = time.perf_counter()
+        jax.block_until_ready([vertex_normals(s, p) for s, p in zip(parts, ppos)])
+        compile_loop = time.perf_counter() - t0
+        ts = []
+        for _ in range(max(1, args.repeat // 2)):
+            t0 = time.perf_counter()
+            jax.block_until_ready([vertex_normals(s, p) for s, p in zip(parts, ppos)])
+            ts.append(time.perf_counter() - t0)
+        t = statistics.median(ts)
+        emit(what="normals", impl=f"loop/{name}", meshes=k, vertices=nv_loop, seconds=t,
+             ns_per_vertex=1e9 * t / nv_loop, vs_face_list=(t / nv_loop) / (base_normals / nv),
+             first_pass_with_compiles_s=compile_loop)
+
+        q = jax.jit(lambda s, m, c: s.query("target", m, c))
+        first, t = timeit(lambda: q(b, qm_j, qd_j), args.repeat)
+        same = bool(np.array_equal(np.asarray(q(b, qm_j, qd_j)), want_target))
+        emit(what="target", impl=f"packed/{name}", queries=args.queries, seconds=t,
+             ns_per_query=1e9 * t / args.queries, vs_face_list=t / base_target, first_call_s=first,
+             equal_to_face_list=same)
+        del b, parts
+    return rows
+
+
+def table(rows, args) -> str:
+    lines = [f"Packed batches: {args.meshes} random planar triangulations of {args.min}-{args.max} "
+             f"vertices ({rows[0]['vertices']:,} vertices), {platform.processor() or platform.machine()}, "
+             f"{os.cpu_count()} cores, jax {jax.__version__} {jax.default_backend()}; "
+             f"`python benchmarks/bench_batch.py --meshes {args.meshes}`", "",
+             "| measure | implementation | time | per vertex / query | vs face-list |", "|---|---|---|---|---|"]
+    for r in rows:
+        if r["what"] in ("normals", "target"):
+            per = r.get("ns_per_vertex", r.get("ns_per_query"))
+            vs = r.get("vs_face_list")
+            lines.append(f"| {r['what']} | {r['impl']} | {r['seconds'] * 1e3:.1f} ms | {per:.2f} ns | "
+                         f"{'' if vs is None else f'{vs:.2f}x'} |")
+        elif r["what"] == "build":
+            lines.append(f"| build | {r['impl']} | {r['seconds']:.2f} s "
+                         f"({r['vertices']:,} vertices) | {1e9 * r['seconds'] / r['vertices']:.0f} ns | |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--meshes", type=int, default=300)
+    p.add_argument("--min", type=int, default=500)
+    p.add_argument("--max", type=int, default=5000)
+    p.add_argument("--loop-meshes", type=int, default=100, help="meshes timed in the Python loop")
+    p.add_argument("--queries", type=int, default=1_000_000)
+    p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--no-check", action="store_true", help="do not time the validation of the union")
+    p.add_argument("--json", help="also write the rows to this file")
+    args = p.parse_args(argv)
+    rows = run(args)
+    print(table(rows, args))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"args": vars(args), "rows": rows}, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
