@@ -1,0 +1,508 @@
+"""pemb: a planar embedding in ``4m`` bits plus support, navigated as a half-edge.
+
+Ferres, Fuentes-Sepúlveda, Gagie, He, Navarro, *Fast and Compact Planar Embeddings* (WADS 2017,
+CGTA 2020), wrapped as a half-edge as in Salinas-Fernández, Fuentes-Sepúlveda, Hitschfeld-Kahler,
+*Generation of polygonal meshes in compact space* (IMR 2023, the slides in
+``../shared/seeds/004_*``).
+
+Encoding (paper Sec. 3, slides "Pemb construction"). Take a spanning tree ``T`` of the connected
+plane graph and walk around it counter-clockwise from a root corner, visiting the edges around
+each vertex in ccw order. Every one of the ``2m`` half-edges is met once, in walk order, and gets
+the next *position* ``i`` of the bit vector ``A``:
+
+* ``A[i] = 1`` for an edge of ``T`` and a parenthesis in ``B``: ``(`` going down (the half-edge
+  parent -> child), ``)`` coming back (child -> parent);
+* ``A[i] = 0`` for an edge not in ``T`` and a parenthesis in ``B*``: ``(`` the first time the edge
+  is met (the walk enters a new face: ``B*`` is the walk around the complementary dual tree),
+  ``)`` the second time.
+
+``B`` is the tree in balanced parentheses (``2(n-1)`` bits; the root has no pair), ``B*`` the dual
+tree (``2(f-1)`` bits; the root face, where the walk starts and ends, has no pair). Vertices are
+numbered in preorder of ``T`` (root 0), faces in preorder of the dual tree (root face 0).
+
+Queries on positions (slides "Pemb queries", "Pemb extra queries"; all branch-free, O(1) rank/
+select plus one parenthesis search each):
+
+* ``mate(i)``: the other half-edge of the edge, via ``match`` in ``B`` or ``B*``;
+* ``vertex(i)``: the innermost tree node open before the ``rank1(A, i)``-th symbol of ``B``;
+* ``next(i)`` / ``prev(i)``: ccw / cw around ``vertex(i)``, *cyclic*:
+  ``next(i) = (mate(i) + 1 if A[i] else i + 1) mod 2m`` and
+  ``prev(i) = mate(j) if A[j] else j`` with ``j = (i - 1) mod 2m`` (the reference C code stops at
+  the last half-edge of a vertex instead of wrapping, the "prev/last on borders" bug);
+* ``first(v)`` / ``last(v)``, ``degree(v)``, ``first_dual(f)``, ``get_face(i)``.
+
+Half-edge facade (slides "Pemb encapsulation as Half-edge"): the dart id *is* the position and
+its origin is ``vertex(i)``; ``twin = mate``, ``next(e) = prev_p(mate(e))`` (cw after the twin
+around the target), ``prev(e) = mate(next_p(e))``, ``ccw_vertex_edge = next_p``,
+``cw_vertex_edge = prev_p``, ``face = get_face`` renumbered so that the faces of the mesh are
+``0..F-1`` and every border loop (a pemb face that is not a triangle) reads ``num_faces``.
+(The slides orient a half-edge towards ``vertex(i)``; orienting it away is the same data and
+saves a ``mate`` in ``origin``.)
+
+Memory: ``A`` ``2m`` bits, ``B`` + ``B*`` ``2(n - 1) + 2(f - 1) = 2m`` bits (Euler), stored as one
+balanced sequence ``B B*`` so ``mate`` needs a single search; support: rank directories (1/8 bit
+per bit) and the min-max tree (about 1/4 bit per parenthesis). :attr:`PEMB.bits_per_edge` counts
+it all. The preorder permutation (``vertex_order``) is per-vertex data like the coordinates, which
+pemb does not compress either, and is left out of that count.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import jax
+import jax.numpy as jnp
+import numba
+import numpy as np
+
+from jaxcds import errors
+from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.mesh import TriMesh, load_mesh, validate
+from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.succinct import BalancedParens, BitVector
+
+__all__ = ["PEMB", "encode_rotation_system", "rotation_system_from_faces", "from_mesh"]
+
+
+# ---------------------------------------------------------------------------------- encoder
+@numba.njit(cache=True)
+def _walk(opp, ccw, vert, start, num_vertices, in_tree, use_tree):
+    """Walk around the spanning tree from dart ``start`` (paper Sec. 3). Returns the bit
+    sequences, the position of every dart, the preorder and the pemb face of every position.
+    The tree is ``in_tree`` (a mask on darts, both halves set) if ``use_tree``, else built on the
+    fly (the first edge that reaches an unvisited vertex is a tree edge: a ccw DFS tree)."""
+    h = opp.size
+    A = np.zeros(h, np.uint8)
+    B = np.zeros(2 * max(num_vertices - 1, 0), np.uint8)
+    Bs = np.zeros(max(h - 2 * (num_vertices - 1), 0), np.uint8)
+    pos = np.full(h, -1, np.int64)
+    visited = np.zeros(num_vertices, np.bool_)
+    up = np.full(num_vertices, -1, np.int64)
+    down_pos = np.full(num_vertices, -1, np.int64)
+    down_face = np.zeros(num_vertices, np.int64)
+    order = np.full(num_vertices, -1, np.int64)
+    pface = np.zeros(h, np.int64)
+    fstack = np.zeros(h + 1, np.int64)
+    top = 0
+    cur = 0
+    nextface = 1
+    root = vert[start]
+    visited[root] = True
+    order[0] = root
+    nvis = 1
+    nb = 0
+    ns = 0
+    e = start
+    for i in range(h):
+        if pos[e] >= 0 or nb > B.size or ns > Bs.size:
+            return A, B, Bs, pos, order, pface, -1 - i  # not a planar walk
+        v = vert[e]
+        w = vert[opp[e]]
+        pos[e] = i
+        if e == up[v]:  # back up to the parent: ')' in B
+            A[i] = 1
+            if nb >= B.size:
+                return A, B, Bs, pos, order, pface, -1 - i
+            B[nb] = 0
+            nb += 1
+            # the walk runs along a tree edge on its right side: the face met going down is
+            # the left face of child -> parent, the one met coming back that of parent -> child
+            pface[i] = down_face[v]
+            pface[down_pos[v]] = cur
+            e = ccw[opp[e]]
+        elif (use_tree and in_tree[e]) or (not use_tree and not visited[w]):
+            if visited[w] or nb >= B.size:
+                return A, B, Bs, pos, order, pface, -1 - i
+            A[i] = 1  # down to a child: '(' in B
+            B[nb] = 1
+            nb += 1
+            visited[w] = True
+            up[w] = opp[e]
+            down_pos[w] = i
+            down_face[w] = cur
+            order[nvis] = w
+            nvis += 1
+            e = ccw[opp[e]]
+        else:  # not in T: a parenthesis of the dual tree
+            if ns >= Bs.size:
+                return A, B, Bs, pos, order, pface, -1 - i
+            if pos[opp[e]] < 0:  # first crossing: enter a new face
+                Bs[ns] = 1
+                fstack[top] = cur
+                top += 1
+                cur = nextface
+                nextface += 1
+            else:
+                Bs[ns] = 0
+                if top == 0:
+                    return A, B, Bs, pos, order, pface, -1 - i
+                top -= 1
+                cur = fstack[top]
+            ns += 1
+            pface[i] = cur
+            e = ccw[e]
+    return A, B, Bs, pos, order, pface, nvis
+
+
+def encode_rotation_system(opp, ccw, vert, num_vertices: int, start: int = 0, tree=None):
+    """Encode a connected plane graph given as a rotation system on darts.
+
+    Args:
+      opp: ``(H,)`` the twin of each dart.
+      ccw: ``(H,)`` the next dart counter-clockwise around the dart's origin.
+      vert: ``(H,)`` the origin of each dart.
+      start: the first dart of the walk (its origin is the root; the walk starts in the face
+        clockwise of it, which becomes the root face 0).
+      tree: optional ``(H,)`` bool mask of the spanning tree's darts (both halves); default: the
+        ccw DFS tree grown during the walk.
+
+    Returns a dict with ``A``, ``B``, ``B_star`` (uint8 0/1 arrays; 1 = ``(`` in ``B``/``B*``),
+    ``position`` (dart -> position), ``order`` (preorder -> input vertex) and ``face`` (position ->
+    pemb face id). Raises :class:`~jaxcds.errors.UnsupportedTopologyError` if the walk shows the
+    graph is not a connected plane graph."""
+    opp = np.ascontiguousarray(opp, np.int64)
+    ccw = np.ascontiguousarray(ccw, np.int64)
+    vert = np.ascontiguousarray(vert, np.int64)
+    use_tree = tree is not None
+    mask = np.ascontiguousarray(tree if use_tree else np.zeros(opp.size, bool), np.bool_)
+    A, B, Bs, pos, order, pface, status = _walk(opp, ccw, vert, int(start), int(num_vertices), mask,
+                                                use_tree)
+    if status < 0:
+        i = -1 - status
+        raise errors.UnsupportedTopologyError(
+            f"pemb: the ccw walk around the spanning tree breaks at position {i} (dart met twice or "
+            "parentheses unbalanced): the embedding is not planar (genus > 0?) or the tree is not "
+            "spanning; pemb needs a connected planar embedding (use 'halfedge' instead)")
+    if status != num_vertices:
+        missing = int(np.nonzero(order < 0)[0][0]) if np.any(order < 0) else -1
+        raise errors.UnsupportedTopologyError(
+            f"pemb: the walk reached {status} of {num_vertices} vertices (preorder slot {missing} "
+            "empty): the mesh is not connected; split it with jaxcds.mesh.split_components")
+    exc = np.cumsum(2 * Bs.astype(np.int64) - 1)
+    if Bs.size and (exc.min() < 0 or exc[-1] != 0):
+        bad = int(np.argmax(exc < 0)) if exc.min() < 0 else Bs.size
+        raise errors.UnsupportedTopologyError(
+            f"pemb: dual parentheses B* unbalanced at offset {bad}: the embedding is not planar")
+    return {"A": A, "B": B, "B_star": Bs, "position": pos, "order": order.astype(np.int32),
+            "face": pface}
+
+
+def rotation_system_from_faces(faces: np.ndarray, num_vertices: int):
+    """``(opp, ccw, vert, is_border)`` for the darts of a triangle mesh, numbered as the
+    HalfEdge numbers them (``3f + k`` inner, then border darts)."""
+    from jaxcds.structures.halfedge import halfedge_arrays
+
+    f = np.ascontiguousarray(faces, np.int32)
+    nxt, opp, vert, _vedge, bprev = halfedge_arrays(f, int(num_vertices))
+    nf3 = 3 * f.shape[0]
+    prev = np.empty_like(nxt)
+    prev[:nf3] = nxt[nxt[:nf3]]
+    prev[nf3:] = bprev
+    ccw = opp[prev]  # ccw_vertex_edge = twin(prev(e))
+    is_border = np.arange(nxt.size) >= nf3
+    return opp, ccw, vert, is_border
+
+
+# ---------------------------------------------------------------------------------- structure
+@pytree_dataclass
+class PEMB(MeshStructure):
+    """Succinct planar embedding (Ferres et al. 2017) exposed through the half-edge protocol.
+
+    Fields (``m`` edges, ``n`` vertices, ``f`` faces of the plane graph, ``f = F + h``: ``F``
+    triangles and ``h`` border loops):
+      A: :class:`BitVector` of ``2m`` bits, 1 = tree edge (paper's ``A``).
+      P: :class:`BalancedParens` ``B B*``: ``2(n-1)`` tree parentheses then ``2(f-1)`` dual ones.
+      holes: ``(h,)`` int32, sorted pemb face ids that are border loops (read as ``num_faces``).
+      order: ``(n,)`` int32, preorder -> input vertex id (``vertex_order``).
+      num_vertices, num_faces (triangles ``F``), num_edges ``m``, num_tree_parens ``2(n-1)``.
+    """
+
+    A: BitVector
+    P: BalancedParens
+    holes: jnp.ndarray
+    order: jnp.ndarray
+    num_vertices: int = static_field()
+    num_faces: int = static_field()
+    num_edges: int = static_field()
+    num_tree_parens: int = static_field()
+
+    name = "pemb"
+    closed_triangles = False
+
+    # -------------------------------------------------------------- construction
+    @classmethod
+    def from_mesh(cls, mesh, *, check: bool = True, tree: str = "dfs") -> "PEMB":
+        """Build from a connected, planar (genus 0, any number of border loops) triangle mesh.
+
+        The walk starts at the first border vertex in the outer face (so border loop 0 is the
+        root face), or at vertex ``faces[0, 0]`` on a closed mesh. ``tree``: ``"dfs"`` (the ccw
+        DFS tree grown by the walk) or ``"bfs"``."""
+        mesh = load_mesh(mesh)
+        if check:
+            validate(mesh, connected=True, structure="pemb")
+            from jaxcds.mesh import topology
+
+            top = topology(mesh)
+            if top["genus"] != 0:
+                raise errors.UnsupportedTopologyError(
+                    f"{mesh.source}: pemb needs a planar (genus 0) mesh, this one has genus "
+                    f"{top['genus']} (chi = {top['euler_characteristic']}, "
+                    f"{top['boundary_loops']} boundary loops); use 'halfedge'")
+        return cls.from_faces(mesh.faces, mesh.num_vertices, tree=tree)
+
+    @classmethod
+    def from_faces(cls, faces, num_vertices: int, *, tree: str = "dfs") -> "PEMB":
+        f = np.ascontiguousarray(faces, np.int32)
+        nf = int(f.shape[0])
+        opp, ccw, vert, is_border = rotation_system_from_faces(f, num_vertices)
+        if is_border.any():
+            b = int(np.argmax(is_border))
+            start = int(ccw[b])  # first dart after the border corner: the walk starts outside
+        else:
+            start = 0
+        mask = None
+        if tree == "bfs":
+            mask = _bfs_tree(opp, ccw, vert, start, int(num_vertices))
+        elif tree != "dfs":
+            raise errors.JaxcdsError(f"pemb: unknown spanning tree {tree!r} (dfs or bfs)")
+        enc = encode_rotation_system(opp, ccw, vert, num_vertices, start, mask)
+        pf = enc["face"][enc["position"][is_border]]
+        holes = np.unique(pf).astype(np.int32)
+        return cls.from_bits(enc["A"], enc["B"], enc["B_star"], order=enc["order"], holes=holes,
+                             num_faces=nf)
+
+    @classmethod
+    def from_bits(cls, A, B, B_star, *, order=None, holes=None, num_faces=None) -> "PEMB":
+        """Wrap the three bit vectors (1 = tree edge in ``A``; 1 = ``(`` in ``B``, ``B*``; also
+        accepted: strings in the slides' convention, where ``0`` is ``(``). Without ``holes``
+        every pemb face is a face of the structure (``num_faces = f``)."""
+        def parse(x, paren):
+            if isinstance(x, str):
+                arr = np.frombuffer(x.encode(), np.uint8) - ord("0")
+                if np.any(arr > 1):
+                    k = int(np.argmax(arr > 1))
+                    raise errors.EncodingError(f"bit string has {x[k]!r} at offset {k}")
+                return (1 - arr) if paren else arr  # slides: 0 = '('
+            return np.asarray(x, np.uint8).ravel()
+
+        a, b, bs = parse(A, False), parse(B, True), parse(B_star, True)
+        m2 = a.size
+        if m2 % 2 or int(a.sum()) != b.size or m2 - int(a.sum()) != bs.size:
+            raise errors.EncodingError(
+                f"pemb: A has {m2} bits with {int(a.sum())} ones and {m2 - int(a.sum())} zeros, but "
+                f"B has {b.size} and B* {bs.size} parentheses (they must match the ones and zeros)")
+        n = b.size // 2 + 1
+        f_total = bs.size // 2 + 1
+        for name, seq in (("B", b), ("B*", bs)):
+            exc = np.cumsum(2 * seq.astype(np.int64) - 1)
+            if seq.size and (exc.min() < 0 or exc[-1] != 0):
+                k = int(np.argmax(exc < 0)) if exc.min() < 0 else seq.size
+                raise errors.EncodingError(f"pemb: {name} is unbalanced at offset {k}")
+        holes = np.zeros(0, np.int32) if holes is None else np.sort(np.asarray(holes, np.int32))
+        if num_faces is None:
+            num_faces = f_total - holes.size
+        if num_faces != f_total - holes.size:
+            raise errors.EncodingError(
+                f"pemb: {f_total} faces in B* but {num_faces} triangles + {holes.size} border loops")
+        order = np.arange(n, dtype=np.int32) if order is None else np.asarray(order, np.int32)
+        P = BalancedParens.from_bits(np.concatenate([b, bs]))
+        return cls(A=BitVector.from_bits(a), P=P, holes=jnp.asarray(holes), order=jnp.asarray(order),
+                   num_vertices=int(n), num_faces=int(num_faces), num_edges=m2 // 2,
+                   num_tree_parens=int(b.size))
+
+    # -------------------------------------------------------------- memory
+    @property
+    def bits(self) -> int:
+        """Bits of the structure: ``A``, ``B B*`` and all their support (rank directories,
+        min-max tree, word padding) and the border-loop list; not the vertex permutation."""
+        return (self.A.size + self.A.bits_support + self.P.size + self.P.bits_support
+                + 32 * int(self.holes.shape[0]))
+
+    @property
+    def bits_payload(self) -> int:
+        """The ``4m`` bits of the paper: ``|A| + |B| + |B*|`` (= ``4m - 4`` without root pairs)."""
+        return self.A.size + self.P.size
+
+    @property
+    def bits_per_edge(self) -> float:
+        return self.bits / max(self.num_edges, 1)
+
+    @property
+    def references(self) -> int:
+        """Equivalent 32-bit words of :attr:`bits` (pemb stores no integer references)."""
+        return -(-self.bits // 32)
+
+    @property
+    def vertex_order(self) -> np.ndarray:
+        return np.asarray(self.order)
+
+    # -------------------------------------------------------------- pemb queries (positions)
+    @property
+    def num_darts(self) -> int:
+        return 2 * self.num_edges
+
+    def mate(self, i: Int) -> Int:
+        """The other half-edge of ``i``'s edge (slides, "Example of Pemb query")."""
+        i = jnp.asarray(i, jnp.int32)
+        a = self.A.access(i)
+        t = self.A.rank(i, a)
+        j = jnp.where(a == 1, t, self.num_tree_parens + t)  # in B, or in B* after B
+        k = self.P.match(j)
+        return self.A.select(jnp.where(a == 1, k, k - self.num_tree_parens), a)
+
+    def vertex(self, i: Int) -> Int:
+        """The vertex (preorder id) the half-edge at position ``i`` leaves: the innermost tree node
+        open before its ``rank1(A, i)``-th parenthesis of ``B`` (root 0 if none)."""
+        r = self.A.rank1(jnp.asarray(i, jnp.int32))
+        q = self.P.enclose(r)
+        return jnp.where(q >= self.P.size, 0, self.P.rank_open(q) + 1).astype(jnp.int32)
+
+    def first(self, v: Int) -> Int:
+        """First position of vertex ``v`` (the one after its ``(``; 0 for the root)."""
+        v = jnp.asarray(v, jnp.int32)
+        q = self.P.select_open(jnp.maximum(v - 1, 0))
+        return jnp.where(v == 0, 0, self.A.select1(q) + 1).astype(jnp.int32)
+
+    def last(self, v: Int) -> Int:
+        """Last position of vertex ``v`` (its ``)`` back to the parent; ``2m - 1`` for the root)."""
+        v = jnp.asarray(v, jnp.int32)
+        q = self.P.select_open(jnp.maximum(v - 1, 0))
+        return jnp.where(v == 0, self.num_darts - 1, self.A.select1(self.P.find_close(q))).astype(
+            jnp.int32)
+
+    def next_p(self, i: Int) -> Int:
+        """pemb ``next``: the next half-edge ccw around ``vertex(i)`` (cyclic)."""
+        i = jnp.asarray(i, jnp.int32)
+        # a tree half-edge is followed by the walk of a subtree (down) or ends the vertex (up):
+        # both continue after the mate; a non-tree one by the next position
+        nxt = jnp.where(self.A.access(i) == 1, self.mate(i) + 1, i + 1)
+        return jnp.where(nxt >= self.num_darts, 0, nxt).astype(jnp.int32)
+
+    def prev_p(self, i: Int) -> Int:
+        """pemb ``prev``: the previous half-edge around ``vertex(i)`` (cw, cyclic). Fixes the
+        reference code's border bug: ``prev(first(v)) = last(v)`` for every ``v``."""
+        i = jnp.asarray(i, jnp.int32)
+        j = jnp.where(i == 0, self.num_darts - 1, i - 1)
+        return jnp.where(self.A.access(j) == 1, self.mate(j), j).astype(jnp.int32)
+
+    def degree(self, v: Int) -> Int:
+        """Number of half-edges leaving ``v`` (counted ccw from ``first(v)``, as the reference
+        does; a ``while_loop`` bounded by the degree, batched)."""
+        v = jnp.asarray(v, jnp.int32)
+        f0 = self.first(v)
+
+        def cond(c):
+            return jnp.any(c[1] != f0)
+
+        def body(c):
+            d, e = c
+            more = e != f0
+            return jnp.where(more, d + 1, d), jnp.where(more, self.next_p(e), e)
+
+        d, _ = jax.lax.while_loop(cond, body, (jnp.ones_like(v), self.next_p(f0)))
+        return d
+
+    def get_face(self, i: Int) -> Int:
+        """pemb face (dual preorder, root face 0) at the left of the half-edge at ``i`` (slides'
+        extra query ``get_face``). The walk crosses a non-tree half-edge from its right to its
+        left face, so that face is the innermost dual node open just after ``i``; it runs along a
+        tree edge on the edge's right side, so the left face of a tree half-edge is the face the
+        walk is in when it passes the other half, at ``mate(i)``."""
+        i = jnp.asarray(i, jnp.int32)
+        x = jnp.where(self.A.access(i) == 1, self.mate(i), i)
+        j = self.num_tree_parens + self.A.rank0(x + 1)  # prefix of B*, inside B B*
+        q = self.P.enclose(j)
+        return jnp.where(q >= self.P.size, 0,
+                         self.P.rank_open(q) - self.num_tree_parens // 2 + 1).astype(jnp.int32)
+
+    def first_dual(self, g: Int) -> Int:
+        """First position (in walk order) with pemb face ``g`` on its left: the crossing that
+        enters ``g`` (slides' extra query ``first_dual``); ``2m - 1`` for the root face."""
+        g = jnp.asarray(g, jnp.int32)
+        q = self.P.select_open(self.num_tree_parens // 2 + jnp.maximum(g - 1, 0))
+        pos = self.A.select0(q - self.num_tree_parens)
+        return jnp.where(g == 0, self.num_darts - 1, pos).astype(jnp.int32)
+
+    # -------------------------------------------------------------- face renumbering
+    def _to_mesh_face(self, g: Int) -> Int:
+        h = int(self.holes.shape[0])
+        if h == 0:
+            return g
+        k = jnp.searchsorted(self.holes, g, side="left").astype(jnp.int32)
+        hole = self.holes[jnp.minimum(k, h - 1)] == g
+        return jnp.where(hole, self.num_faces, g - k).astype(jnp.int32)
+
+    def _from_mesh_face(self, f: Int) -> Int:
+        h = int(self.holes.shape[0])
+        if h == 0:
+            return f
+        shifted = self.holes - jnp.arange(h, dtype=jnp.int32)
+        return (f + jnp.searchsorted(shifted, f, side="right")).astype(jnp.int32)
+
+    def __repr__(self) -> str:
+        return (f"PEMB(num_vertices={self.num_vertices}, num_faces={self.num_faces}, "
+                f"num_edges={self.num_edges}, holes={int(self.holes.shape[0])}, "
+                f"bits_per_edge={self.bits_per_edge:.2f})")
+
+    # -------------------------------------------------------------- protocol
+    def dart_valid(self, e: Int) -> Int:
+        return (e >= 0) & (e < self.num_darts)
+
+    def origin(self, e: Int) -> Int:
+        return self.vertex(e)
+
+    def target(self, e: Int) -> Int:
+        return self.vertex(self.mate(e))
+
+    def twin(self, e: Int) -> Int:
+        return self.mate(e)
+
+    def next(self, e: Int) -> Int:
+        # (u, v) -> (v, w): cw after (v, u) around v
+        return self.prev_p(self.mate(e))
+
+    def prev(self, e: Int) -> Int:
+        # (u, v) -> (w, u): the twin of the ccw successor (u, w) of e around u
+        return self.mate(self.next_p(e))
+
+    def face(self, e: Int) -> Int:
+        return self._to_mesh_face(self.get_face(e))
+
+    def ccw_vertex_edge(self, e: Int) -> Int:
+        return self.next_p(e)
+
+    def cw_vertex_edge(self, e: Int) -> Int:
+        return self.prev_p(e)
+
+    def edge_of_vertex(self, v: Int) -> Int:
+        return self.first(v)
+
+    def edge_of_face(self, f: Int) -> Int:
+        return self.first_dual(self._from_mesh_face(jnp.asarray(f, jnp.int32)))
+
+
+def _bfs_tree(opp, ccw, vert, start, num_vertices):
+    """Dart mask of a BFS spanning tree from ``vert[start]`` (both halves of each tree edge)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import breadth_first_order
+
+    u, v = vert, vert[opp]
+    g = sp.coo_matrix((np.ones(u.size, np.int8), (u, v)), shape=(num_vertices, num_vertices)).tocsr()
+    _, pred = breadth_first_order(g, int(vert[start]), directed=False, return_predecessors=True)
+    child = np.nonzero(pred >= 0)[0]
+    key = u.astype(np.int64) * num_vertices + v
+    tk = np.concatenate([child.astype(np.int64) * num_vertices + pred[child],
+                         pred[child].astype(np.int64) * num_vertices + child])
+    return np.isin(key, tk)
+
+
+def from_mesh(mesh) -> PEMB:
+    """Registry builder: :meth:`PEMB.from_mesh`."""
+    return PEMB.from_mesh(mesh)
+
+
+from jaxcds.structures import registry as _registry  # noqa: E402
+
+_registry.register("pemb", from_mesh,
+                   description="succinct planar embedding (Ferres et al. 2017): 4m bits + support, "
+                               "connected genus-0 meshes, borders allowed")

@@ -1,0 +1,209 @@
+"""Bit vectors packed in ``uint32`` words with constant-size rank and binary-search select.
+
+Layout (in the manner of sdsl's ``rank_support_v`` with one level): bit ``i`` is bit ``i % 32``
+(least significant first) of word ``i // 32``; words are grouped in *blocks* of
+:data:`BLOCK_BITS` = 256 bits (8 words) and ``block_rank[b]`` holds the number of ones before
+block ``b``. So the support costs 32 bits per 256 (0.125 bit per bit).
+
+* ``rank1(i)`` = ones in ``[0, i)``: one block counter plus the popcounts of at most 8 words.
+* ``select1(k)`` / ``select0(k)`` = position of the ``k``-th (0-based) one / zero: a branch-free
+  binary search over ``block_rank`` (``ceil(log2(blocks + 1))`` steps, no extra memory), then the
+  word inside the block (prefix popcounts), then the bit inside the word (5 halving steps).
+
+Every query takes arrays of any shape, is branch-free (``jnp.where``) and jittable; the
+structure is a pytree (``words``, ``block_rank`` leaves; ``size`` and ``ones`` static).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds import errors
+from jaxcds._dataclass import pytree_dataclass, static_field
+
+__all__ = ["BitVector", "BLOCK_BITS", "BLOCK_WORDS", "pack_bits", "popcount"]
+
+BLOCK_WORDS = 8
+BLOCK_BITS = 32 * BLOCK_WORDS
+
+
+def popcount(w: jnp.ndarray) -> jnp.ndarray:
+    """Number of set bits of each ``uint32`` word, as int32."""
+    return jax.lax.population_count(w).astype(jnp.int32)
+
+
+def _low_mask(r: jnp.ndarray) -> jnp.ndarray:
+    """``uint32`` mask of the ``r`` low bits, ``0 <= r <= 32`` (no shift by 32: XLA would give 0,
+    but we do not rely on it)."""
+    r = jnp.asarray(r, jnp.uint32)
+    full = jnp.uint32(0xFFFFFFFF)
+    return jnp.where(r >= 32, full, (jnp.uint32(1) << jnp.minimum(r, 31)) - jnp.uint32(1))
+
+
+def _select_in_word(w: jnp.ndarray, r: jnp.ndarray) -> jnp.ndarray:
+    """Position of the ``r``-th (0-based) set bit of ``w`` (``r < popcount(w)``): five halving
+    steps, each comparing ``r`` with the popcount of the low half of the remaining window."""
+    pos = jnp.zeros(jnp.shape(r), jnp.int32)
+    w = jnp.asarray(w, jnp.uint32)
+    r = jnp.asarray(r, jnp.int32)
+    for width in (16, 8, 4, 2, 1):
+        low = popcount(w & jnp.uint32((1 << width) - 1))
+        up = r >= low  # the bit is in the high half of the window
+        r = jnp.where(up, r - low, r)
+        w = jnp.where(up, w >> jnp.uint32(width), w)
+        pos = jnp.where(up, pos + width, pos)
+    return pos
+
+
+def pack_bits(bits) -> np.ndarray:
+    """Host: a 0/1 sequence -> ``uint32`` words (bit ``i`` = bit ``i % 32`` of word ``i // 32``),
+    padded with zero words to whole blocks plus one spare block (so gathers of a block that
+    starts at ``size`` stay in range)."""
+    b = np.asarray(bits).astype(bool).ravel()
+    nblocks = b.size // BLOCK_BITS + 1
+    padded = np.zeros(nblocks * BLOCK_BITS + BLOCK_BITS, dtype=bool)
+    padded[: b.size] = b
+    return np.packbits(padded.reshape(-1, 8), axis=1, bitorder="little").reshape(-1).view("<u4").astype(
+        np.uint32)
+
+
+@pytree_dataclass
+class BitVector:
+    """A static bit vector with rank and select.
+
+    Fields:
+      words: ``(W,)`` uint32, the bits (least significant first), zero-padded to ``W = 8 (B + 1)``
+        words, ``B = size // 256 + 1`` blocks (the last block is spare).
+      block_rank: ``(B + 1,)`` int32, ``block_rank[b]`` = ones in ``[0, 256 b)``.
+      size: number of bits (static).
+      ones: number of ones (static).
+    """
+
+    words: jnp.ndarray
+    block_rank: jnp.ndarray
+    size: int = static_field()
+    ones: int = static_field()
+
+    @classmethod
+    def from_bits(cls, bits) -> "BitVector":
+        """Build from a host 0/1 sequence (list, numpy array or a ``"0110..."`` string)."""
+        if isinstance(bits, str):
+            bad = [i for i, c in enumerate(bits) if c not in "01"]
+            if bad:
+                raise errors.EncodingError(
+                    f"bit string has {bits[bad[0]]!r} at offset {bad[0]}, expected '0' or '1'")
+            bits = np.frombuffer(bits.encode(), dtype=np.uint8) - ord("0")
+        b = np.asarray(bits).astype(bool).ravel()
+        words = pack_bits(b)
+        nblocks = words.size // BLOCK_WORDS
+        counts = np.bitwise_count(words).reshape(nblocks, BLOCK_WORDS).sum(axis=1)
+        block_rank = np.concatenate([[0], np.cumsum(counts)])[: nblocks].astype(np.int32)
+        return cls(words=jnp.asarray(words), block_rank=jnp.asarray(block_rank),
+                   size=int(b.size), ones=int(b.sum()))
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def zeros(self) -> int:
+        return self.size - self.ones
+
+    @property
+    def num_blocks(self) -> int:
+        return int(self.block_rank.shape[0])
+
+    @property
+    def bits_payload(self) -> int:
+        """Bits of the sequence itself."""
+        return self.size
+
+    @property
+    def bits_support(self) -> int:
+        """Bits of the rank directory plus the word padding (what a compact count charges)."""
+        return 32 * self.num_blocks + (32 * int(self.words.shape[0]) - self.size)
+
+    # ------------------------------------------------------------------ queries
+    def access(self, i) -> jnp.ndarray:
+        """Bit ``i`` as int32 0/1."""
+        i = jnp.asarray(i, jnp.int32)
+        w = self.words[i >> 5]
+        return ((w >> (i & 31).astype(jnp.uint32)) & jnp.uint32(1)).astype(jnp.int32)
+
+    def _block_words(self, b) -> jnp.ndarray:
+        """``(..., 8)`` words of block ``b``."""
+        idx = b[..., None] * BLOCK_WORDS + jnp.arange(BLOCK_WORDS, dtype=jnp.int32)
+        return self.words[idx]
+
+    def rank1(self, i) -> jnp.ndarray:
+        """Number of ones in ``[0, i)``, ``0 <= i <= size``."""
+        i = jnp.asarray(i, jnp.int32)
+        b = i >> 8
+        words = self._block_words(b)
+        k = jnp.arange(BLOCK_WORDS, dtype=jnp.int32)
+        wi = (i >> 5) & (BLOCK_WORDS - 1)
+        # whole words before the word of i, then the low (i % 32) bits of that word
+        r = jnp.where(k == wi[..., None], jnp.asarray(i & 31, jnp.int32)[..., None],
+                      jnp.where(k < wi[..., None], 32, 0))
+        return self.block_rank[b] + jnp.sum(popcount(words & _low_mask(r)), axis=-1)
+
+    def rank0(self, i) -> jnp.ndarray:
+        """Number of zeros in ``[0, i)``."""
+        i = jnp.asarray(i, jnp.int32)
+        return i - self.rank1(i)
+
+    def rank(self, i, bit) -> jnp.ndarray:
+        """``rank1`` where ``bit`` is 1, ``rank0`` where it is 0 (elementwise)."""
+        r1 = self.rank1(i)
+        return jnp.where(jnp.asarray(bit) != 0, r1, jnp.asarray(i, jnp.int32) - r1)
+
+    def select(self, k, bit) -> jnp.ndarray:
+        """Position of the ``k``-th (0-based) ``bit`` (elementwise 0/1). Out of range -> ``size``.
+
+        Binary search for the last block ``b`` with ``count_bit([0, 256 b)) <= k`` (a fixed number
+        of halving steps), then the word and the bit inside it."""
+        k = jnp.asarray(k, jnp.int32)
+        one = jnp.broadcast_to(jnp.asarray(bit) != 0, k.shape)
+        total = jnp.where(one, self.ones, self.zeros)
+        nb = self.num_blocks
+
+        def count_before(b):  # ones or zeros before block b
+            r1 = self.block_rank[b]
+            return jnp.where(one, r1, BLOCK_BITS * b - r1)
+
+        def halve(_, c):  # invariant: count_before(lo) <= k < count_before(hi) (nb: +inf)
+            lo, hi = c
+            mid = (lo + hi) >> 1
+            go = count_before(jnp.minimum(mid, nb - 1)) <= k
+            ok = mid < hi
+            return jnp.where(ok & go, mid, lo), jnp.where(ok & ~go, mid, hi)
+
+        steps = max(int(np.ceil(np.log2(nb + 1))), 1)
+        lo, _ = jax.lax.fori_loop(0, steps, halve, (jnp.zeros_like(k), jnp.full_like(k, nb)))
+        r = k - count_before(lo)
+        words = self._block_words(lo)
+        words = jnp.where(one[..., None], words, ~words)
+        cnt = popcount(words)
+        incl = jnp.cumsum(cnt, axis=-1)
+        j = jnp.sum((incl <= r[..., None]).astype(jnp.int32), axis=-1)  # word holding it
+        j = jnp.minimum(j, BLOCK_WORDS - 1)
+        sel = jnp.arange(BLOCK_WORDS, dtype=jnp.int32) == j[..., None]  # one-hot pick
+        before = jnp.sum(jnp.where(sel, incl - cnt, 0), axis=-1)
+        w = jnp.max(jnp.where(sel, words, jnp.uint32(0)), axis=-1)
+        pos = BLOCK_BITS * lo + 32 * j + _select_in_word(w, r - before)
+        return jnp.where((k >= 0) & (k < total), pos, self.size).astype(jnp.int32)
+
+    def select1(self, k) -> jnp.ndarray:
+        """Position of the ``k``-th (0-based) one; ``size`` if ``k >= ones``."""
+        return self.select(k, 1)
+
+    def select0(self, k) -> jnp.ndarray:
+        """Position of the ``k``-th (0-based) zero; ``size`` if ``k >= zeros``."""
+        return self.select(k, 0)
+
+    def to_numpy(self) -> np.ndarray:
+        """Host copy of the bits as a ``(size,)`` uint8 array."""
+        w = np.asarray(self.words).view(np.uint8)
+        return np.unpackbits(w, bitorder="little")[: self.size]
+
+    def __str__(self) -> str:
+        return "".join(map(str, self.to_numpy().tolist()))
