@@ -8,6 +8,8 @@ part of the targets), the structure built from the face array (target for the Ha
 1M points), then Polylla: the first call (compilation included) and the median of ``repeats``
 further calls per phase (label, traversal, repair, polygons); compile time = first - median.
 Memory: bytes and references of the structure, bytes of the output, peak RSS of the process.
+Every phase also reports its process CPU time (``cpu_*``, all threads): on a shared machine the
+wall time grows with the load, the CPU time much less.
 
 Anchors (issue 7, same input kind): the reference C++ Polylla took 4.0 s to build its half-edge
 from OFF and 0.66 s for label + traversal + repair at 1M points (322,520 polygons).
@@ -59,6 +61,7 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
         first = P.polylla(s, tri.points)
         runs = [P.polylla(s, tri.points) for _ in range(repeats)]
         med = {k: statistics.median(r.timings[k] for r in runs) for k in PHASES}
+        med_cpu = {k: statistics.median(r.timings["cpu_" + k] for r in runs) for k in PHASES}
         total = sum(med[k] for k in ("label", "traversal", "repair"))
         mesh = runs[-1]
         if ref_out is None:
@@ -70,7 +73,9 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
             "delaunay_s": t_delaunay,
             "build_s": statistics.median(builds), "build_first_s": t_build_first,
             **{f"{k}_s": med[k] for k in PHASES},
+            **{f"cpu_{k}_s": med_cpu[k] for k in PHASES},
             "label_traversal_repair_s": total,
+            "cpu_label_traversal_repair_s": sum(med_cpu[k] for k in ("label", "traversal", "repair")),
             "polylla_total_s": total + med["polygons"],
             "compile_s": {k: max(first.timings[k] - med[k], 0.0) for k in PHASES},
             "polygons": mesh.num_polygons, "barrier_edge_tips": mesh.barrier_edge_tips,

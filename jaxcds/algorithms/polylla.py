@@ -88,22 +88,38 @@ def label_phase(s, positions, vertex_ids):
       triangle (Def. 4); ``seed[e]``: one dart per terminal edge (the one with the smaller id) and
       the inner dart of every border terminal edge (Def. 3). Jittable.
     """
+    # longest edge, per triangle: its three darts from edge_of_face / next, lengths from origins
+    f = jnp.arange(s.num_faces, dtype=jnp.int32)
+    e0 = s.edge_of_face(f)
+    e1 = s.next(e0)
+    e2 = s.next(e1)
+    v0, v1, v2 = s.origin(e0), s.origin(e1), s.origin(e2)
+    p0, p1, p2 = positions[v0], positions[v1], positions[v2]
+    i0, i1, i2 = vertex_ids[v0], vertex_ids[v1], vertex_ids[v2]
+
+    def sq(a, b):  # squared length, as the reference (no sqrt)
+        d = a - b
+        return jnp.sum(d * d, axis=-1)
+
+    l0, l1, l2 = sq(p0, p1), sq(p1, p2), sq(p2, p0)
+    k0 = (jnp.minimum(i0, i1), jnp.maximum(i0, i1))
+    k1 = (jnp.minimum(i1, i2), jnp.maximum(i1, i2))
+    k2 = (jnp.minimum(i2, i0), jnp.maximum(i2, i0))
+
+    def beats(la, ka, lb, kb):
+        # a is longer than b, or as long and with the smaller (min id, max id) vertex pair
+        return (la > lb) | ((la == lb) & ((ka[0] < kb[0]) | ((ka[0] == kb[0]) & (ka[1] < kb[1]))))
+
+    first = beats(l0, k0, l1, k1) & beats(l0, k0, l2, k2)
+    second = ~first & beats(l1, k1, l2, k2)
+    longest = jnp.where(first, e0, jnp.where(second, e1, e2))
+    E = s.num_darts
+    max_edge = jnp.zeros((E,), bool).at[longest].set(True, mode="drop")
+
     e = _darts(s)
     valid = s.dart_valid(e)
     border = s.is_border(e) & valid
     inner = valid & ~border
-    o, t = s.origin(e), s.target(e)
-    d = positions[o] - positions[t]
-    length = jnp.sum(d * d, axis=-1)  # squared, as the reference (no sqrt)
-    vo, vt = vertex_ids[o], vertex_ids[t]
-    lo, hi = jnp.minimum(vo, vt), jnp.maximum(vo, vt)
-
-    def beats(b):
-        # e is longer than b, or as long and with the smaller (min id, max id) vertex pair
-        return ((length > length[b])
-                | ((length == length[b]) & ((lo < lo[b]) | ((lo == lo[b]) & (hi < hi[b])))))
-
-    max_edge = inner & beats(s.next(e)) & beats(s.prev(e))
     tw = s.twin(e)
     border_t = s.is_border(tw)
     max_t = max_edge[tw]
@@ -116,24 +132,24 @@ def label_phase(s, positions, vertex_ids):
 
 
 # ------------------------------------------------------------------------------ 2. traversal
-def _turn_to_frontier(s, frontier, queries, max_rounds: int = 32):
+def _turn_to_frontier(s, frontier, queries, rounds):
     """``first frontier dart in the clockwise turn (cw_vertex_edge) starting at q`` for every dart,
     by pointer doubling: ``p0(e) = e`` on frontier darts (fixed points), ``cw(e)`` elsewhere;
-    ``p <- p[p]`` until every query lands on a frontier dart. Returns ``(p, rounds)``."""
+    ``p <- p[p]``, ``rounds`` times (``2^rounds`` >= the largest degree suffices). The pointer and
+    the frontier flag of its target travel packed in one int32 (``2 p + flag``), so a round is one
+    gather. Returns ``(p, converged)`` (every query on a frontier dart)."""
     e = _darts(s)
     inner = s.dart_valid(e) & ~s.is_border(e)
     p = jnp.where(frontier | ~inner, e, s.cw_vertex_edge(e)).astype(jnp.int32)
+    pf = 2 * p + frontier[p].astype(jnp.int32)
+
+    def body(k, pf):
+        return pf[pf >> 1]
+
+    pf = jax.lax.fori_loop(0, rounds, body, pf)
     qmask = queries < s.num_darts
-
-    def cond(c):
-        p, k = c
-        return jnp.any(qmask & ~frontier[p[queries]]) & (k < max_rounds)
-
-    def body(c):
-        p, k = c
-        return p[p], k + 1
-
-    return jax.lax.while_loop(cond, body, (p, jnp.int32(0)))
+    ok = jnp.all(~qmask | ((pf[jnp.where(qmask, queries, 0)] & 1) == 1))
+    return pf >> 1, ok
 
 
 @jax.jit
@@ -141,19 +157,23 @@ def traversal_phase(s, frontier):
     """Traversal phase as a successor map (paper Alg. 2, reference ``travel_triangles``).
 
     Returns:
-      ``(succ, rounds)``: ``succ`` ``(num_darts,)`` int32, for every frontier dart ``f``
+      ``(succ, ok)``: ``succ`` ``(num_darts,)`` int32, for every frontier dart ``f``
       with an inner left face the next frontier dart of its polygon (first frontier dart turning
-      clockwise around ``target(f)`` from ``next(f)``), ``num_darts`` elsewhere; ``rounds`` the
-      number of doubling rounds.
+      clockwise around ``target(f)`` from ``next(f)``), ``num_darts`` elsewhere; ``ok`` False if
+      some turn met no frontier dart (impossible on a valid mesh: ``twin(f)`` is frontier).
       Jittable.
     """
     e = _darts(s)
     valid = s.dart_valid(e)
     active = valid & ~s.is_border(e) & frontier
     q = jnp.where(active, s.next(e), s.num_darts)
-    turn, rounds = _turn_to_frontier(s, frontier, q)
+    # rounds: 2^rounds >= largest degree (one scatter-add for the degrees)
+    deg = jnp.zeros((s.num_vertices + 1,), jnp.int32).at[
+        jnp.where(valid, s.origin(e), s.num_vertices)].add(1)
+    rounds = jnp.ceil(jnp.log2(jnp.maximum(jnp.max(deg), 2).astype(jnp.float32))).astype(jnp.int32)
+    turn, ok = _turn_to_frontier(s, frontier, q, rounds)
     succ = jnp.where(active, turn[jnp.minimum(q, s.num_darts - 1)], s.num_darts)
-    return succ.astype(jnp.int32), rounds
+    return succ.astype(jnp.int32), ok
 
 
 @jax.jit
@@ -261,6 +281,8 @@ def cycles_to_csr(s, succ, vertex_ids, size: int):
     (b) list ranking: distance of every lane to the head's predecessor, again by doubling; its
     position in the polygon follows, and one scatter writes the vertex ids.
 
+    Packed int64 keys: call it under ``jax.enable_x64(True)`` (as :func:`polylla` does).
+
     Returns ``(offsets (size+1,), indices (size,), num_polygons, total, polygon_of_lane (size,),
     lane_of_dart (num_darts,), is_permutation)``: polygons in the order of their head darts'
     ids, each starting at its head; ``is_permutation`` False flags a broken successor map.
@@ -276,36 +298,42 @@ def cycles_to_csr(s, succ, vertex_ids, size: int):
     cs = jnp.where(valid, lane_of_dart[succ[idx]], lanes)  # padding lanes are fixed points
     indeg = jnp.zeros((size,), jnp.int32).at[cs].add(1)
     is_perm = jnp.all(indeg == 1)
-    vo = jnp.where(valid, vertex_ids[s.origin(idx)], _BIG)
+    vo = jnp.where(valid, vertex_ids[s.origin(idx)], _BIG).astype(jnp.int32)
     vt = vo[cs]
 
-    # (a) head = smallest (origin, target) of the cycle
+    # (a) head = smallest (origin, target) of the cycle, the pair packed in one int64 key
+    key = (vo.astype(jnp.int64) << 32) | vt.astype(jnp.int64)
+
     def cond_a(c):
-        return c[3] & (c[4] < 64)
-
-    def body_a(c):
-        mo, mt, p, _, k = c
-        a, b = mo[p], mt[p]
-        better = (a < mo) | ((a == mo) & (b < mt))
-        return (jnp.where(better, a, mo), jnp.where(better, b, mt), p[p], jnp.any(better), k + 1)
-
-    mo, mt, _, _, _ = jax.lax.while_loop(cond_a, body_a, (vo, vt, cs, jnp.bool_(True), jnp.int32(0)))
-    head = valid & (vo == mo) & (vt == mt)
-
-    # (b) list ranking: w = steps to the last lane of the cycle (the head's predecessor)
-    last = head[cs] | ~valid
-    q0 = jnp.where(last, lanes, cs)
-    w0 = jnp.where(last, 0, 1).astype(jnp.int32)
-
-    def cond_b(c):
         return c[2] & (c[3] < 64)
 
-    def body_b(c):
-        q, w, _, k = c
-        qq = q[q]
-        return qq, w + w[q], jnp.any(qq != q), k + 1
+    def body_a(c):
+        m, p, _, k = c
+        mp = m[p]
+        return jnp.minimum(m, mp), p[p], jnp.any(mp < m), k + 1
 
-    q, w, _, _ = jax.lax.while_loop(cond_b, body_b, (q0, w0, jnp.bool_(True), jnp.int32(0)))
+    m, _, _, _ = jax.lax.while_loop(cond_a, body_a, (key, cs, jnp.bool_(True), jnp.int32(0)))
+    head = valid & (key == m)
+
+    # (b) list ranking: w = steps to the last lane of the cycle (the head's predecessor);
+    # pointer and weight packed in one int64 (q << 32 | w): one gather per round
+    last = head[cs] | ~valid
+    q0 = jnp.where(last, lanes, cs).astype(jnp.int64)
+    w0 = jnp.where(last, 0, 1).astype(jnp.int64)
+    low = jnp.int64(0xFFFFFFFF)
+
+    def cond_b(c):
+        return c[1] & (c[2] < 64)
+
+    def body_b(c):
+        qw, _, k = c
+        g = qw[qw >> 32]
+        new = (g & ~low) | ((qw & low) + (g & low))
+        return new, jnp.any((g >> 32) != (qw >> 32)), k + 1
+
+    qw, _, _ = jax.lax.while_loop(cond_b, body_b, ((q0 << 32) | w0, jnp.bool_(True), jnp.int32(0)))
+    q = (qw >> 32).astype(jnp.int32)
+    w = (qw & low).astype(jnp.int32)
     length = jnp.where(head, w + 1, 0)
     start = (jnp.cumsum(length) - length).astype(jnp.int32)  # exclusive, in head order
     pid = (jnp.cumsum(head) - 1).astype(jnp.int32)
@@ -417,14 +445,19 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) 
     pos_s = pos if order is None else pos[vids]
     vids_j = jnp.asarray(vids)
     t = {}
-    clock = time.perf_counter
+    cpu = {}
+    marks = [(time.perf_counter(), time.process_time())]
+
+    def clock():
+        marks.append((time.perf_counter(), time.process_time()))
+        return marks[-1][0]
 
     def done(x):
         if sync_timings:
             jax.block_until_ready(x)
         return clock()
 
-    t0 = clock()
+    t0 = marks[0][0]
     with jax.enable_x64(True):
         max_edge, frontier, seed = label_phase(s, jnp.asarray(pos_s, jnp.float64), vids_j)
         t1 = done(seed)
@@ -432,8 +465,11 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) 
 
     n_frontier = int(jnp.sum(frontier)) // 2  # undirected, before repair
     regions = int(jnp.sum(seed))
-    succ, _ = traversal_phase(s, frontier)
+    succ, ok = traversal_phase(s, frontier)
     tip_darts = np.nonzero(np.asarray(barrier_tips(s, succ)))[0].astype(np.int32)
+    if not bool(ok):
+        raise errors.StructureError("Polylla: a clockwise turn from a frontier dart met no "
+                                    "frontier dart (inconsistent twin/next in the structure)")
     t2 = done(succ)
     t["traversal"] = t2 - t1
 
@@ -449,7 +485,8 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) 
     t["repair"] = t3 - t2
 
     size = _bucket_fine(int(jnp.sum(succ < s.num_darts)))
-    offsets, out, npoly, total, pol, lane_of_dart, is_perm = cycles_to_csr(s, succ, vids_j, size)
+    with jax.enable_x64(True):  # int64 packed keys in the doubling rounds
+        offsets, out, npoly, total, pol, lane_of_dart, is_perm = cycles_to_csr(s, succ, vids_j, size)
     npoly, total = int(npoly), int(total)
     if not bool(is_perm):
         raise errors.StructureError(
@@ -470,6 +507,11 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) 
         pol = np.asarray(pol)[lanes_new]
         repaired = _count_components(pol[:T], pol[T:])
     t["repair_count"] = clock() - t5
+    # process CPU seconds of the same phases (all threads; a load-independent companion of the
+    # wall times on a shared machine)
+    names = ["label", "traversal", "repair", "polygons", "order", "repair_count"]
+    for name, (a, b) in zip(names, zip(marks[:-1], marks[1:])):
+        t["cpu_" + name] = b[1] - a[1]
     return PolyllaMesh(points=pos, offsets=offsets, indices=indices, barrier_edge_tips=int(T),
                        repaired_polygons=int(repaired), regions=regions,
                        frontier_edges=n_frontier, triangles=int(s.num_faces), timings=t)
