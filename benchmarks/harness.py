@@ -255,12 +255,18 @@ def _bench_structure(name: str, mesh, mesh_name: str, positions: np.ndarray, ref
     build_s = time.perf_counter() - t0
     after = _proc_status().get("VmHWM")
     peak = (after - before) if (peak_ok and before is not None and after is not None) else None
+    rss_how = "in-process"
+    if args.rss == "subprocess" and args.mesh_spec is not None:
+        probe = _run_probe(["build", args.mesh_spec, name])
+        if probe is not None:
+            build_s, peak, rss_how = probe["seconds"], probe["peak_rss_bytes"], "fresh process"
     nv = mesh.num_vertices
     memory.append({
         "mesh": mesh_name, "structure": name, "vertices": nv, "faces": mesh.num_faces,
         "references": int(s.references), "references_per_vertex": s.references / nv,
         "bytes": int(s.nbytes), "bytes_per_vertex": s.nbytes / nv,
         "build_s": build_s, "first_build_s": first_build, "peak_rss_build_bytes": peak,
+        "rss_measured": rss_how,
     })
     _log(f"  {name}: {s.references / nv:.2f} refs/vertex, build {build_s:.3f} s")
 
@@ -371,7 +377,7 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
         peers: Optional[Sequence[str]] = None, repeats: int = 7, queries: int = 1 << 20,
         dtype: str = "float32", ops: Optional[Sequence[str]] = None, command: str = "",
         budget_s: Optional[float] = 30.0, max_call_s: Optional[float] = 60.0,
-        generators: Sequence[int] = ()) -> dict:
+        generators: Sequence[int] = (), rss: str = "subprocess") -> dict:
     """Run the benchmarks and return the results (the ``--json`` object).
 
     Keys: ``machine`` (cpu, cores, versions, date), ``command``, ``settings``, ``meshes``
@@ -383,12 +389,15 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
     ``budget_s`` caps the timed runs of one op (fewer repeats, at least one, for slow ops);
     an op whose time per item on an earlier (smaller) mesh predicts more than ``max_call_s``
     seconds per call is skipped, with the prediction as reason. ``generators``: sizes at which
-    to time the Poulalhon--Schaeffer sampler (``generators`` key of the result)."""
+    to time the Poulalhon--Schaeffer sampler (``generators`` key of the result). ``rss``:
+    ``"subprocess"`` measures build time and peak RSS of each structure in a fresh process (the
+    in-process high-water mark misses memory the process already holds), ``"inprocess"`` not."""
     from benchmarks import peers as P
     from jaxcds.structures import registry
 
     ns = argparse.Namespace(repeats=int(repeats), queries=int(queries), dtype=np.dtype(dtype).type,
-                            budget=budget_s, max_call_s=max_call_s, seen={},
+                            budget=budget_s, max_call_s=max_call_s, seen={}, rss=rss,
+                            mesh_spec=None,
                             ops=list(ops or []),
                             peers=list(P.PEERS) if peers is None else list(peers))
     unknown = [p for p in ns.peers if p not in P.PEERS]
@@ -410,6 +419,7 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
         t0 = time.perf_counter()
         name, mesh = load_bench_mesh(spec)
         load_s = time.perf_counter() - t0
+        ns.mesh_spec = spec
         _log(f"mesh {name}: {mesh.num_vertices} vertices, {mesh.num_faces} faces ({load_s:.2f} s)")
         out["meshes"].append({"name": name, "vertices": mesh.num_vertices, "faces": mesh.num_faces,
                               "load_s": load_s})
@@ -425,8 +435,18 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
 
 
 def _bench_generator(n: int) -> dict:
-    """Time (and peak RSS of) the Poulalhon--Schaeffer sampler at ``n`` vertices: the faces
-    alone, then the whole TriMesh with random sphere positions; degree-6 share vs CDS Sec. 4.4."""
+    """Time (and peak RSS of) the Poulalhon--Schaeffer sampler at ``n`` vertices, in a fresh
+    process (so the peak is not hidden by memory this process already holds): the faces alone,
+    then the whole TriMesh with random sphere positions; degree-6 share vs CDS Sec. 4.4."""
+    probe = _run_probe(["generator", str(n)])
+    if probe is not None:
+        _log(f"generator n={n}: faces {probe['faces_s']:.2f} s, mesh {probe['mesh_s']:.2f} s, "
+             f"peak RSS {probe['peak_rss_faces_bytes'] / 2**20:.0f} MiB, degree 6: {probe['degree6_share']:.4f}")
+        return probe
+    return _generator_probe(n)
+
+
+def _generator_probe(n: int) -> dict:
     from jaxcds import generators as gen
 
     gen.random_planar_triangulation_faces(16, 0)  # numba compilation / cache load
@@ -445,8 +465,53 @@ def _bench_generator(n: int) -> dict:
     row = {"generator": "random_planar_triangulation", "vertices": n, "faces_s": faces_s,
            "mesh_s": mesh_s, "peak_rss_faces_bytes": (after - before) if ok and before and after else None,
            "degree6_share": deg6, "degree6_law": float(gen.degree_law(6)[0])}
-    _log(f"generator n={n}: faces {faces_s:.2f} s, mesh {mesh_s:.2f} s, degree 6: {deg6:.4f}")
     return row
+
+
+# ---------------------------------------------------------------------------------- probes
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _run_probe(argv: list) -> Optional[dict]:
+    """Run :func:`_probe` in a fresh interpreter; its JSON result, or None if it failed."""
+    import subprocess
+
+    code = (f"import sys; sys.path.insert(0, {_ROOT!r}); "
+            f"from benchmarks.harness import _probe; _probe({argv!r})")
+    try:
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             timeout=1800, cwd=_ROOT)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        _log(f"  probe {argv} failed: {exc}")
+        return None
+    if out.returncode != 0:
+        _log(f"  probe {argv} failed: {out.stderr.strip().splitlines()[-1:]}")
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _probe(argv: list) -> None:
+    """Fresh-process measurements (printed as one JSON line):
+
+    * ``build SPEC NAME``: load the mesh, warm the builder up on a 100-vertex mesh (numba and
+      jit caches), then time one build of ``NAME`` and the rise of the peak RSS during it;
+    * ``generator N``: :func:`_generator_probe`."""
+    if argv[0] == "generator":
+        print(json.dumps(_generator_probe(int(argv[1]))))
+        return
+    _, spec, name = argv
+    from jaxcds.structures import registry
+
+    _, mesh = load_bench_mesh(spec)
+    registry.build(name, load_bench_mesh("random:100")[1])
+    before = _proc_status().get("VmRSS")
+    ok = _reset_peak_rss()
+    t0 = time.perf_counter()
+    registry.build(name, mesh)
+    seconds = time.perf_counter() - t0
+    after = _proc_status().get("VmHWM")
+    print(json.dumps({"seconds": seconds,
+                      "peak_rss_bytes": (after - before) if ok and before and after else None}))
 
 
 def summarize(res: dict) -> dict:
@@ -495,6 +560,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--generators", type=float, nargs="*", metavar="N",
                    help="time the Poulalhon-Schaeffer sampler at these sizes (default: 1e6 1e7; "
                         "quick: none; `--generators` alone: none)")
+    p.add_argument("--rss", choices=["subprocess", "inprocess"],
+                   help="measure build time / peak RSS of each structure in a fresh process "
+                        "(default) or in this one (default with --quick)")
     p.add_argument("--dtype", default="float32", choices=["float32", "float64"],
                    help="positions dtype (float64 enables jax_enable_x64)")
     p.add_argument("--out", metavar="DIR",
@@ -531,7 +599,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         res = run(meshes, structures=_split(a.structures), peers=_split(a.peers), repeats=repeats,
                   queries=queries, dtype=a.dtype, ops=_split(a.ops), command=command,
-                  budget_s=a.budget, max_call_s=a.max_call, generators=gens)
+                  budget_s=a.budget, max_call_s=a.max_call, generators=gens,
+                  rss=a.rss or ("inprocess" if a.quick else "subprocess"))
     except errors.JaxcdsError as exc:
         print(f"jaxcds bench: error: {exc}", file=sys.stderr)
         return 2

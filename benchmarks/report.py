@@ -111,11 +111,20 @@ def markdown(res: dict, plots: List[str] = ()) -> str:
             L.append(f"| {r['mesh']} | {r['structure']} | {r['references']:,} | "
                      f"{r['references_per_vertex']:.2f} | {r['bytes_per_vertex']:.1f} | {_mb(r['bytes'])} | "
                      f"{r['build_s']:.3f} | {_mb(r['peak_rss_build_bytes'])} |")
-        L += ["", "Build time: second build (the first pays numba compilation). Peak RSS: rise of "
-              "the process's high-water mark during that build (`/proc/self/clear_refs`); memory "
-              "freed earlier and reused is not counted.", ""]
+        how = {r.get("rss_measured", "in-process") for r in res["memory"]}
+        if how == {"fresh process"}:
+            L += ["", "Build time and peak RSS measured in a fresh process per structure and mesh "
+                  "(`registry.build` from the TriMesh, validation included; builder warmed up on a "
+                  "100-vertex mesh first): peak RSS is the rise of the high-water mark during the "
+                  "build (`/proc/self/clear_refs`).", ""]
+        else:
+            L += ["", "Build time: second build in the benchmark process (the first pays numba "
+                  "compilation). Peak RSS: rise of the process's high-water mark during that build "
+                  "(`/proc/self/clear_refs`); memory freed earlier and reused is not counted, so "
+                  "this underestimates.", ""]
     if res.get("generators"):
         L += ["## Generator: Poulalhon-Schaeffer uniform random planar triangulations", "",
+              "Fresh process per size; peak RSS: rise of the high-water mark while sampling the faces.", "",
               "| vertices | faces only (s) | TriMesh with positions (s) | peak RSS, faces (MiB) | "
               "degree-6 share | CDS Sec. 4.4 law |", "|---:|---:|---:|---:|---:|---:|"]
         for g in res["generators"]:
