@@ -100,8 +100,7 @@ def decode(words: Words, *, structure: str = "faces"):
     if structure in ("cds6n", "cds5n"):
         from jaxcds.codec.structures import build_cds
 
-        faces, table = decode_faces(words)
-        return build_cds(structure, faces, table)
+        return build_cds(structure, words)
     raise ValueError(f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n")
 
 
@@ -156,9 +155,9 @@ def _with_file_offset(exc: errors.EncodingError) -> errors.EncodingError:
 
 
 def read_cds(path: str | os.PathLike, *, original_order: bool = True, drop_dummies: bool = True,
-             return_table: bool = False):
+             return_words: bool = False):
     """Read a ``.cds`` file (a path, or the file's bytes): ``(TriMesh, info)`` (or
-    ``(TriMesh, info, table)``).
+    ``(TriMesh, info, words)``).
 
     The mesh is in the original vertex order when the file stores it (and ``original_order``),
     else in decoded order; dummy vertices and their faces are dropped (``drop_dummies``).
@@ -211,7 +210,7 @@ def read_cds(path: str | os.PathLike, *, original_order: bool = True, drop_dummi
         "read_seconds": round(t1 - t0, 4),
         "decode_seconds": round(t2 - t1, 4),
     }
-    return (mesh, info, table) if return_table else (mesh, info)
+    return (mesh, info, c.words) if return_words else (mesh, info)
 
 
 def cds_info(path: str | os.PathLike) -> dict:
@@ -279,23 +278,22 @@ def decode_file(cds_path: str | os.PathLike, out_path: str | os.PathLike, *,
     """``jaxcds decode FILE.cds -o MESH.off|.obj|.ply [--structure cds6n|cds5n]``: read and decode,
     optionally build a CDS structure from the decoded words (and ``verify`` it against the
     half-edge), write the mesh atomically. Returns a JSON-able report."""
-    mesh, info, table = read_cds(cds_path, return_table=True)
+    mesh, info, words = read_cds(cds_path, return_words=True)
     rep = {"input": os.fspath(cds_path), "output": os.fspath(out_path),
            "vertices": mesh.num_vertices, "faces": mesh.num_faces, **info}
     if structure:
         from jaxcds.codec.structures import build_cds
-        from jaxcds.codec.decode import faces_from_paper6n
 
         t0 = time.perf_counter()
-        faces = faces_from_paper6n(table)
-        s = build_cds(structure, faces, table)
+        s = build_cds(structure, words, boundaries_closed=info["dummy_vertices"] > 0)
         rep["structure"] = structure
         rep["structure_seconds"] = round(time.perf_counter() - t0, 4)
         rep["references"] = int(s.references)
+        rep["structure_bytes"] = int(s.nbytes)
         if verify:
             from jaxcds.verify import verify as run_verify
 
-            dm = TriMesh(vertices=np.zeros((table.num_vertices, 3)), faces=faces)
+            dm = TriMesh(vertices=np.zeros((words.num_vertices, 3)), faces=decode_faces(words)[0])
             r = run_verify(s, dm)
             rep["checked"] = int(r.checked)
             rep["mismatches"] = int(r.mismatches)

@@ -225,6 +225,10 @@ def _red_black_trees(buf, n, base, mixed, S, C, I, T, want_t):
     # outer face (0, n-1, 1): LeftFront(1_red) = (n-1 -> 0), red (Fig. 10 leaves it as 0/False)
     S[RED, LEFT, 1] = n - 1
     C[RED, LEFT, 1] = True
+    # the stacks are done: clear the blue columns for ConstructBlueTree
+    for k in range(n):
+        rstack[k] = 0
+        bstack[k] = 0
     return _OK, pr - base, 0
 
 

@@ -1,0 +1,441 @@
+"""Decoding the words straight into the packed CDS6n / CDS5n arrays (CDS paper, Sec. 3.2).
+
+The target arrays are the structures' own ``refs`` (``(n, 6)`` / ``(n, 5)`` int32, vertex index in
+the low 30 bits, service bits 30 and 31, see :mod:`jaxcds.structures.cds`). The decoder writes
+them in place and uses no other O(n) memory:
+
+* CDS6n: ``ConstructRedTree`` / ``ConstructBlackTree`` (Fig. 10, 11) with the red stack in the
+  ``S_blue^left`` column and the black stack in the ``S_blue^right`` column, then
+  ``ConstructBlueTree`` (Fig. 12) overwrites both blue columns.
+* CDS5n: the same first phase with ``S_red^toleft`` in place of ``S_red^left`` (``C`` = red or
+  blue), both stacks in the single ``S_blue`` column (the red stack from the bottom, the black
+  stack from the top: a vertex is never in both, Sec. 3.2), then ``ConstructBlueTree5n``
+  (Fig. 13) writes ``S_blue``/``C_blue`` and turns some ``S_red^toleft`` into black references.
+
+The face map ``F_blue`` of Thm 7 (one more reference per vertex) is then derived from the table
+in linear time (a few temporary boolean/index arrays of size n, reported by the benchmark).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from jaxcds import errors
+from jaxcds.codec.decode import _MESSAGES, _bit, _raise, _check_size
+from jaxcds.codec.words import Words
+
+__all__ = ["decode_refs6n", "decode_refs5n", "build_cds", "decode_cds6n", "decode_cds5n"]
+
+RED, BLUE, BLACK = 0, 1, 2
+_IDX = (1 << 30) - 1
+_B30 = 1 << 30
+_B31 = 1 << 31
+
+# column layouts: (red left/toleft, red right, red I col, black left, black right, black I col,
+#                  stack col A, stack col B (== A: one two-ended stack column))
+_L6 = (0, 1, 0, 4, 5, 4, 2, 3)
+_L5 = (0, 1, 1, 3, 4, 3, 2, 2)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _gs(r, u, col):
+    return np.int64(r[u, col]) & _IDX
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _ss(r, u, col, val):
+    r[u, col] = np.uint32((np.int64(r[u, col]) & ~np.int64(_IDX)) | val)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _gb(r, u, col, bit):
+    return (np.int64(r[u, col]) >> bit) & 1
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _sb(r, u, col, bit, flag):
+    x = np.int64(r[u, col])
+    if flag:
+        x |= np.int64(1) << bit
+    else:
+        x &= ~(np.int64(1) << bit)
+    r[u, col] = np.uint32(x)
+
+
+@numba.njit(cache=True, nogil=True)
+def _phase1(buf, n, mixed, r, L, five):
+    """Fig. 10 + 11 into packed refs ``r`` (uint32 view). Returns (status, bit, vertex)."""
+    c_rl, c_rr, c_ri, c_kl, c_kr, c_ki, c_sa, c_sb = L
+    shared = c_sa == c_sb
+    end_r = 4 * n - 3 if mixed else 2 * n
+    pr = 0
+    pb = 2 * n
+    end_b = 4 * n - 3
+    if _bit(buf, pr) != 0:
+        return 1, 0, 0
+    pr += 1
+    r[0, c_sa] = 0  # red stack bottom: V_red
+    rtop = 1
+    btop = 0
+    N = 0
+    u = 0
+    prev_open = True
+    last_closed = 0
+    root_last = 0
+    while True:
+        if prev_open:
+            d = 0
+            while True:
+                if mixed:
+                    if pr >= end_b:
+                        return 5, pr, u
+                    x = _bit(buf, pr)
+                    pr += 1
+                else:
+                    if pb >= end_b:
+                        return 5, pb, u
+                    x = _bit(buf, pb)
+                    pb += 1
+                if x == 0:
+                    break
+                d += 1
+            if d > 0:
+                if u <= 1:
+                    return 6, (pr if mixed else pb) - 1, u
+                if d > btop:
+                    return 7, (pr if mixed else pb) - 1, u
+                _sb(r, u, c_ki, 31, True)  # I_black[u]
+                btop -= 1
+                x = np.int64(r[n - 1 - btop, c_sb]) if shared else np.int64(r[btop, c_sb])
+                _ss(r, x, c_kl, u)  # first black child: LeftFront = u_red
+                _sb(r, x, c_kl, 30, False)
+                for _ in range(d - 1):
+                    y = x
+                    btop -= 1
+                    x = np.int64(r[n - 1 - btop, c_sb]) if shared else np.int64(r[btop, c_sb])
+                    _ss(r, x, c_kl, y)
+                    _sb(r, x, c_kl, 30, True)
+                    _ss(r, y, c_kr, x)
+                    _sb(r, y, c_kr, 30, True)
+                _ss(r, x, c_kr, u)  # last black child: RightFront = u_blue
+                _sb(r, x, c_kr, 30, False)
+        if pr >= end_r:
+            return 4, pr, u
+        s = _bit(buf, pr)
+        pr += 1
+        if s == 0:
+            if N + 1 >= n:
+                return 3, pr - 1, N
+            N += 1
+            v = N
+            top = np.int64(r[rtop - 1, c_sa])
+            if shared and rtop + btop >= n:
+                return 3, pr - 1, N
+            if prev_open:  # first red child: LeftFront = top_blue
+                _sb(r, top, c_ri, 31, True)
+                _ss(r, v, c_rl, top)
+                if five:
+                    _sb(r, v, c_rl, 30, True)   # C_red^toleft = blue (1)
+                    _sb(r, v, c_rl, 31, False)
+                else:
+                    _sb(r, v, c_rl, 30, False)
+            else:  # next sibling of last_closed
+                w = last_closed
+                _ss(r, v, c_rl, w)
+                if five:
+                    _sb(r, v, c_rl, 30, False)  # C_red^toleft = red (0)
+                    _sb(r, v, c_rl, 31, False)
+                else:
+                    _sb(r, v, c_rl, 30, True)
+                _ss(r, w, c_rr, v)
+                _sb(r, w, c_rr, 30, True)
+            r[rtop, c_sa] = np.uint32(v)
+            rtop += 1
+            u = v
+            prev_open = True
+        else:
+            rtop -= 1
+            u = np.int64(r[rtop, c_sa])
+            if prev_open:
+                _sb(r, u, c_ri, 31, False)
+            else:
+                if u == 0:
+                    root_last = last_closed
+                    _ss(r, last_closed, c_rr, 1)
+                    _sb(r, last_closed, c_rr, 30, True)
+                else:
+                    _ss(r, last_closed, c_rr, u)
+                    _sb(r, last_closed, c_rr, 30, False)
+            if u > 1:
+                if shared:
+                    if rtop + btop >= n:
+                        return 7, pr - 1, u
+                    r[n - 1 - btop, c_sb] = np.uint32(u)
+                else:
+                    r[btop, c_sb] = np.uint32(u)
+                btop += 1
+            last_closed = u
+            prev_open = False
+            if rtop == 0:
+                break
+    if N != n - 1 or pr != end_r or ((not mixed) and pb != end_b):
+        return 11, pr, N
+    top_b = np.int64(r[n - 1, c_sb]) if shared else np.int64(r[0, c_sb])
+    if btop != 1 or top_b != n - 1:
+        return 8, pr, n - 1
+    if _gb(r, 1, c_ri, 31) or _gb(r, n - 1, c_ri, 31) or root_last != n - 1:
+        return 9, pr, 1
+    # outer face (0, n-1, 1): LeftFront(1_red) = (n-1 -> 0), red
+    _ss(r, 1, c_rl, n - 1)
+    if five:
+        _sb(r, 1, c_rl, 30, False)
+        _sb(r, 1, c_rl, 31, False)
+    else:
+        _sb(r, 1, c_rl, 30, True)
+    # the stacks are done: clear the blue column(s) for the blue phase
+    for k in range(n):
+        r[k, c_sa] = 0
+        r[k, c_sb] = 0
+    return 0, pr, 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _blue6(n, r):
+    """ConstructBlueTree (Fig. 12) on the CDS6n refs; V_blue's children by the same walk."""
+    budget = n
+    for x in range(1, n - 1):
+        if x == 1:
+            if not _gb(r, 1, 1, 30):
+                return 9, 1
+            u = _gs(r, 1, 1)
+        else:
+            if _gs(r, x, 1) == _gs(r, x, 4) and _gb(r, x, 1, 30) != _gb(r, x, 4, 30):
+                continue  # x has no blue child (I_blue stays false)
+            if _gb(r, x, 1, 30):
+                u = _gs(r, x, 1)
+            else:
+                u = _gs(r, _gs(r, x, 1), 5)
+        _sb(r, x, 2, 31, True)  # I_blue[x]
+        if u <= 1 or u >= n:
+            return 10, x
+        _ss(r, u, 3, x)  # S_blue^right[u] = x, C false (x's red edge)
+        _sb(r, u, 3, 30, False)
+        while True:
+            budget -= 1
+            if budget < 0:
+                return 10, x
+            if x == 1 and u == n - 1:
+                _ss(r, u, 2, 1)
+                _sb(r, u, 2, 30, False)
+                break
+            if _gb(r, u, 0, 31):  # I_red[u]: (v, u) red, v first red child
+                v = u + 1
+                if x != 1 and _gs(r, x, 4) == v and not _gb(r, x, 4, 30):
+                    _ss(r, u, 2, x)
+                    _sb(r, u, 2, 30, False)
+                    break
+            else:
+                if x != 1 and _gs(r, x, 4) == u:
+                    _ss(r, u, 2, x)
+                    _sb(r, u, 2, 30, False)
+                    break
+                if u == n - 1:
+                    return 10, x
+                v = _gs(r, u, 5)
+            if v <= 1 or v >= n:
+                return 10, x
+            _ss(r, u, 2, v)
+            _sb(r, u, 2, 30, True)
+            _ss(r, v, 3, u)
+            _sb(r, v, 3, 30, True)
+            u = v
+    if budget != 2:
+        return 10, n - 1
+    return 0, 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _blue5(n, r):
+    """ConstructBlueTree5n (Fig. 13) on the CDS5n refs: S_blue is LeftFront when I_red[u], else
+    RightFront; S_red^toleft becomes a black reference (C = 2) to the second left neighbour."""
+    budget = n
+    for x in range(1, n - 1):
+        if x == 1:
+            if not _gb(r, 1, 1, 30):
+                return 9, 1
+            u = _gs(r, 1, 1)
+        else:
+            if _gs(r, x, 1) == _gs(r, x, 3) and _gb(r, x, 1, 30) != _gb(r, x, 3, 30):
+                continue  # x has no blue child
+            # RightFront of x_red must be red (no cw triangles in the maximal wood, Fig. 13)
+            if not _gb(r, x, 1, 30):
+                return 10, x
+            u = _gs(r, x, 1)
+        _sb(r, x, 2, 31, True)  # I_blue[x]
+        if u <= 1 or u >= n:
+            return 10, x
+        last_black = False  # ColorLastEdge = red
+        z = x
+        while True:
+            budget -= 1
+            if budget < 0:
+                return 10, x
+            ired = _gb(r, u, 1, 31)
+            if x == 1 and u == n - 1:
+                # (V_black, V_blue): I_red false, S_blue = RightFront (Thm 4, exterior edge)
+                _ss(r, u, 2, z if z != x else 1)
+                _sb(r, u, 2, 30, z != x)
+                break
+            if ired:  # (v, u) red, v = first red child of u
+                v = u + 1
+                if last_black:  # modified red reference: second left neighbour is black
+                    _ss(r, v, 0, z)
+                    _sb(r, v, 0, 30, False)
+                    _sb(r, v, 0, 31, True)   # C_red^toleft = black (2)
+                last_black = False
+                if x != 1 and _gs(r, x, 3) == v and not _gb(r, x, 3, 30):
+                    _ss(r, u, 2, x)  # (u, x) last blue edge: LeftFront = x_black
+                    _sb(r, u, 2, 30, False)
+                    break
+                _ss(r, u, 2, v)  # LeftFront = v_blue
+                _sb(r, u, 2, 30, True)
+                if not _gb(r, v, 1, 31):  # I_red[v] false: v stores its RightFront = u_blue
+                    _ss(r, v, 2, u)
+                    _sb(r, v, 2, 30, True)
+            else:  # (u, v) black: S_blue = RightFront
+                last_black = True
+                if z == x:  # (u, x) is the first blue child: RightFront = x_red
+                    _ss(r, u, 2, x)
+                    _sb(r, u, 2, 30, False)
+                else:
+                    _ss(r, u, 2, z)
+                    _sb(r, u, 2, 30, True)
+                if x != 1 and _gs(r, x, 3) == u:
+                    break  # (u, x) last blue edge
+                if u == n - 1:
+                    return 10, x
+                v = _gs(r, u, 4)
+                if v <= 1 or v >= n:
+                    return 10, x
+                if not _gb(r, v, 1, 31):
+                    _ss(r, v, 2, u)
+                    _sb(r, v, 2, 30, True)
+            if v <= 1 or v >= n:
+                return 10, x
+            z = u
+            u = v
+    if budget != 2:
+        return 10, n - 1
+    return 0, 0
+
+
+def _run_phase1(words: Words, k: int, L, five: bool) -> np.ndarray:
+    _check_size(words)
+    n = words.num_vertices
+    if n >= 1 << 30:
+        raise errors.EncodingError(f"n = {n}: the packed CDS references hold at most 2^30 vertices")
+    refs = np.zeros((n, k), dtype=np.int32)
+    r = refs.view(np.uint32)
+    buf = np.ascontiguousarray(words.bits, dtype=np.uint8)
+    status, bit, vertex = _phase1(buf, n, bool(words.mixed), r, L, five)
+    if status:
+        _raise(status, bit, vertex, words, "red/black trees")
+    return refs
+
+
+def decode_refs6n(words: Words) -> np.ndarray:
+    """The ``(n, 6)`` int32 refs of :class:`~jaxcds.structures.cds.CDS6n` (Fig. 10-12), no
+    memory beyond them."""
+    refs = _run_phase1(words, 6, _L6, False)
+    status, vertex = _blue6(words.num_vertices, refs.view(np.uint32))
+    if status:
+        raise errors.EncodingError(f"blue tree: {_MESSAGES[status]} (around vertex {vertex}, n = {words.num_vertices})")
+    return refs
+
+
+def decode_refs5n(words: Words) -> np.ndarray:
+    """The ``(n, 5)`` int32 refs of :class:`~jaxcds.structures.cds.CDS5n` (Fig. 10, 11, 13), no
+    memory beyond them (words of the maximal Schnyder wood)."""
+    refs = _run_phase1(words, 5, _L5, True)
+    status, vertex = _blue5(words.num_vertices, refs.view(np.uint32))
+    if status:
+        raise errors.EncodingError(
+            f"blue tree (5n): {_MESSAGES[status]} (around vertex {vertex}, n = {words.num_vertices}); "
+            "CDS5n needs the words of the maximal Schnyder wood")
+    return refs
+
+
+# --------------------------------------------------------------------------- face map (Thm 7)
+def _face_map(n: int, black_matched: np.ndarray, ired: np.ndarray, blue_left_blue: np.ndarray):
+    """``(F_blue, unused_slots)`` of Thm 7, as ``jaxcds.structures.cds.face_slots`` computes
+    them, from the table's bits."""
+    u = np.arange(n)
+    avail = ~black_matched
+    has_blue = u >= 2
+    blue_matched = has_blue & ~ired & blue_left_blue
+    blue_matched[n - 1] = False  # left face of (V_black, V_blue) is the outer face
+    fb = np.zeros(n, dtype=np.int64)
+    own = blue_matched & avail
+    fb[own] = u[own]
+    need = np.nonzero(blue_matched & ~avail)[0]
+    free = np.nonzero(avail & ~blue_matched)[0]
+    if free.size < need.size + 3:
+        raise errors.EncodingError(f"face map: {need.size} blue triangles but {free.size} free slots "
+                                   "(the words are not those of a maximal Schnyder wood)")
+    fb[need] = free[: need.size]
+    fb[free[: need.size]] = need
+    unused = np.sort(np.concatenate([[0], n + free[need.size:]])).astype(np.int64)
+    return fb.astype(np.int32), tuple(int(x) for x in unused)
+
+
+def _bits(col, bit):
+    return ((col.view(np.uint32) >> np.uint32(bit)) & np.uint32(1)).astype(bool)
+
+
+def face_map6n(refs: np.ndarray):
+    n = refs.shape[0]
+    has_black = (np.arange(n) >= 2) & (np.arange(n) < n - 1)
+    return _face_map(n, has_black & _bits(refs[:, 4], 30), _bits(refs[:, 0], 31), _bits(refs[:, 2], 30))
+
+
+def face_map5n(refs: np.ndarray):
+    n = refs.shape[0]
+    has_black = (np.arange(n) >= 2) & (np.arange(n) < n - 1)
+    # LeftFront(u_blue) for I_red[u] false is RightFront(u_black) (Thm 4 Case 1): blue iff not black
+    return _face_map(n, has_black & _bits(refs[:, 3], 30), _bits(refs[:, 1], 31), ~_bits(refs[:, 4], 30))
+
+
+# --------------------------------------------------------------------------- structures
+def decode_cds6n(words: Words, *, boundaries_closed: bool = False):
+    """Words -> :class:`~jaxcds.structures.cds.CDS6n` (vertex ``i`` = ``i``-th vertex of the ccw
+    DFS of ``T_red``; ``V_red = 0``, ``V_blue = 1``, ``V_black = n - 1``)."""
+    import jax.numpy as jnp
+    from jaxcds.structures.cds import CDS6n
+
+    refs = decode_refs6n(words)
+    fb, unused = face_map6n(refs)
+    n = words.num_vertices
+    return CDS6n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
+                 v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
+
+
+def decode_cds5n(words: Words, *, boundaries_closed: bool = False):
+    """Words of a maximal Schnyder wood -> :class:`~jaxcds.structures.cds.CDS5n`."""
+    import jax.numpy as jnp
+    from jaxcds.structures.cds import CDS5n
+
+    refs = decode_refs5n(words)
+    fb, unused = face_map5n(refs)
+    n = words.num_vertices
+    return CDS5n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
+                 v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
+
+
+def build_cds(structure: str, words: Words, **kw):
+    """``"cds6n"`` or ``"cds5n"`` from words."""
+    if structure == "cds6n":
+        return decode_cds6n(words, **kw)
+    if structure == "cds5n":
+        return decode_cds5n(words, **kw)
+    raise ValueError(f"unknown structure {structure!r}: cds6n or cds5n")
