@@ -121,3 +121,21 @@ def test_report_markdown_from_minimal_results():
            "skipped": [{"impl": "openmesh", "reason": "not installed"}], "summary": {}}
     md = report.markdown(res)
     assert "## m: 1 vertices" in md and "openmesh: not installed" in md
+
+
+@pytest.mark.slow
+def test_fresh_process_probes(tmp_path, capsys):
+    """Full-mode memory path: build and generator measured in fresh interpreters."""
+    rc = harness.main(["--mesh", "random:300", "--structures", "halfedge", "--peers", "--ops",
+                       "vertex_degrees", "--generators", "5000", "--rss", "subprocess", "--repeats", "1",
+                       "--out", str(tmp_path), "--no-plots", "--json"])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    (mem,) = res["memory"]
+    assert mem["rss_measured"] == "fresh process" and mem["build_s"] > 0
+    assert mem["peak_rss_build_bytes"] is None or mem["peak_rss_build_bytes"] >= 0
+    (g,) = res["generators"]
+    assert g["vertices"] == 5000 and g["faces_s"] > 0 and 0.05 < g["degree6_share"] < 0.2
+    md = (tmp_path / "RESULTS.md").read_text()
+    assert "fresh process" in md and "| 5,000 |" in md
+    assert not (tmp_path / "normals.png").exists()
