@@ -89,7 +89,10 @@ def decode(words: Words, *, structure: str = "faces"):
       * ``"paper6n"``: the Thm 2 table (:class:`Paper6n`) only, no memory beyond it (the red and
         black stacks live in the blue columns);
       * ``"wood"``: ``(faces, Paper6n with targets)``;
-      * ``"cds6n"`` / ``"cds5n"``: the CDS structures of ``jaxcds.structures.cds`` (issue 3).
+      * ``"cds6n"`` / ``"cds5n"``: the CDS structures of ``jaxcds.structures.cds``, decoded in
+        place into their packed references (Fig. 10-13);
+      * ``"cds4n"``: CDS5n then relabelled by cwBFS (Thm 5; not memory-free, see
+        :func:`jaxcds.codec.structures.decode_refs4n`).
     """
     if structure == "faces":
         return decode_faces(words)[0]
@@ -97,11 +100,11 @@ def decode(words: Words, *, structure: str = "faces"):
         return decode_paper6n(words, targets=False)
     if structure == "wood":
         return decode_faces(words)
-    if structure in ("cds6n", "cds5n"):
+    if structure in ("cds6n", "cds5n", "cds4n"):
         from jaxcds.codec.structures import build_cds
 
         return build_cds(structure, words)
-    raise ValueError(f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n")
+    raise ValueError(f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n, cds4n")
 
 
 # --------------------------------------------------------------------------- files

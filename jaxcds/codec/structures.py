@@ -25,7 +25,8 @@ from jaxcds import errors
 from jaxcds.codec.decode import _MESSAGES, _bit, _raise, _check_size
 from jaxcds.codec.words import Words
 
-__all__ = ["decode_refs6n", "decode_refs5n", "build_cds", "decode_cds6n", "decode_cds5n"]
+__all__ = ["decode_refs6n", "decode_refs5n", "decode_refs4n", "build_cds", "decode_cds6n", "decode_cds5n",
+           "decode_cds4n"]
 
 RED, BLUE, BLACK = 0, 1, 2
 _IDX = (1 << 30) - 1
@@ -367,14 +368,16 @@ def decode_refs5n(words: Words) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- face map (Thm 7)
-def _face_map(n: int, black_matched: np.ndarray, ired: np.ndarray, blue_left_blue: np.ndarray):
+def _face_map(n: int, black_matched: np.ndarray, ired: np.ndarray, blue_left_blue: np.ndarray,
+              outer: tuple = None):
     """``(F_blue, unused_slots)`` of Thm 7, as ``jaxcds.structures.cds.face_slots`` computes
-    them, from the table's bits."""
+    them, from the table's bits (``outer = (V_red, V_blue, V_black)``, default ``(0, 1, n-1)``)."""
+    v_red, v_blue, v_black = outer or (0, 1, n - 1)
     u = np.arange(n)
     avail = ~black_matched
-    has_blue = u >= 2
+    has_blue = (u != v_red) & (u != v_blue)
     blue_matched = has_blue & ~ired & blue_left_blue
-    blue_matched[n - 1] = False  # left face of (V_black, V_blue) is the outer face
+    blue_matched[v_black] = False  # left face of (V_black, V_blue) is the outer face
     fb = np.zeros(n, dtype=np.int64)
     own = blue_matched & avail
     fb[own] = u[own]
@@ -385,7 +388,7 @@ def _face_map(n: int, black_matched: np.ndarray, ired: np.ndarray, blue_left_blu
                                    "(the words are not those of a maximal Schnyder wood)")
     fb[need] = free[: need.size]
     fb[free[: need.size]] = need
-    unused = np.sort(np.concatenate([[0], n + free[need.size:]])).astype(np.int64)
+    unused = np.sort(np.concatenate([[v_red], n + free[need.size:]])).astype(np.int64)
     return fb.astype(np.int32), tuple(int(x) for x in unused)
 
 
@@ -432,10 +435,94 @@ def decode_cds5n(words: Words, *, boundaries_closed: bool = False):
                  v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
 
 
+# --------------------------------------------------------------------------- CDS4n (Sec. 5.2)
+@numba.njit(cache=True, nogil=True)
+def _cwbfs5(r, n, order, label):
+    """cwBFS of the red tree read off the CDS5n refs (Sec. 2.3): the children of ``v`` are
+    ``v + 1`` (first, ccw) and its red RightFront siblings; cwBFS lists them last to first
+    (at V_red: V_black first, V_blue last). ``order`` doubles as the BFS queue."""
+    order[0] = 0
+    label[0] = 0
+    head = 0
+    tail = 1
+    while head < tail:
+        v = order[head]
+        head += 1
+        if not _gb(r, v, 1, 31):  # I_red[v]: no children
+            continue
+        k = 0
+        c = v + 1
+        while True:  # count the children, ccw
+            k += 1
+            if c == n - 1 or not _gb(r, c, 1, 30):
+                break
+            c = _gs(r, c, 1)
+        c = v + 1
+        for i in range(k):  # the ccw i-th child gets the (k - 1 - i)-th cw label
+            if tail + k - 1 - i >= n:
+                return -1
+            order[tail + k - 1 - i] = c
+            label[c] = tail + k - 1 - i
+            if i + 1 < k:
+                c = _gs(r, c, 1)
+        tail += k
+    return tail
+
+
+@numba.njit(cache=True, nogil=True)
+def _refs4(r5, n, order, label, r4):
+    lab = lambda x: label[x]  # noqa: E731
+    for i in range(n):
+        u = order[i]
+        x0 = np.int64(r5[u, 0])
+        r4[i, 0] = np.uint32((x0 & ~np.int64(_IDX)) | lab(x0 & _IDX))           # toleft, C (2 bits)
+        x2 = np.int64(r5[u, 2])
+        r4[i, 1] = np.uint32((x2 & _B30) | ((np.int64(r5[u, 1]) >> 31) << 31) | lab(x2 & _IDX))  # S_blue, I_red
+        x3 = np.int64(r5[u, 3])
+        r4[i, 2] = np.uint32((x3 & _B30) | ((x2 >> 31) << 31) | lab(x3 & _IDX))  # S_black^left, I_blue
+        x4 = np.int64(r5[u, 4])
+        r4[i, 3] = np.uint32((x4 & _B30) | ((x3 >> 31) << 31) | lab(x4 & _IDX))  # S_black^right, I_black
+
+
+def decode_refs4n(words: Words):
+    """``(refs (n, 4) int32, order (n,) int32)`` of :class:`~jaxcds.structures.cds.CDS4n`:
+    decode into CDS5n (memory-free), then relabel by cwBFS. Not memory-free: the relabelling
+    needs the 5n table, the new 4n table and two n-int permutations at once (11n ints peak)."""
+    r5 = decode_refs5n(words)
+    n = words.num_vertices
+    order = np.empty(n, dtype=np.int32)
+    label = np.empty(n, dtype=np.int32)
+    if _cwbfs5(r5.view(np.uint32), n, order, label) != n:
+        raise errors.EncodingError(f"cwBFS of the decoded red tree does not reach all {n} vertices")
+    r4 = np.zeros((n, 4), dtype=np.int32)
+    _refs4(r5.view(np.uint32), n, order, label, r4.view(np.uint32))
+    return r4, order
+
+
+def decode_cds4n(words: Words, *, boundaries_closed: bool = False):
+    """Words of a maximal Schnyder wood -> :class:`~jaxcds.structures.cds.CDS4n` (Thm 5), its
+    ``vertex_order`` mapping cwBFS labels to decoded (DFS) vertex ids."""
+    import jax.numpy as jnp
+    from jaxcds.structures.cds import CDS4n
+
+    r4, order = decode_refs4n(words)
+    n = words.num_vertices
+    label1 = int(np.nonzero(order == 1)[0][0])
+    has_black = np.ones(n, dtype=bool)
+    has_black[[0, label1, 1]] = False  # V_red = 0, V_blue, V_black = label 1
+    fb, unused = _face_map(n, has_black & _bits(r4[:, 2], 30), _bits(r4[:, 1], 31),
+                           ~_bits(r4[:, 3], 30), outer=(0, label1, 1))
+    return CDS4n(refs=jnp.asarray(r4), F_blue=jnp.asarray(fb), order=jnp.asarray(order), num_vertices=n,
+                 num_faces=2 * n - 4, v_red=0, v_blue=label1, v_black=1, unused_slots=unused,
+                 boundaries_closed=boundaries_closed)
+
+
 def build_cds(structure: str, words: Words, **kw):
-    """``"cds6n"`` or ``"cds5n"`` from words."""
+    """``"cds6n"``, ``"cds5n"`` or ``"cds4n"`` from words."""
     if structure == "cds6n":
         return decode_cds6n(words, **kw)
     if structure == "cds5n":
         return decode_cds5n(words, **kw)
-    raise ValueError(f"unknown structure {structure!r}: cds6n or cds5n")
+    if structure == "cds4n":
+        return decode_cds4n(words, **kw)
+    raise ValueError(f"unknown structure {structure!r}: cds6n, cds5n or cds4n")

@@ -29,11 +29,14 @@ def _reference(words):
     root = int(np.nonzero((rot == (0, n - 1, 1)).all(axis=1))[0][0])
     faces[root] = (0, n - 1, 1)
     wood = schnyder_wood(faces, n, root_face=root)
-    return faces, cds.CDS6n.from_wood(wood), cds.CDS5n.from_wood(wood)
+    return faces, cds.CDS6n.from_wood(wood), cds.CDS5n.from_wood(wood), cds.CDS4n.from_wood(wood)
 
 
 def _same(a, b):
-    return (np.array_equal(np.asarray(a.refs), np.asarray(b.refs))
+    if hasattr(b, "order") and not np.array_equal(np.asarray(a.order), np.asarray(b.order)):
+        return False
+    return ((a.v_red, a.v_blue, a.v_black) == (b.v_red, b.v_blue, b.v_black)
+            and np.array_equal(np.asarray(a.refs), np.asarray(b.refs))
             and np.array_equal(np.asarray(a.F_blue), np.asarray(b.F_blue))
             and a.unused_slots == b.unused_slots)
 
@@ -46,9 +49,11 @@ def test_decode_into_cds_equals_builders(n, mixed):
     if mixed:
         from jaxcds.codec import to_mixed
         w = to_mixed(w)
-    faces, ref6, ref5 = _reference(w)
+    faces, ref6, ref5, ref4 = _reference(w)
     assert _same(decode(w, structure="cds6n"), ref6)
     assert _same(decode(w, structure="cds5n"), ref5)
+    # beyond the paper (Sec. 5.2): CDS4n via CDS5n + cwBFS relabelling (not memory-free)
+    assert _same(decode(w, structure="cds4n"), ref4)
 
 
 @pytest.mark.parametrize("structure", ["cds6n", "cds5n"])
@@ -68,9 +73,10 @@ def test_decoded_cds_passes_the_operator_check(structure):
 @pytest.mark.parametrize("name", mesh_params(CLOSED_GENUS0[:4]))
 def test_shared_meshes_decode_into_cds(name):
     enc = encode_mesh(load_shared(name))
-    faces, ref6, ref5 = _reference(enc.words)
+    faces, ref6, ref5, ref4 = _reference(enc.words)
     assert _same(decode(enc.words, structure="cds6n"), ref6)
     assert _same(decode(enc.words, structure="cds5n"), ref5)
+    assert _same(decode(enc.words, structure="cds4n"), ref4)
 
 
 def test_fig9_non_maximal_words_decode_into_cds6n():
