@@ -11,7 +11,7 @@ block ``b``. So the support costs 32 bits per 256 (0.125 bit per bit).
   word inside the block (prefix popcounts), then the bit inside the word (5 halving steps).
 
 Every query takes arrays of any shape, is branch-free (``jnp.where``) and jittable; the
-structure is a pytree (``words``, ``block_rank`` leaves; ``size`` and ``ones`` static).
+structure is a pytree (``words``, ``block_rank`` leaves; ``size`` static).
 """
 
 from __future__ import annotations
@@ -76,15 +76,14 @@ class BitVector:
     Fields:
       words: ``(W,)`` uint32, the bits (least significant first), zero-padded to ``W = 8 (B + 1)``
         words, ``B = size // 256 + 1`` blocks (the last block is spare).
-      block_rank: ``(B + 1,)`` int32, ``block_rank[b]`` = ones in ``[0, 256 b)``.
-      size: number of bits (static).
-      ones: number of ones (static).
+      block_rank: ``(B + 1,)`` int32, ``block_rank[b]`` = ones in ``[0, 256 b)`` (one per block, spare included).
+      size: number of bits (static; the count of ones is ``block_rank[-1]``, a leaf, so bit
+        vectors of one length share their compiled queries).
     """
 
     words: jnp.ndarray
     block_rank: jnp.ndarray
     size: int = static_field()
-    ones: int = static_field()
 
     @classmethod
     def from_bits(cls, bits) -> "BitVector":
@@ -100,12 +99,16 @@ class BitVector:
         nblocks = words.size // BLOCK_WORDS
         counts = np.bitwise_count(words).reshape(nblocks, BLOCK_WORDS).sum(axis=1)
         block_rank = np.concatenate([[0], np.cumsum(counts)])[: nblocks].astype(np.int32)
-        return cls(words=jnp.asarray(words), block_rank=jnp.asarray(block_rank),
-                   size=int(b.size), ones=int(b.sum()))
+        return cls(words=jnp.asarray(words), block_rank=jnp.asarray(block_rank), size=int(b.size))
 
     # ------------------------------------------------------------------ sizes
     @property
-    def zeros(self) -> int:
+    def ones(self) -> jnp.ndarray:
+        """Number of ones (the spare last block starts after every bit)."""
+        return self.block_rank[-1]
+
+    @property
+    def zeros(self) -> jnp.ndarray:
         return self.size - self.ones
 
     @property

@@ -1,0 +1,148 @@
+"""Succinct building blocks against plain-numpy oracles on random bit strings.
+
+Lengths are drawn from a few fixed sizes (around word and block boundaries, and long enough for
+the min-max tree to be searched several levels deep) so jitted queries compile once per size.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from jaxcds import errors
+from jaxcds.structures.succinct import BalancedParens, BitVector, excess_oracle
+
+SIZES = [1, 31, 32, 33, 255, 256, 257, 1000, 2600]
+PAIRS = [1, 2, 16, 128, 129, 700, 3000]
+
+
+@jax.jit
+def _bv_all(bv, i, k):
+    return bv.rank1(i), bv.rank0(i), bv.select1(k), bv.select0(k), bv.access(jnp.minimum(i, bv.size - 1))
+
+
+@jax.jit
+def _bp_all(bp, i):
+    return bp.match(i), bp.find_close(i), bp.find_open(i), bp.enclose(i)
+
+
+def _bits(draw_seed: int, n: int, p: float) -> np.ndarray:
+    return (np.random.default_rng(draw_seed).random(n) < p).astype(np.uint8)
+
+
+def _balanced(seed: int, pairs: int, deep: bool) -> np.ndarray:
+    """A random balanced sequence; ``deep`` biases towards long matches (far blocks)."""
+    rng = np.random.default_rng(seed)
+    out = np.empty(2 * pairs, np.uint8)
+    d = o = 0
+    p_open = 0.8 if deep else 0.5
+    for k in range(2 * pairs):
+        rem = 2 * pairs - k
+        if o < pairs and (d == 0 or (d < rem and rng.random() < p_open and d + 1 <= rem - 1)):
+            out[k], d, o = 1, d + 1, o + 1
+        else:
+            out[k], d = 0, d - 1
+        if deep and k == pairs:  # then close a lot
+            p_open = 0.2
+    return out
+
+
+def _bp_oracle(b: np.ndarray):
+    n = b.size
+    match = np.full(n, -1)
+    enclose = np.full(n, n)
+    stack = []
+    for i, x in enumerate(b):
+        if x:
+            enclose[i] = stack[-1] if stack else n
+            stack.append(i)
+        else:
+            j = stack.pop()
+            match[i], match[j] = j, i
+    return match, enclose
+
+
+@settings(max_examples=25, deadline=None)
+@given(size=st.sampled_from(SIZES), seed=st.integers(0, 2**31), p=st.sampled_from([0.02, 0.5, 0.98]))
+def test_rank_select_against_numpy(size, seed, p):
+    b = _bits(seed, size, p)
+    bv = BitVector.from_bits(b)
+    ones, zeros = np.nonzero(b)[0], np.nonzero(b == 0)[0]
+    i = np.arange(size + 1)
+    k = np.arange(size + 1)  # includes out-of-range ranks: answer is `size`
+    r1, r0, s1, s0, acc = map(np.asarray, _bv_all(bv, jnp.asarray(i), jnp.asarray(k)))
+    cum = np.concatenate([[0], np.cumsum(b)])
+    np.testing.assert_array_equal(r1, cum)
+    np.testing.assert_array_equal(r0, i - cum)
+    want1 = np.full(size + 1, size)
+    want1[: ones.size] = ones
+    want0 = np.full(size + 1, size)
+    want0[: zeros.size] = zeros
+    np.testing.assert_array_equal(s1, want1)
+    np.testing.assert_array_equal(s0, want0)
+    np.testing.assert_array_equal(acc[:size], b)
+    assert int(bv.ones) == ones.size and str(bv) == "".join(map(str, b))
+
+
+@settings(max_examples=20, deadline=None)
+@given(pairs=st.sampled_from(PAIRS), seed=st.integers(0, 2**31), deep=st.booleans())
+def test_balanced_parentheses_against_stack(pairs, seed, deep):
+    b = _balanced(seed, pairs, deep)
+    bp = BalancedParens.from_bits(b)
+    match, enclose = _bp_oracle(b)
+    i = jnp.arange(b.size)
+    m, fc, fo, enc = map(np.asarray, _bp_all(bp, i))
+    op = b == 1
+    np.testing.assert_array_equal(m, match)
+    np.testing.assert_array_equal(fc[op], match[op])
+    np.testing.assert_array_equal(fo[~op], match[~op])
+    np.testing.assert_array_equal(enc[op], enclose[op])
+    np.testing.assert_array_equal(np.asarray(bp.excess(jnp.arange(b.size + 1))), excess_oracle(b))
+
+
+def test_fwd_bwd_searches_against_brute_force():
+    b = _balanced(7, 900, True)
+    bp = BalancedParens.from_bits(b)
+    e = excess_oracle(b)
+    rng = np.random.default_rng(1)
+    i = rng.integers(0, b.size + 1, 400)
+    t = e[i] + rng.integers(-40, 3, i.size)
+    got_f = np.asarray(jax.jit(lambda s, i, t: s.fwd(i, t))(bp, jnp.asarray(i), jnp.asarray(t)))
+    got_b = np.asarray(jax.jit(lambda s, i, t: s.bwd(i, t))(bp, jnp.asarray(i), jnp.asarray(t)))
+    for k in range(i.size):
+        hits = np.nonzero(e[i[k] + 1:] <= t[k])[0]  # bits k' >= i with E(k' + 1) <= t
+        want = i[k] + hits[0] if hits.size else b.size
+        assert got_f[k] == min(want, b.size), (i[k], t[k])
+        back = np.nonzero(e[: i[k] + 1] <= t[k])[0]
+        assert got_b[k] == (back[-1] if back.size else b.size), (i[k], t[k])
+
+
+def test_jit_and_vmap_agree_with_eager():
+    b = _balanced(3, 300, False)
+    bp = BalancedParens.from_bits(b)
+    i = jnp.arange(b.size)
+    eager = np.asarray(bp.match(i))
+    vm = np.asarray(jax.vmap(lambda x: bp.match(x))(i))
+    np.testing.assert_array_equal(eager, vm)
+    np.testing.assert_array_equal(eager, np.asarray(jax.jit(lambda s, x: s.match(x))(bp, i)))
+    # batched shapes: any shape of ids
+    np.testing.assert_array_equal(np.asarray(bp.match(i[:600].reshape(20, 30))), eager[:600].reshape(20, 30))
+
+
+def test_unbalanced_input_is_refused_with_offset():
+    with pytest.raises(errors.EncodingError, match="offset 2"):
+        BalancedParens.from_bits("())(")
+    with pytest.raises(errors.EncodingError, match="left open"):
+        BalancedParens.from_bits("(()")
+    with pytest.raises(errors.EncodingError, match="offset 1"):
+        BitVector.from_bits("0x1")
+
+
+def test_support_is_small():
+    b = _balanced(5, 50_000, False)
+    bp = BalancedParens.from_bits(b)
+    # rank directory (1/8) + min-max tree (about 2 ints per 256 bits) + padding
+    assert bp.bits_support / bp.size < 0.45, bp.bits_support / bp.size
