@@ -383,8 +383,10 @@ def run(meshes: Sequence[str], structures: Optional[Sequence[str]] = None,
     Keys: ``machine`` (cpu, cores, versions, date), ``command``, ``settings``, ``meshes``
     (name, vertices, faces, load_s), ``timings`` (one row per mesh x implementation x op:
     ``ns_per_item`` with ``per`` = vertex or query, ``median_s``, ``compile_s``, ``max_err``
-    for normals), ``memory`` (one row per mesh x structure), ``skipped`` (what could not run,
-    with the reason), ``summary`` (fastest normals formulation per mesh).
+    for normals and degrees), ``memory`` (one row per mesh x structure: references,
+    references_per_vertex, bytes, bytes_per_vertex, build_s, peak_rss_build_bytes), ``generators``
+    (one row per sampler size), ``skipped`` (what could not run, with the reason), ``summary``
+    (fastest normals implementation per mesh, scatter vs gather per structure).
 
     ``budget_s`` caps the timed runs of one op (fewer repeats, at least one, for slow ops);
     an op whose time per item on an earlier (smaller) mesh predicts more than ``max_call_s``

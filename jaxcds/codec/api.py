@@ -74,9 +74,7 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     t0 = time.perf_counter()
     wood = schnyder_wood(mesh.faces, mesh.num_vertices, root_face=root_face, maximal=maximal)
     t1 = time.perf_counter()
-    words, order = encode_schnyder(wood)
-    if mixed:
-        words = to_mixed(words)
+    words, order = encode_schnyder(wood, mixed=mixed)
     t2 = time.perf_counter()
     return EncodedMesh(words, order, mesh, t1 - t0, t2 - t1)
 

@@ -223,9 +223,10 @@ def encode_wood(faces: np.ndarray, num_vertices: int, red_parent: np.ndarray, bl
 
 
 @numba.njit(cache=True, nogil=True)
-def _encode_rot(offsets, neighbors, out, n, v_red, v_blue, v_black, bits, order):
+def _encode_rot(offsets, neighbors, out, n, v_red, v_blue, v_black, bits, order, mixed):
     """As :func:`_encode`, from the ccw rotations of a :class:`SchnyderWood` (neighbours of
-    ``u`` ccw starting at its red parent; at ``V_red`` starting at ``V_blue``)."""
+    ``u`` ccw starting at its red parent; at ``V_red`` starting at ``V_blue``). With ``mixed``
+    the black block of a vertex is written right after its red ``0`` (Sec. 3.3)."""
     indeg = np.zeros(n, dtype=np.int32)
     tot = 0
     for u in range(n):
@@ -250,11 +251,18 @@ def _encode_rot(offsets, neighbors, out, n, v_red, v_blue, v_black, bits, order)
         nv += 1
         bits[pr] = 0
         pr += 1
-        for _ in range(indeg[v]):
-            bits[pb] = 1
+        if mixed:
+            for _ in range(indeg[v]):
+                bits[pr] = 1
+                pr += 1
+            bits[pr] = 0
+            pr += 1
+        else:
+            for _ in range(indeg[v]):
+                bits[pb] = 1
+                pb += 1
+            bits[pb] = 0
             pb += 1
-        bits[pb] = 0
-        pb += 1
         vstack[sp] = v
         cur[sp] = offsets[v] if v == v_red else offsets[v] + 1
         sp += 1
@@ -277,16 +285,17 @@ def _encode_rot(offsets, neighbors, out, n, v_red, v_blue, v_black, bits, order)
             sp -= 1
         if v < 0:
             break
-    if nv != n or pr != 2 * n or pb != 4 * n - 3:
+    if nv != n or (mixed and pr != 4 * n - 3) or ((not mixed) and (pr != 2 * n or pb != 4 * n - 3)):
         return 2, nv
     if order[1] != v_blue or order[n - 1] != v_black:
         return 3, order[1]
     return 0, 0
 
 
-def encode_schnyder(wood) -> tuple[Words, np.ndarray]:
+def encode_schnyder(wood, *, mixed: bool = False) -> tuple[Words, np.ndarray]:
     """Words of a :class:`jaxcds.construct.schnyder.SchnyderWood` (Sec. 3.1), using its ccw
-    rotations (no twin computation). Returns ``(words, order)`` as :func:`encode_wood`."""
+    rotations (no twin computation); ``mixed`` writes the streamable word of Sec. 3.3 directly.
+    Returns ``(words, order)`` as :func:`encode_wood`."""
     n = int(wood.num_vertices)
     if n < 4:
         raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
@@ -294,8 +303,8 @@ def encode_schnyder(wood) -> tuple[Words, np.ndarray]:
     order = np.empty(n, dtype=np.int32)
     status, vertex = _encode_rot(np.asarray(wood.offsets, dtype=np.int64), np.asarray(wood.neighbors, dtype=np.int32),
                                  np.asarray(wood.out, dtype=np.int32), n, int(wood.v_red), int(wood.v_blue),
-                                 int(wood.v_black), bits, order)
+                                 int(wood.v_black), bits, order, bool(mixed))
     if status:
         raise errors.StructureError(f"Schnyder wood is not a valid encoding input (status {status}, vertex {vertex}): "
                                     "red tree not spanning, outer vertices misplaced, or black tree without n-3 edges")
-    return Words(n, pack(bits), mixed=False), order
+    return Words(n, pack(bits), mixed=bool(mixed)), order

@@ -38,6 +38,8 @@ def test_mesh_words_mesh(n, maximal):
     assert words.num_bits == 4 * n - 3
     w2, o2 = encode_wood(m.faces, n, wood.out[:, 0], wood.out[:, 2], wood.outer)
     assert w2 == words and np.array_equal(o2, order)
+    wm, om = encode_schnyder(wood, mixed=True)  # the streamable word written directly
+    assert wm == to_mixed(words) and np.array_equal(om, order)
     faces, table = decode_faces(words)
     inv = np.empty(n, np.int64)
     inv[order] = np.arange(n)
