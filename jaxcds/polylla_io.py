@@ -319,6 +319,9 @@ def write_polygon_off(path: str, points: np.ndarray, offsets: np.ndarray, indice
             if npoly:
                 fh.write("\n".join(lines.tolist()))
                 fh.write("\n")
+        umask = os.umask(0)  # mkstemp creates the file 0600: give it the usual 0666 & ~umask
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
