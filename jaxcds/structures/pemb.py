@@ -240,6 +240,13 @@ class PEMB(MeshStructure):
         mesh = load_mesh(mesh)
         if check:
             validate(mesh, connected=True, structure="pemb")
+            used = np.zeros(mesh.num_vertices, bool)
+            used[mesh.faces.ravel()] = True
+            if not used.all():  # the spanning tree cannot reach them (topology says "genus None")
+                raise errors.UnsupportedTopologyError(
+                    f"{mesh.source}: vertex {int(np.argmin(used))} is in no triangle "
+                    f"({int((~used).sum())} such vertices): pemb's spanning tree must reach every "
+                    "vertex; drop unreferenced vertices first (load_mesh does) or use 'halfedge'")
             from jaxcds.mesh import topology
 
             top = topology(mesh)
