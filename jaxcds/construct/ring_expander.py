@@ -45,13 +45,9 @@ def _p(c):
 
 
 @numba.njit(cache=True)
-def _ring_expander(V, O, seed, vm, tm):
-    """Sec. 4.2 listing, verbatim with ``c.r = c.p.o``. Returns the number of invaded triangles,
-    or -1 if the walk did not come back to ``s.o`` (not a closed manifold)."""
-    s = seed
+def _walk(V, O, s, vm, tm):
+    """The do-while loop of the Sec. 4.2 listing from seed corner ``s`` (``c.r = c.p.o``)."""
     c = s
-    vm[V[_n(c)]] = 1
-    vm[V[_p(c)]] = 1
     so = O[s]
     invaded = 0
     limit = 4 * V.shape[0] + 16
@@ -70,6 +66,27 @@ def _ring_expander(V, O, seed, vm, tm):
         if steps > limit:
             return -1
     return invaded
+
+
+@numba.njit(cache=True)
+def _ring_expander(V, O, seed, vm, tm):
+    """Sec. 4.2 listing. The listing stops at ``s.o`` without trying to invade ``s.o.t``; a vertex
+    reachable only through ``s.o.t`` would stay isolated (e.g. a lone quad closed by a dummy),
+    so when ``s.o.v`` is still unvisited a second walk runs from ``s.o`` (it stops back at ``s``).
+    Returns the number of invaded triangles, or -1 if a walk does not come back (not a closed
+    manifold)."""
+    vm[V[_n(seed)]] = 1
+    vm[V[_p(seed)]] = 1
+    a = _walk(V, O, seed, vm, tm)
+    if a < 0:
+        return -1
+    s2 = O[seed]
+    if vm[V[s2]] == 0:
+        b = _walk(V, O, s2, vm, tm)
+        if b < 0:
+            return -1
+        a += b
+    return a
 
 
 @numba.njit(cache=True)
@@ -151,16 +168,22 @@ def reference_ring_expander(V, O, num_vertices: int, seed: int, dummy=None):
     tm = [False] * (len(V) // 3)
     nx = lambda c: 3 * (c // 3) + (c + 1) % 3  # noqa: E731
     pv = lambda c: 3 * (c // 3) + (c + 2) % 3  # noqa: E731
-    s = c = seed
-    vm[V[nx(c)]] = vm[V[pv(c)]] = True
-    while True:
-        if not vm[V[c]]:
-            vm[V[c]] = tm[c // 3] = True
-        elif not tm[c // 3]:
-            c = O[c]
-        c = O[pv(c)]
-        if c == O[s]:
-            break
+    vm[V[nx(seed)]] = vm[V[pv(seed)]] = True
+
+    def walk(s):
+        c = s
+        while True:
+            if not vm[V[c]]:
+                vm[V[c]] = tm[c // 3] = True
+            elif not tm[c // 3]:
+                c = O[c]
+            c = O[pv(c)]
+            if c == O[s]:
+                break
+
+    walk(seed)
+    if not vm[V[O[seed]]]:
+        walk(O[seed])
     return np.array(tm, np.uint8), np.array(vm, np.uint8)
 
 

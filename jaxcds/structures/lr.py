@@ -281,42 +281,66 @@ class _LRNavigation(MeshStructure):
         left = (t & 1) == 0
         return jnp.where(left, (d.skl == 0) & (d.l == wnn), (d.skr == 0) & (d.r == wnn))
 
+    def _dummy_face(self, e):
+        """True where ``e``'s triangle has a dummy vertex (Sec. 4.6: "non-existent triangles
+        across mesh borders"); dummy vertices are numbered last, from ``num_vertices`` on."""
+        nv = self.num_vertices
+        return (self.v(e) >= nv) | (self.v(self.n(e)) >= nv) | (self.v(self.p(e)) >= nv)
+
     def dart_valid(self, e: Int) -> Int:
         e = jnp.asarray(e, jnp.int32)
         inr = (e >= 0) & (e < self.num_darts) & ((e & 3) != 3)
         ring = e < 8 * self.num_ring
         t = jnp.where(ring & inr, e >> 2, 0)
-        return inr & ~(ring & self._redundant_slot(t))
+        ok = inr & ~(ring & self._redundant_slot(t))
+        if self.has_border:
+            # in a dummy triangle only the border dart (both ends real) is a dart
+            ec = jnp.where(ok, e, 0)
+            ok = ok & (self.v(ec) < self.num_vertices) & (self.v(self.n(ec)) < self.num_vertices)
+        return ok
 
     def origin(self, e: Int) -> Int:
         return self.v(e)
 
     def next(self, e: Int) -> Int:
-        return self.n(e)
+        if not self.has_border:
+            return self.n(e)
+        # border dart (u, v) of dummy triangle (u, v, d): the next one is (v, w) of (v, w, d)
+        return jnp.where(self._dummy_face(e), self.n(self.twin(self.n(e))), self.n(e))
 
     def prev(self, e: Int) -> Int:
-        return self.p(e)
+        if not self.has_border:
+            return self.p(e)
+        return jnp.where(self._dummy_face(e), self.p(self.twin(self.p(e))), self.p(e))
 
     def twin(self, e: Int) -> Int:
         # dart c = (c.v, c.n.v); across it lies c.p.o, whose next corner starts at c.n.v
         return self.n(self.o(self.p(e)))
 
     def corner_opposite(self, c: Int) -> Int:
+        if self.has_border:  # across a border the protocol's answer is a border dart
+            return self.prev(self.twin(self.next(c)))
         return self.o(c)
 
     def corner_swing(self, c: Int) -> Int:
+        if self.has_border:
+            return self.twin(self.prev(c))
         return self.s(c)
 
     def face(self, e: Int) -> Int:
-        """Dense face id: rank of slot ``e >> 2`` among the non-redundant slots (popcount
-        directory), T0 triangles after the ring slots."""
-        t = jnp.asarray(e, jnp.int32) >> 2
+        """Dense face id: rank of slot ``e >> 2`` among the non-redundant real slots (popcount
+        directory), real T0 triangles after the ring slots; ``num_faces`` for border darts."""
+        e = jnp.asarray(e, jnp.int32)
+        t = e >> 2
         two_m = 2 * self.num_ring
         tr = jnp.clip(t, 0, two_m - 1)
         word = jax.lax.bitcast_convert_type(self.slot_words[tr >> 5], jnp.uint32)
         below = word & ((jnp.uint32(1) << (tr & 31).astype(jnp.uint32)) - jnp.uint32(1))
         rank = self.slot_rank[tr >> 5] + _popcount32(below).astype(jnp.int32)
-        return jnp.where(t < two_m, rank, t - two_m + self.num_ring_faces).astype(jnp.int32)
+        f = jnp.where(t < two_m, rank, t - two_m + self.num_ring_faces)
+        if self.has_border:
+            f = jnp.where(self._dummy_face(e), self.num_faces, f)
+        return f.astype(jnp.int32)
 
     def edge_of_face(self, f: Int) -> Int:
         """Corner ``4t`` of the slot of dense face ``f`` (select by binary search on the rank
@@ -338,7 +362,11 @@ class _LRNavigation(MeshStructure):
         return (4 * jnp.where(ring, slot, t0)).astype(jnp.int32)
 
     def edge_of_vertex(self, v: Int) -> Int:
-        return self.vc(v)
+        c = self.vc(v)
+        if not self.has_border:
+            return c
+        # a corner of v in a dummy triangle (u, v, d) leaves v towards d: swing once to (v, u)
+        return jnp.where(self.v(self.n(c)) >= self.num_vertices, self.s(c), c)
 
     @property
     def vertex_order(self) -> np.ndarray:
@@ -347,7 +375,12 @@ class _LRNavigation(MeshStructure):
     # ---------------------------------------------------------------- statistics
     @property
     def num_isolated(self) -> int:
+        """``m_i``: real vertices off the ring (dummy vertices have a null index, Sec. 4.6)."""
         return self.num_vertices - self.num_ring
+
+    @property
+    def has_border(self) -> bool:
+        return self.num_closed_vertices > self.num_vertices
 
     @property
     def aux_references(self) -> int:
@@ -355,9 +388,9 @@ class _LRNavigation(MeshStructure):
         return int(self.slot_words.shape[0] + self.slot_rank.shape[0])
 
 
-def _directory(redundant: np.ndarray):
-    """Popcount rank directory over the ``2 m_r`` ring slots (bit set = canonical slot)."""
-    valid = ~np.asarray(redundant, dtype=bool)
+def _directory(hidden: np.ndarray):
+    """Popcount rank directory over the ``2 m_r`` ring slots (bit set = a face of its own)."""
+    valid = ~np.asarray(hidden, dtype=bool)
     nbits = valid.size
     nw = (nbits + 31) // 32
     pad = np.zeros(nw * 32, dtype=bool)
@@ -407,6 +440,8 @@ class LR(_LRNavigation):
     num_t0: int = static_field()
     num_vos: int = static_field()
     num_ring_faces: int = static_field()
+    num_closed_vertices: int = static_field()
+    num_closed_faces: int = static_field()
 
     name = "lr"
 
@@ -435,14 +470,18 @@ class LR(_LRNavigation):
         return 32 * self.references
 
     @classmethod
-    def from_mesh(cls, mesh, *, seeds=4, check: bool = True, wart_skipping: bool = True) -> "LR":
-        """Build from a mesh; holes are closed with dummy vertices first (Sec. 4.6)."""
-        return build_lr(mesh, bits=False, seeds=seeds, check=check, wart_skipping=wart_skipping)
+    def from_mesh(cls, mesh, *, seeds=4, check: bool = True, wart_skipping: bool = True,
+                  borders: bool = True) -> "LR":
+        """Build from a mesh; holes are closed with dummy vertices first (Sec. 4.6), see
+        :func:`build_lr`."""
+        return build_lr(mesh, bits=False, seeds=seeds, check=check, wart_skipping=wart_skipping,
+                        borders=borders)
 
     @classmethod
     def from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, check: bool = True,
                           wart_skipping: bool = True) -> "LR":
-        """Ring and tables from a :class:`CornerTable` (the paper's input, Sec. 8.1)."""
+        """Ring and tables from a :class:`CornerTable` (the paper's input, Sec. 8.1);
+        ``dummy``: mask of dummy vertices (shown as borders)."""
         return _from_corner_table(cls, ct, dummy=dummy, seeds=seeds, k=None, check=check,
                                   wart_skipping=wart_skipping)
 
@@ -474,6 +513,8 @@ class LRBits(_LRNavigation):
     num_t0: int = static_field()
     num_vos: int = static_field()
     num_ring_faces: int = static_field()
+    num_closed_vertices: int = static_field()
+    num_closed_faces: int = static_field()
     num_long: int = static_field()
     k: int = static_field()
 
@@ -511,8 +552,10 @@ class LRBits(_LRNavigation):
         return 32 * self.references
 
     @classmethod
-    def from_mesh(cls, mesh, *, k="auto", seeds=1, check: bool = True) -> "LRBits":
-        return build_lr(mesh, bits=True, k=k, seeds=seeds, check=check)
+    def from_mesh(cls, mesh, *, k="auto", seeds=1, check: bool = True,
+                  borders: bool = True) -> "LRBits":
+        """Build with HYBRID-RING-EXPANDER; ``k="auto"`` keeps the period with the fewest bits."""
+        return build_lr(mesh, bits=True, k=k, seeds=seeds, check=check, borders=borders)
 
 
 # --------------------------------------------------------------------------------- construction
@@ -521,26 +564,34 @@ _AUTO_K = (16, 32, 64, 128, 256, 512, 1024, 0)
 
 def _prepare(mesh) -> TriMesh:
     mesh = load_mesh(mesh)
+    if mesh.dummy_vertices is not None and np.any(mesh.dummy_vertices):
+        validate(mesh, closed=True, connected=True, structure="lr")
+        return mesh  # already closed by close_boundaries: keep its dummy flags
     validate(mesh, connected=True, structure="lr")
     return close_boundaries(mesh)
 
 
 def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
-             wart_skipping: bool = True):
-    """``LR`` (``bits=False``) or ``LRBits`` from a mesh (holes closed first, Sec. 4.6).
+             wart_skipping: bool = True, borders: bool = True):
+    """``LR`` (``bits=False``) or ``LRBits`` from a mesh.
 
+    Holes are closed with one dummy vertex each (Sec. 4.6), never on the ring. With ``borders``
+    (default) the structure shows the mesh *with* its borders: dummy vertices get a null index
+    (numbered past ``num_vertices``), dummy triangles are the outside (border darts, ``face ==
+    num_faces``), as the HalfEdge of the input; with ``borders=False`` it is the closed mesh.
     ``k``: hybrid period for ``LRBits`` (``"auto"`` tries several and keeps the fewest bits, as
     the paper does, Sec. 8; 0 = depth-first). ``seeds``: number of random seed corners (or a list)."""
     mesh = _prepare(mesh)
     ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices)
+    dummy = mesh.dummy_vertices
     if not bits:
-        return _from_corner_table(LR, ct, dummy=mesh.dummy_vertices, seeds=seeds, k=None,
-                                  check=check, wart_skipping=wart_skipping)
+        return _from_corner_table(LR, ct, dummy=dummy, seeds=seeds, k=None, check=check,
+                                  wart_skipping=wart_skipping, borders=borders)
     ks = _AUTO_K if k == "auto" else ([k] if np.isscalar(k) else list(k))
     best = None
     for kk in ks:
-        s = _from_corner_table(LRBits, ct, dummy=mesh.dummy_vertices, seeds=seeds, k=int(kk),
-                               check=False, wart_skipping=wart_skipping)
+        s = _from_corner_table(LRBits, ct, dummy=dummy, seeds=seeds, k=int(kk), check=False,
+                               wart_skipping=wart_skipping, borders=borders)
         if best is None or s.bits < best.bits:
             best = s
     if check:
@@ -548,31 +599,69 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     return best
 
 
-def _from_corner_table(cls, ct: CornerTable, *, dummy, seeds, k, check, wart_skipping,
-                       tables: Optional[LRTables] = None):
+def _from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, k=None, check=True,
+                       wart_skipping=True, borders=True, tables: Optional[LRTables] = None):
     V = np.asarray(ct.V)
     O = np.asarray(ct.O)
     nv = ct.num_vertices
     if tables is None:
-        ring = best_ring(V, O, nv, seeds=seeds, k=k, dummy=dummy)
-        tables = lr_tables(V, O, ring, nv, wart_skipping=wart_skipping)
+        tables = _best_tables(V, O, nv, seeds=seeds, k=k, dummy=dummy,
+                              wart_skipping=wart_skipping)
     return _pack(cls, tables, V, O, np.asarray(ct.vertex_corner), nv, check=check,
-                 k=0 if k is None else int(k))
+                 k=0 if k is None else int(k), dummy=dummy if borders else None)
 
 
-def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: int):
+def _best_tables(V, O, nv, *, seeds, k, dummy, wart_skipping) -> LRTables:
+    """Sec. 4.2: several seeds, keep the fewest isolated vertices; ties broken by the Sec. 8
+    reference count ``2 m_r + 6 n0 + 3 n^i + m_i`` (Sec. 8: "explore several k values and seed
+    corners per mesh")."""
+    if np.isscalar(seeds):
+        nf = V.shape[0] // 3
+        rng = np.random.default_rng(0)
+        ok = np.ones(nf, dtype=bool)
+        if dummy is not None:
+            ok = ~np.asarray(dummy, bool)[V.reshape(-1, 3)].any(axis=1)
+        cand = np.nonzero(ok)[0]
+        if cand.size == 0:
+            raise errors.UnsupportedTopologyError("no triangle without a dummy vertex to seed the ring")
+        seeds = [int(3 * t) for t in rng.choice(cand, size=min(int(seeds), cand.size), replace=False)]
+    best, key = None, None
+    for sd in seeds:
+        ring = best_ring(V, O, nv, seeds=[sd], k=k, dummy=dummy)
+        tb = lr_tables(V, O, ring, nv, wart_skipping=wart_skipping)
+        st = tb.stats(V.shape[0] // 3)
+        kk = (st["m_i"], 2 * st["m_r"] + 6 * st["T0"] + 3 * st["Ti"] + st["m_i"])
+        if key is None or kk < key:
+            best, key = tb, kk
+    return best
+
+
+def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: int, dummy=None):
     m = tb.num_ring
     nf = V.shape[0] // 3
     if nv >= 1 << _VALUE_BITS:
         raise errors.UnsupportedTopologyError(f"{nv} vertices: LR entries hold 29-bit vertex ids")
-    # vertex renumbering: ring order first, then isolated vertices (dummies last, Sec. 4.4)
+    dmask = np.zeros(nv, bool) if dummy is None else np.asarray(dummy, bool)
+    dface = dmask[V].reshape(-1, 3).any(axis=1)
+    nv_real = int(nv - dmask.sum())
+    nf_real = int(nf - dface.sum())
+    # vertex renumbering: ring order first, then isolated vertices, dummies last (null index)
     new_of_old = np.full(nv, -1, np.int64)
     new_of_old[tb.order] = np.arange(m)
     iso = np.nonzero(new_of_old < 0)[0]
+    iso = iso[np.argsort(dmask[iso], kind="stable")]
     new_of_old[iso] = m + np.arange(iso.size)
     order = np.empty(nv, np.int32)
     order[new_of_old] = np.arange(nv)
     lrc = tb.lr_corner.astype(np.int64)
+    # real T0 triangles first (dense face ids), dummy T0 after them
+    t0 = tb.t0.astype(np.int64)
+    perm = np.argsort(dface[t0], kind="stable")
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(perm.size)
+    t0 = t0[perm]
+    hi = lrc >= 8 * m
+    lrc[hi] = 8 * m + 4 * inv[(lrc[hi] - 8 * m) >> 2] + (lrc[hi] & 3)
     nxt = lambda c: 3 * (c // 3) + (c + 1) % 3  # noqa: E731
     prv = lambda c: 3 * (c // 3) + (c + 2) % 3  # noqa: E731
     cL = tb.left_corner.astype(np.int64)
@@ -615,21 +704,21 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
         unexpected += int(np.sum(bad & ~side))
         side |= bad
     # VO* (standard: triplets; bits: records built below)
-    n0 = int(tb.t0.size)
-    t0 = tb.t0.astype(np.int64)
+    n0 = int(t0.size)
     ct0 = (3 * t0[:, None] + np.arange(3)).ravel()
     V0 = new_of_old[V[ct0]].astype(np.int32)
     O0 = lrc[O[ct0]].astype(np.int32)
-    C = lrc[vertex_corner[order[m:]]].astype(np.int32)
-    redundant = np.empty(2 * m, bool)
-    redundant[0::2] = redl
-    redundant[1::2] = redr
-    words, rank, nring_faces = _directory(redundant)
+    C = lrc[vertex_corner[order[m:nv_real]]].astype(np.int32)
+    hidden = np.empty(2 * m, bool)  # redundant T2 copies and dummy triangles: no dense face id
+    hidden[0::2] = redl | dface[cL // 3]
+    hidden[1::2] = redr | dface[cR // 3]
+    words, rank, nring_faces = _directory(hidden)
     common = dict(V0=jnp.asarray(_nonempty(V0)), O0=jnp.asarray(_nonempty(O0)),
                   C=jnp.asarray(_nonempty(C)), slot_words=jnp.asarray(words),
-                  slot_rank=jnp.asarray(rank), order=jnp.asarray(order),
-                  num_vertices=int(nv), num_faces=int(nf), num_ring=int(m), num_t0=n0,
-                  num_ring_faces=nring_faces)
+                  slot_rank=jnp.asarray(rank), order=jnp.asarray(order[:nv_real]),
+                  num_vertices=nv_real, num_faces=nf_real, num_ring=int(m), num_t0=n0,
+                  num_ring_faces=nring_faces, num_closed_vertices=int(nv),
+                  num_closed_faces=int(nf))
     if cls is LR:
         il = np.nonzero(irl)[0]
         ir = np.nonzero(irr)[0]
@@ -678,9 +767,10 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
         lr16[1::2] = er
         s = LRBits(LR16=jnp.asarray(lr16.view(np.int16)), VOs=jnp.asarray(_nonempty(vos, size=2)),
                    num_vos=int(vos.size), num_long=nlong, k=int(k), **common)
-    object.__setattr__(s, "_stats", dict(tb.stats(nf), unexpected_irregular=unexpected,
+    object.__setattr__(s, "_stats", dict(tb.stats(nf, nf_real), unexpected_irregular=unexpected,
                                          irregular=int(irl.sum() + irr.sum()), seed=tb.ring.seed,
                                          _lrc=lrc, _new_of_old=new_of_old))
+    s._stats.update(m_i=nv_real - m, m_dummy=int(nv - nv_real), n=nf_real)
     if check:
         _check(s, V, O, lrc, new_of_old)
     return s
@@ -728,12 +818,15 @@ def render_list(s: LR) -> dict:
     apex[0::2] = np.asarray(d.l)
     apex[1::2] = np.asarray(d.r)
     vv = np.repeat(np.arange(m, dtype=np.int32), 2)
-    apex = np.where(red, vv, apex)  # degenerate triangle: tip = v
+    # redundant T2 copies and dummy triangles (apex = a dummy vertex, null index) become
+    # degenerate: tip = v (Sec. 7)
+    apex = np.where(red | (apex >= s.num_vertices), vv, apex)
     skip = np.empty(2 * m, bool)
     skip[0::2] = np.asarray(d.skl) == 1
     skip[1::2] = np.asarray(d.skr) == 1
     t0 = np.asarray(s.V0)[: 3 * s.num_t0].reshape(-1, 3)
-    refs = 2 * m + 3 * s.num_t0
+    t0 = t0[(t0 < s.num_vertices).all(axis=1)]
+    refs = 2 * m + 3 * t0.shape[0]
     return {"apex": apex, "skip": skip, "t0": t0, "rpt": refs / max(s.num_faces, 1)}
 
 
