@@ -13,6 +13,14 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 SHARED = pathlib.Path(os.environ.get("JAXCDS_SHARED", ROOT.parent / "shared"))
 MESHES = SHARED / "meshes"
 
+# One persistent XLA compilation cache for the whole run, shared by the xdist workers: the same
+# (structure, mesh) pair is compiled by several test files (protocol, paper, codec), and most of
+# the suite's time is XLA compilation. Gitignored; a fresh clone starts empty.
+jax.config.update("jax_compilation_cache_dir",
+                  os.environ.get("JAXCDS_JAX_CACHE", str(ROOT / ".jax_cache")))
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.3)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
 # From ../shared/meshes/README.md (counts after welding): V, F, boundary edges, chi, bodies.
 # "nm" marks the meshes that must be refused (non-manifold).
 MESH_TABLE = {
