@@ -1,0 +1,373 @@
+"""LR and lr-bits (Gurung et al., ACM TOG 2011): every corner operator of Sec. 4.7 on every corner
+against the CornerTable, the Sec. 7 renderable index list, ring/classification invariants,
+generic algorithms (degrees, normals and their gradient) against the HalfEdge, typed refusals.
+
+``tests/structures/test_protocol.py`` already runs ``verify`` (every protocol operator, every
+dart, vs the HalfEdge) for the registered ``lr`` / ``lr-bits`` builds on the shared meshes and on
+random triangulations; here ``verify`` only runs on what it does not build (icosphere, wart
+skipping off, chosen hybrid periods, ``borders=False``).
+
+Cost: every structure instance compiles the jitted checks once (its static sizes differ), so
+structures are built once per module (``_built``) and each is checked by one jitted call.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from jaxcds import errors
+from jaxcds.algorithms import vertex_degrees, vertex_normals
+from jaxcds.construct.ring_expander import best_ring, lr_tables
+from jaxcds.generators import icosphere, random_planar_triangulation
+from jaxcds.mesh import TriMesh, close_boundaries, load_mesh
+from jaxcds.structures.corner_table import CornerTable
+from jaxcds.structures.halfedge import HalfEdge
+from jaxcds.structures.lr import (LR, LRBits, build_lr, expand_renderable_index_list,
+                                  renderable_index_list, stats)
+from jaxcds.verify import verify
+
+from conftest import load_shared
+
+# name -> (mesh key, builder). Mesh keys: shared file names, or "icosphere3".
+CONFIGS = {
+    "cube": ("cube.off", lambda m: LR.from_mesh(m, check=False)),
+    "3holes": ("3holes.off", lambda m: LR.from_mesh(m, check=False)),
+    "rocker-arm": ("rocker-arm.obj", lambda m: LR.from_mesh(m, check=False)),
+    "grid": ("grid.off", lambda m: LR.from_mesh(m, check=False)),
+    "camelhead": ("camelhead.off", lambda m: LR.from_mesh(m, check=False)),
+    "icosphere3": ("icosphere3", lambda m: LR.from_mesh(m, check=False)),
+    "3holes-no-warts": ("3holes.off", lambda m: LR.from_mesh(m, wart_skipping=False, check=False)),
+    "3holes-bits-k1": ("3holes.off", lambda m: LRBits.from_mesh(m, k=1, check=False)),
+    "3holes-bits-k16": ("3holes.off", lambda m: LRBits.from_mesh(m, k=16, check=False)),
+    "rocker-arm-bits-dfs": ("rocker-arm.obj", lambda m: LRBits.from_mesh(m, k=0, check=False)),
+    "camelhead-bits-auto": ("camelhead.off", lambda m: LRBits.from_mesh(m, check=False)),
+}
+
+
+@functools.lru_cache(maxsize=None)
+def _mesh(key: str) -> TriMesh:
+    if key == "icosphere3":
+        return icosphere(3)
+    return load_shared(key)
+
+
+@functools.lru_cache(maxsize=None)
+def _built(name: str):
+    key, build = CONFIGS[name]
+    return build(_mesh(key))
+
+
+# ------------------------------------------------------------------ helpers
+@jax.jit
+def _corner_ops(s, c, v, t):
+    """The paper's corner operators (Sec. 4.7, Fig. 2) on corner ids ``c``, ``v.c`` on vertices
+    ``v``, ``t.c`` on triangles ``t``, and which ring slots are redundant T2 copies: one compiled
+    call per structure."""
+    ring = c < 8 * s.num_ring
+    red = ring & s._redundant_slot(jnp.where(ring, c >> 2, 0))
+    return {"v": s.v(c), "o": s.o(c), "n": s.n(c), "p": s.p(c), "s": s.s(c), "l": s.l(c),
+            "r": s.r(c), "t": s.t(c), "nv": s.v(s.n(c)), "red": red, "vc": s.vc(v),
+            "vc_v": s.v(s.vc(v)), "tc": s.tc(t)}
+
+
+def _closed_order(s, mesh: TriMesh) -> np.ndarray:
+    """Input id (of the closed mesh) of every LR vertex, dummy vertices (null index, numbered
+    after the real ones, Sec. 4.6) included."""
+    order = np.asarray(s.vertex_order)
+    if s.num_closed_vertices == s.num_vertices:
+        return order
+    return np.concatenate([order, np.nonzero(mesh.dummy_vertices)[0]])
+
+
+def _closed(mesh: TriMesh) -> TriMesh:
+    return mesh if mesh.dummy_vertices is not None else close_boundaries(mesh)
+
+
+def check_corner_operators(s, mesh: TriMesh) -> dict:
+    """Every corner operator on every canonical corner of ``s`` against the CornerTable of the
+    closed mesh (dummy triangles included): corners are matched through the dart they stand for,
+    ``(c.v, c.n.v)`` in input ids, which is unique on a closed manifold."""
+    closed = _closed(mesh)
+    ct = CornerTable.from_faces(closed.faces, closed.num_vertices)
+    V, O = np.asarray(ct.V), np.asarray(ct.O)
+    nf, nv = closed.num_faces, closed.num_vertices
+    assert s.num_closed_faces == nf and s.num_closed_vertices == nv
+    order = _closed_order(s, closed)
+    assert sorted(order.tolist()) == list(range(nv))  # a permutation of the closed mesh's vertices
+
+    ids = np.arange(s.num_darts, dtype=np.int32)
+    ids = ids[(ids & 3) != 3]
+    nvert = s.num_vertices if s.has_border else nv  # dummies have no v.c (null index)
+    t_all = ids[(ids & 3) == 0] >> 2  # every paper triangle id, redundant slots included
+    res = {k: np.asarray(x) for k, x in _corner_ops(
+        s, jnp.asarray(ids), jnp.arange(nvert, dtype=jnp.int32), jnp.asarray(t_all)).items()}
+    red = res["red"]
+    canon, redundant = ids[~red], ids[red]
+    out = {k: res[k][~red] for k in ("v", "o", "n", "p", "s", "l", "r", "t", "nv")}
+    out.update(vc=res["vc"], vc_v=res["vc_v"])
+    keep_t = ~red[(ids & 3) == 0]
+    t_all, out["tc"] = t_all[keep_t], res["tc"][keep_t]
+
+    # LR corner -> corner-table corner, through the dart (c.v, c.n.v)
+    key = lambda a, b: a.astype(np.int64) * nv + b  # noqa: E731
+    ct_key = key(V, V[3 * (np.arange(3 * nf) // 3) + (np.arange(3 * nf) + 1) % 3])
+    srt = np.argsort(ct_key)
+    lr_key = key(order[out["v"]], order[out["nv"]])
+    pos = np.clip(np.searchsorted(ct_key, lr_key, sorter=srt), 0, 3 * nf - 1)
+    to_ct = srt[pos]
+    assert np.array_equal(ct_key[to_ct], lr_key), "an LR corner names no dart of the mesh"
+    # a bijection: as many canonical corners as corner-table corners, each dart once
+    assert canon.size == 3 * nf and np.unique(to_ct).size == 3 * nf
+
+    lookup = np.full(s.num_darts + 1, -1, np.int64)
+    lookup[canon] = to_ct
+
+    def ct_of(c):
+        c = np.asarray(c, np.int64)
+        ok = (c >= 0) & (c < s.num_darts)
+        got = np.where(ok, lookup[np.where(ok, c, s.num_darts)], -1)
+        assert np.all(got >= 0), "an operator returned a non-canonical corner"
+        return got
+
+    x = to_ct
+    nx = 3 * (x // 3) + (x + 1) % 3
+    px = 3 * (x // 3) + (x + 2) % 3
+    np.testing.assert_array_equal(order[out["v"]], V[x], err_msg="c.v")
+    np.testing.assert_array_equal(ct_of(out["o"]), O[x], err_msg="c.o")
+    np.testing.assert_array_equal(ct_of(out["n"]), nx, err_msg="c.n")
+    np.testing.assert_array_equal(ct_of(out["p"]), px, err_msg="c.p")
+    np.testing.assert_array_equal(ct_of(out["l"]), O[nx], err_msg="c.l = c.n.o")
+    np.testing.assert_array_equal(ct_of(out["r"]), O[px], err_msg="c.r = c.p.o")
+    s_ct = 3 * (O[nx] // 3) + (O[nx] + 1) % 3
+    np.testing.assert_array_equal(ct_of(out["s"]), s_ct, err_msg="c.s = c.n.o.n")
+    # c.t: one id per triangle, the same on its three corners; t.c lands in the same triangle
+    tri = x // 3
+    t = out["t"]
+    tri_of_t = np.full(int(t.max()) + 1, -1, np.int64)
+    tri_of_t[t] = tri
+    np.testing.assert_array_equal(tri_of_t[t], tri, err_msg="c.t")
+    assert np.unique(t).size == nf
+    tc = out["tc"]
+    np.testing.assert_array_equal(ct_of(tc) // 3, tri_of_t[t_all], err_msg="t.c")
+    # v.c: a canonical corner of v
+    np.testing.assert_array_equal(out["vc_v"], np.arange(nvert), err_msg="v.c")
+    ct_of(out["vc"])
+    # redundant T2 copies (Sec. 4.4) name the same darts as their canonical corners
+    if redundant.size:
+        rkey = key(order[res["v"][red]], order[res["nv"][red]])
+        assert np.isin(rkey, lr_key).all()
+    return {"corners": int(canon.size), "redundant": int(redundant.size)}
+
+
+def _triangle_set(f: np.ndarray) -> np.ndarray:
+    """Triangles as rows rotated so the smallest id comes first (orientation kept), sorted."""
+    f = np.asarray(f, np.int64)
+    k = np.argmin(f, axis=1)
+    rot = np.stack([f[np.arange(len(f)), (k + j) % 3] for j in range(3)], axis=1)
+    return rot[np.lexsort(rot.T[::-1])]
+
+
+# ------------------------------------------------------------------ corner operators
+@pytest.mark.parametrize("name", list(CONFIGS))
+def test_corner_operators_equal_corner_table(name):
+    s = _built(name)
+    mesh = _mesh(CONFIGS[name][0])
+    got = check_corner_operators(s, mesh)
+    assert got["corners"] == 3 * s.num_closed_faces
+    st_ = stats(s)
+    # ring invariants reported by the builder: m_i = m - m_r (real vertices), T0 counts
+    assert st_["m_i"] == s.num_isolated == s.num_vertices - s.num_ring
+    assert st_["T0"] == s.num_t0
+    assert s.references == (2 * s.num_ring + 6 * s.num_t0 + s.num_vos + s.num_isolated
+                            if isinstance(s, LR) else
+                            s.num_ring + 6 * s.num_t0 + s.num_vos + s.num_isolated)
+    if "no-warts" in name:
+        assert st_["T0w"] == 0
+
+
+def test_wart_skipping_lowers_the_reference_count():
+    """Sec. 5: wart skipping turns T0 triangles into T1 (T0^w): fewer VO references."""
+    with_, without = _built("3holes"), _built("3holes-no-warts")
+    assert stats(with_)["T0w"] > 0
+    assert with_.num_t0 < without.num_t0
+    assert with_.references < without.references
+
+
+def test_lr_bits_periods_and_auto_choice():
+    """Sec. 6.1/8: the hybrid period changes the ring; ``k="auto"`` keeps the fewest bits."""
+    m = _mesh("3holes.off")
+    k1, k16 = _built("3holes-bits-k1"), _built("3holes-bits-k16")
+    assert (k1.k, k16.k) == (1, 16)
+    auto = LRBits.from_mesh(m, k=(1, 16), check=False)
+    assert auto.bits == min(k1.bits, k16.bits) and auto.k in (1, 16)
+    # 16 bits per ring entry pair + 32 per other reference (Sec. 8)
+    for s in (k1, k16):
+        assert s.bits == 32 * (s.num_ring + 6 * s.num_t0 + s.num_vos + s.num_isolated)
+
+
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.sampled_from([24, 60]), seed=st.integers(0, 2**31 - 1),
+       bits=st.booleans(), warts=st.booleans())
+def test_corner_operators_on_random_triangulations(n, seed, bits, warts):
+    # two size buckets: the CornerTable side never recompiles; the LR's static sizes (m_r, n0)
+    # still depend on the ring found, so each example costs about one compilation
+    m = random_planar_triangulation(n, seed=seed)
+    s = build_lr(m, bits=bits, k=4, wart_skipping=warts, check=False)
+    assert isinstance(s, LRBits if bits else LR)
+    check_corner_operators(s, m)
+
+
+# ------------------------------------------------------------------ construction invariants
+@pytest.mark.parametrize("key", ["3holes.off", "grid.off"])
+def test_every_triangle_classified_once(key):
+    """Sec. 4.3: each triangle is in exactly one non-redundant ring slot (T1, T2, T0^w) or in
+    the T0 list; 2 m_r slots = T1 + 2 T2 (+ warts: a T0^w takes a T2's redundant slot); the
+    invaded triangles form a disk bounded by the ring (m_r - 2 of them)."""
+    closed = close_boundaries(_mesh(key))
+    ct = CornerTable.from_faces(closed.faces, closed.num_vertices)
+    V, O = np.asarray(ct.V), np.asarray(ct.O)
+    ring = best_ring(V, O, closed.num_vertices, seeds=2, dummy=closed.dummy_vertices)
+    m_r = ring.order.size
+    assert np.unique(ring.order).size == m_r  # a simple loop
+    assert not closed.dummy_vertices[ring.order].any()  # Sec. 4.6: dummies never on the ring
+    assert ring.num_isolated == closed.num_vertices - m_r
+    # consecutive ring vertices are mesh edges, and right_corner faces them
+    a, b = ring.order, np.roll(ring.order, -1)
+    rc = ring.right_corner
+    nxt = lambda c: 3 * (c // 3) + (c + 1) % 3  # noqa: E731
+    np.testing.assert_array_equal(V[nxt(rc)], a)
+    np.testing.assert_array_equal(V[nxt(nxt(rc))], b)
+    for warts in (False, True):
+        tb = lr_tables(V, O, ring, closed.num_vertices, wart_skipping=warts)
+        held = np.concatenate([(tb.left_corner // 3)[~tb.red_left],
+                               (tb.right_corner // 3)[~tb.red_right], tb.t0])
+        np.testing.assert_array_equal(np.sort(held), np.arange(closed.num_faces))
+        nw = int(tb.skip_left.sum() + tb.skip_right.sum())
+        nred = int(tb.red_left.sum() + tb.red_right.sum())
+        assert nred == tb.num_t2 - nw and (nw == 0 or warts)
+        # canonical LR corner numbering covers every corner once
+        assert np.unique(tb.lr_corner).size == 3 * closed.num_faces and tb.lr_corner.min() >= 0
+    # invaded = the right slots' triangles of the RING-EXPANDER disk: m_r - 2 triangles
+    from jaxcds.construct.ring_expander import ring_expander
+
+    tm, _ = ring_expander(V, O, closed.num_vertices, ring.seed, closed.dummy_vertices)
+    assert int(tm.sum()) == m_r - 2
+
+
+# ------------------------------------------------------------------ Sec. 7 renderable list
+@pytest.mark.parametrize("name", ["3holes", "grid", "camelhead-bits-auto", "3holes-no-warts"])
+def test_renderable_index_list_expands_to_the_mesh(name):
+    s = _built(name)
+    mesh = _mesh(CONFIGS[name][0])
+    idx, st_ = renderable_index_list(s)
+    assert idx.dtype == np.int32 and st_["references"] == idx.size
+    tri = expand_renderable_index_list(idx, s.num_ring)
+    assert tri.shape == (s.num_faces, 3)
+    real = mesh.faces if mesh.dummy_faces is None else mesh.faces[~mesh.dummy_faces]
+    got = _triangle_set(np.asarray(s.vertex_order)[tri])
+    np.testing.assert_array_equal(got, _triangle_set(real))
+    # about one reference per triangle (paper: mean 1.03 with wart skips, 1.10 without)
+    assert st_["rpt"] == idx.size / s.num_faces
+    assert st_["references"] == 2 * s.num_ring + 3 * st_["num_t0"]
+    if s.num_faces > 1000:  # tiny meshes (the cube: 16 slots, 12 triangles) are far from it
+        assert 1.0 <= st_["rpt"] < 1.15, st_
+    with pytest.raises(errors.StructureError):
+        expand_renderable_index_list(idx[:-1], s.num_ring)
+
+
+# ------------------------------------------------------------------ protocol, generic algorithms
+def test_verify_icosphere():
+    """Protocol vs HalfEdge on a mesh test_protocol does not build (one compile)."""
+    rep = verify(_built("icosphere3"), _mesh("icosphere3"))
+    assert rep.mismatches == 0 and rep.checked > 10 * 1280, str(rep)
+
+
+@pytest.mark.slow
+def test_verify_wart_skipping_off():
+    g = _mesh("grid.off")
+    s = LR.from_mesh(g, wart_skipping=False)
+    assert stats(s)["T0w"] == 0
+    rep = verify(s, g)
+    assert rep.mismatches == 0 and rep.checked > 10 * g.num_faces, str(rep)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("k", [1, 16, 0])
+def test_verify_lr_bits_periods(k):
+    m = _mesh("camelhead.off")
+    rep = verify(LRBits.from_mesh(m, k=k), m)
+    assert rep.mismatches == 0, str(rep)
+
+
+@pytest.mark.slow
+def test_verify_closed_grid_borders_false():
+    g = _mesh("grid.off")
+    closed = close_boundaries(g)
+    s = LR.from_mesh(g, borders=False)
+    assert not s.has_border and s.num_vertices == closed.num_vertices
+    rep = verify(s, closed)
+    assert rep.mismatches == 0, str(rep)
+
+
+def test_degrees_normals_and_gradient_equal_halfedge():
+    """Generic algorithms run unchanged: degrees, area-weighted normals and their gradient
+    w.r.t. positions on the holed grid (border darts of LR = HalfEdge's)."""
+    g = _mesh("grid.off")
+    s = _built("grid")
+    he = HalfEdge.from_faces(g.faces, g.num_vertices)
+    order = np.asarray(s.vertex_order)
+    np.testing.assert_array_equal(np.asarray(vertex_degrees(s)),
+                                  np.asarray(vertex_degrees(he))[order])
+    pos = jnp.asarray(g.vertices, jnp.float32)
+    w = jnp.asarray(np.random.default_rng(0).normal(size=(g.num_vertices, 3)), jnp.float32)
+
+    def loss(structure, perm):
+        return lambda p: jnp.sum(vertex_normals(structure, p[perm]) * w[perm])
+
+    want_n = np.asarray(vertex_normals(he, pos))[order]
+    np.testing.assert_allclose(np.asarray(vertex_normals(s, pos[order])), want_n, atol=2e-5)
+    g_he = np.asarray(jax.grad(loss(he, np.arange(g.num_vertices)))(pos))
+    g_lr = np.asarray(jax.grad(loss(s, order))(pos))
+    assert np.abs(g_he).max() > 0
+    np.testing.assert_allclose(g_lr, g_he, atol=1e-4)
+
+
+# ------------------------------------------------------------------ refusals
+def _tetra(offset=0):
+    return np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]) + offset
+
+
+def test_refusals_are_typed():
+    rng = np.random.default_rng(0)
+    # two tetrahedra: several components
+    two = load_mesh(rng.normal(size=(8, 3)), np.concatenate([_tetra(), _tetra(4)]))
+    for build in (LR.from_mesh, LRBits.from_mesh):
+        with pytest.raises(errors.UnsupportedTopologyError, match="component"):
+            build(two)
+    # three triangles on one edge: non-manifold
+    nm = load_mesh(rng.normal(size=(5, 3)), np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]]))
+    with pytest.raises(errors.NonManifoldEdgeError):
+        LR.from_mesh(nm)
+    # one triangle, closed by a dummy vertex that may not be on the ring: a 3-vertex ring
+    with pytest.raises(errors.UnsupportedTopologyError, match="ring"):
+        LR.from_mesh(load_mesh(rng.normal(size=(3, 3)), np.array([[0, 1, 2]])))
+
+
+# ------------------------------------------------------------------ large meshes (slow)
+@pytest.mark.slow
+@pytest.mark.parametrize("key", ["stanford-bunny.obj", "face.obj", "armadillo.obj"])
+def test_large_meshes_corner_operators(key):
+    m = load_shared(key)
+    for s in (LR.from_mesh(m), LRBits.from_mesh(m, k=(64, 256))):
+        check_corner_operators(s, m)
+        idx, _ = renderable_index_list(s)
+        tri = expand_renderable_index_list(idx, s.num_ring)
+        real = m.faces if m.dummy_faces is None else m.faces[~m.dummy_faces]
+        np.testing.assert_array_equal(_triangle_set(np.asarray(s.vertex_order)[tri]),
+                                      _triangle_set(real))
