@@ -1,0 +1,154 @@
+"""RING-EXPANDER (LR paper Sec. 4.2) and HYBRID-RING-EXPANDER (Sec. 6.1), numba kernels against
+slow Python versions of the listings, and the ring they produce (no JAX: cheap)."""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from jaxcds import errors
+from jaxcds.construct.ring_expander import (best_ring, extract_ring, hybrid_ring_expander,
+                                            reference_ring_expander, ring_expander)
+from jaxcds.generators import random_planar_triangulation_faces
+from jaxcds.mesh import close_boundaries, load_mesh
+from jaxcds.structures.corner_table import CornerTable
+
+from conftest import load_shared
+
+
+def _vo(faces, nv):
+    ct = CornerTable.from_faces(faces, nv)
+    return np.asarray(ct.V), np.asarray(ct.O)
+
+
+def _nx(c):
+    return 3 * (c // 3) + (c + 1) % 3
+
+
+def _pv(c):
+    return 3 * (c // 3) + (c + 2) % 3
+
+
+def reference_hybrid(V, O, nv, seed, k, dummy=None):
+    """The Sec. 6.1 listing with a Python deque (``k = 0``: never breadth-first)."""
+    vm = np.zeros(nv, bool) if dummy is None else np.asarray(dummy, bool).copy()
+    tm = np.zeros(len(V) // 3, bool)
+    c = seed
+    vm[V[_nx(c)]] = vm[V[_pv(c)]] = True
+    d = collections.deque([O[c]])
+    n = 0
+    while True:
+        if not vm[V[c]]:
+            vm[V[c]] = tm[c // 3] = True
+            d.append(O[_nx(c)])
+            d.append(O[_pv(c)])
+            n += 1
+        if not d:
+            break
+        c = d.popleft() if (k > 0 and n % k == 0) else d.pop()
+    return tm.astype(np.uint8), vm.astype(np.uint8)
+
+
+def _meshes():
+    out = {}
+    for name in ("cube.off", "grid.off", "3holes.off"):
+        m = close_boundaries(load_shared(name))
+        out[name] = (m.faces, m.num_vertices, m.dummy_vertices)
+    return out
+
+
+@pytest.fixture(scope="module")
+def meshes():
+    return _meshes()
+
+
+def _check_ring(V, O, tm, vm, nv, dummy, seed):
+    """Invaded triangles form a disk whose boundary is the ring: ``m_r - 2`` triangles, every
+    ring vertex visited, no dummy on the ring (Sec. 4.6)."""
+    ring = extract_ring(V, O, tm, nv, seed)
+    m_r = ring.order.size
+    assert int(tm.sum()) == m_r - 2
+    assert np.unique(ring.order).size == m_r
+    assert vm[ring.order].all()
+    if dummy is not None:
+        assert not np.asarray(dummy, bool)[ring.order].any()
+    # every vertex is on the ring or isolated: m_i = m - m_r
+    assert ring.num_isolated == nv - m_r
+    return ring
+
+
+@pytest.mark.parametrize("name", ["cube.off", "grid.off", "3holes.off"])
+def test_ring_expander_equals_reference_listing(meshes, name):
+    faces, nv, dummy = meshes[name]
+    V, O = _vo(faces, nv)
+    ok = ~np.asarray(dummy, bool)[V.reshape(-1, 3)].any(axis=1)
+    for t in np.nonzero(ok)[0][:: max(1, ok.sum() // 6)][:6]:
+        seed = int(3 * t)
+        tm, vm = ring_expander(V, O, nv, seed, dummy)
+        rtm, rvm = reference_ring_expander(V, O, nv, seed, dummy)
+        np.testing.assert_array_equal(tm, rtm)
+        np.testing.assert_array_equal(vm, rvm)
+        _check_ring(V, O, tm, vm, nv, dummy, seed)
+
+
+@pytest.mark.parametrize("k", [1, 2, 16, 0])
+def test_hybrid_ring_expander_equals_reference_listing(meshes, k):
+    faces, nv, dummy = meshes["3holes.off"]
+    V, O = _vo(faces, nv)
+    for seed in (0, 300, 3 * 1000 + 1):
+        tm, vm = hybrid_ring_expander(V, O, nv, seed, k, dummy)
+        rtm, rvm = reference_hybrid(V, O, nv, seed, k, dummy)
+        np.testing.assert_array_equal(tm, rtm)
+        np.testing.assert_array_equal(vm, rvm)
+        _check_ring(V, O, tm, vm, nv, dummy, seed)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(5, 300), seed=st.integers(0, 2**31 - 1), k=st.sampled_from([None, 1, 3, 0]))
+def test_random_triangulations_against_reference(n, seed, k):
+    faces = random_planar_triangulation_faces(n, seed=seed)
+    V, O = _vo(faces, n)
+    s = int(seed % (3 * len(faces)))
+    if k is None:
+        got, want = ring_expander(V, O, n, s), reference_ring_expander(V, O, n, s)
+    else:
+        got, want = hybrid_ring_expander(V, O, n, s, k), reference_hybrid(V, O, n, s, k)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    _check_ring(V, O, got[0], got[1], n, None, s)
+
+
+def test_second_walk_reaches_the_vertex_behind_s_o():
+    """A lone quad closed by a dummy: the Sec. 4.2 listing stops at ``s.o`` and would leave the
+    fourth vertex isolated; the second walk from ``s.o`` puts it on the ring."""
+    quad = load_mesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float),
+                     np.array([[0, 1, 2], [0, 2, 3]]))
+    m = close_boundaries(quad)
+    V, O = _vo(m.faces, m.num_vertices)
+    for seed in (0, 1, 2, 3, 4, 5):
+        tm, vm = ring_expander(V, O, m.num_vertices, seed, m.dummy_vertices)
+        ring = _check_ring(V, O, tm, vm, m.num_vertices, m.dummy_vertices, seed)
+        assert ring.order.size == 4 and ring.num_isolated == 1  # only the dummy is off the ring
+
+
+def test_best_ring_keeps_fewest_isolated(meshes):
+    faces, nv, dummy = meshes["3holes.off"]
+    V, O = _vo(faces, nv)
+    seeds = [0, 30, 3000, 9000, 15000]
+    rings = [best_ring(V, O, nv, seeds=[s], dummy=dummy) for s in seeds]
+    best = best_ring(V, O, nv, seeds=seeds, dummy=dummy)
+    assert best.num_isolated == min(r.num_isolated for r in rings)
+
+
+def test_corrupted_corner_table_is_refused():
+    # every opposite points at one corner: no ring can be extracted (typed error, not a hang)
+    faces = random_planar_triangulation_faces(20, seed=1)
+    V, O = _vo(faces, 20)
+    O_bad = O.copy()
+    O_bad[:] = O_bad[0]
+    with pytest.raises((errors.StructureError, errors.UnsupportedTopologyError)):
+        tm, _ = ring_expander(V, O_bad, 20, 0)
+        extract_ring(V, O_bad, tm, 20, 0)
