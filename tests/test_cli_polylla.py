@@ -1,0 +1,129 @@
+"""``jaxcds polylla`` (issue 7): JSON keys, the reference's 17 polygons of points50.1 from each
+input kind (Triangle files, 2-D OFF, point list), the same file on pemb, errors that write
+nothing. One triangulation shape throughout (jit compiles once per shape)."""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+
+import numpy as np
+import pytest
+
+from jaxcds import polylla_io as io
+from jaxcds.algorithms import polylla as P
+from jaxcds.cli import main
+
+SHARED = pathlib.Path(os.environ.get("JAXCDS_SHARED",
+                                     pathlib.Path(__file__).resolve().parents[1].parent / "shared"))
+POLYLLA = SHARED / "polylla"
+KEYS = {"polygons", "barrier_edge_tips", "repaired_polygons", "vertices", "triangles", "regions",
+        "frontier_edges", "structure", "input", "output", "timings", "seconds"}
+PHASES = {"build", "label", "traversal", "repair", "polygons"}
+
+
+def _need(name: str) -> str:
+    p = POLYLLA / name
+    if not p.exists():
+        pytest.skip(f"{p} not found")
+    return str(p)
+
+
+def run_json(capsys, argv):
+    rc = main(argv)
+    out = capsys.readouterr()
+    assert rc == 0, out.err
+    return json.loads(out.out)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """The reference Polylla's 17 polygons of points50.1 as canonical cycles."""
+    _, ref = io.read_polygon_off(_need("points50.1.off"))
+    assert len(ref) == 17
+    return P.polygons_as_cycles(ref)
+
+
+@pytest.fixture(scope="module")
+def halfedge_run(tmp_path_factory, reference):
+    """``jaxcds polylla points50.1.node -o out.off --json`` once: (report, output bytes)."""
+    out = tmp_path_factory.mktemp("he") / "out.off"
+    rc = main(["polylla", _need("points50.1.node"), "-o", str(out), "--json"])
+    assert rc == 0
+    return out, out.read_bytes()
+
+
+def test_triangle_input_json_and_off(capsys, tmp_path, reference):
+    out = tmp_path / "p.off"
+    d = run_json(capsys, ["polylla", _need("points50.1.node"), "-o", str(out), "--json"])
+    assert KEYS <= set(d) and PHASES <= set(d["timings"])
+    assert (d["polygons"], d["vertices"], d["triangles"]) == (17, 50, 83)
+    assert (d["barrier_edge_tips"], d["repaired_polygons"], d["structure"]) == (0, 0, "halfedge")
+    assert d["regions"] == 17 and d["output"] == str(out)
+    pts, polys = io.read_polygon_off(str(out))
+    assert pts.shape == (50, 2) and P.polygons_as_cycles(polys) == reference
+    assert os.listdir(tmp_path) == ["p.off"]  # no temporary file left
+    assert os.stat(out).st_mode & 0o777 != 0o600  # not mkstemp's private mode
+
+
+def test_other_inputs_give_the_same_file(capsys, tmp_path, halfedge_run):
+    """The same triangulation as a 2-D OFF file, the .ele stem, and the bare points (scipy's
+    Delaunay of points50's 50 points is Triangle's points50.1): byte-identical OFF outputs."""
+    ref_out, ref_bytes = halfedge_run
+    tri = io.read_triangle(_need("points50.1.node"))
+    off = tmp_path / "tri.off"
+    off.write_text(f"OFF\n{tri.num_vertices} {tri.num_faces} 0\n"
+                   + "".join(f"{x!r} {y!r} 0\n" for x, y in tri.points.tolist())
+                   + "".join(f"3 {a} {b} {c}\n" for a, b, c in tri.faces.tolist()))
+    xy = tmp_path / "pts.xy"
+    np.savetxt(xy, tri.points, fmt="%.17g")
+    for src in (str(off), str(xy), _need("points50.1.ele")):
+        out = tmp_path / "o.off"
+        d = run_json(capsys, ["polylla", src, "-o", str(out), "--json"])
+        assert (d["polygons"], d["vertices"], d["triangles"]) == (17, 50, 83), src
+        assert out.read_bytes() == ref_bytes, src
+    # without -o: a report, no file; text mode prints one "key: value" line per key
+    assert main(["polylla", str(xy)]) == 0
+    text = capsys.readouterr().out
+    assert "polygons: 17" in text and "barrier_edge_tips: 0" in text
+    assert sorted(os.listdir(tmp_path)) == ["o.off", "pts.xy", "tri.off"]
+
+
+@pytest.mark.slow  # pemb compiles every phase for its own shape (~12-18 s CPU)
+def test_pemb_writes_the_same_file(capsys, tmp_path, halfedge_run):
+    _, ref_bytes = halfedge_run
+    out = tmp_path / "pemb.off"
+    d = run_json(capsys, ["polylla", _need("points50.1.node"), "-o", str(out), "-s", "pemb",
+                          "--json"])
+    assert d["structure"] == "pemb" and d["polygons"] == 17
+    assert out.read_bytes() == ref_bytes
+
+
+def _refused(capsys, argv, out, match):
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2 and match in err and "Traceback" not in err, err
+    assert not os.path.exists(out)
+
+
+def test_errors_write_nothing(capsys, tmp_path):
+    out = str(tmp_path / "o.off")
+    _refused(capsys, ["polylla", str(tmp_path / "missing.off"), "-o", out], out, "no such file")
+    quad = tmp_path / "q.off"
+    quad.write_text("OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
+    _refused(capsys, ["polylla", str(quad), "-o", out], out, "face 0 has 4 vertices")
+    tri = tmp_path / "t.off"
+    tri.write_text("OFF\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n5 5 0\n3 0 1 2\n3 0 2 3\n")
+    _refused(capsys, ["polylla", str(tri), "-o", str(tmp_path / "o.obj")],
+             str(tmp_path / "o.obj"), "unknown suffix '.obj'")
+    # pemb is chosen (and refuses the unused vertex 4 by name) before anything is compiled
+    _refused(capsys, ["polylla", str(tri), "-o", out, "-s", "pemb"], out, "vertex 4 is in no triangle")
+    with pytest.raises(SystemExit) as exc:  # argparse: not a structure Polylla runs on
+        main(["polylla", str(tri), "-s", "cds6n"])
+    assert exc.value.code == 2 and "invalid choice" in capsys.readouterr().err
+    keep = tmp_path / "keep.off"
+    keep.write_text("old")
+    assert main(["polylla", str(quad), "-o", str(keep)]) == 2
+    assert keep.read_text() == "old"
+    capsys.readouterr()
