@@ -36,7 +36,22 @@ from IPython.display import Markdown, display
 plt.rcParams["figure.dpi"] = 80
 
 SMALL = os.environ.get("JAXCDS_NB_SMALL") == "1"   # the test suite runs every notebook with SMALL
-print("jax", jax.__version__, "| small sizes" if SMALL else "| normal sizes")'''
+print("jax", jax.__version__, "| small sizes" if SMALL else "| normal sizes")
+
+def render(ax, P, F, normals=None, face_colours=None, title="", elev=12, azim=-60):
+    """Flat 3-D render of a y-up mesh (rotated to matplotlib's z-up): faces shaded by their mean
+    vertex normal against a light near the viewer, or coloured by `face_colours`."""
+    R = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]])             # rotation: y-up -> z-up
+    P = np.asarray(P) @ R.T
+    coll = ax.plot_trisurf(P[:, 0], P[:, 1], P[:, 2], triangles=F, linewidth=0, antialiased=False)
+    if normals is not None:
+        e, a = np.radians(elev + 25), np.radians(azim + 20)
+        light = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+        shade = np.clip((np.asarray(normals) @ R.T)[F].mean(axis=1) @ light, 0, 1)
+        face_colours = plt.cm.Greys_r(0.1 + 0.8 * shade)
+    coll.set_facecolor(face_colours)
+    ax.set_axis_off(); ax.set_box_aspect(np.ptp(P, axis=0), zoom=1.35); ax.view_init(elev, azim)
+    ax.set_title(title)'''
 
 # ----------------------------------------------------------------------------------- 01 tour
 TOUR: List[Cell] = [
@@ -100,34 +115,37 @@ fig.suptitle(f"memory on {mesh.source} ({mesh.num_vertices} vertices)")
 plt.tight_layout(); plt.show()'''),
     ("md", """\
 ## Batched queries, jitted
-Every operator takes arrays of dart ids. A million random `target` queries per structure
-(timings on a shared 2-core CPU: indicative only, `benchmarks/` has the careful numbers),
-then `adjacent(u, v)` on vertex pairs, compared with the half-edge through `vertex_order`."""),
+Every operator takes arrays of dart ids: here a batch of random darts per structure and four
+operators (Target, Twin, Next = LeftFront, Face_left) in one jitted call (timings on a shared
+2-core CPU: indicative only, `benchmarks/` has the careful numbers). The answers are compared
+with the half-edge's through `vertex_order`, as `verify` did above for every operator on every
+dart (its per-operator counts include `adjacent` on vertex pairs)."""),
     ("code", '''\
 he = structures["halfedge"]
 rng = np.random.default_rng(0)
 Q = 100_000 if SMALL else 1_000_000
-f_target = jax.jit(lambda s, e: s.target(e))
+
+@jax.jit
+def queries(s, e):
+    return s.origin(e), s.target(e), s.target(s.twin(e)), s.target(s.next(e)), s.face_left(e)
+
+he_darts = he.all_darts()
+he_o, he_t = (np.asarray(x) for x in jax.jit(lambda e: (he.origin(e), he.target(e)))(jnp.asarray(he_darts)))
+he_next_target = {(a, b): c for a, b, c in zip(he_o, he_t, np.asarray(he.target(he.next(jnp.asarray(he_darts)))))}
 timing = []
 for name, s in structures.items():
     e = jnp.asarray(rng.choice(s.all_darts(), Q))
-    jax.block_until_ready(f_target(s, e))                # compile + warm-up
-    t0 = time.perf_counter(); jax.block_until_ready(f_target(s, e)); t = time.perf_counter() - t0
-    timing.append(f"| {name} | {1e9 * t / Q:.1f} ns |")
-display(Markdown("| structure | Target, per query |\\n|---|---|\\n" + "\\n".join(timing)))
-
-u = rng.integers(0, mesh.num_vertices, 2000).astype(np.int32)
-v = np.array(he.target(he.edge_of_vertex(u)))            # true neighbours (a writable copy) ...
-v[::2] = rng.integers(0, mesh.num_vertices, 1000)           # ... half of them replaced by random vertices
-want = np.asarray(adjacent(he, u, v))
-print(f"{int(want.sum())} of {len(u)} pairs adjacent in the half-edge")
-for name, s in structures.items():
-    order = s.vertex_order
-    inv = np.arange(mesh.num_vertices) if order is None else np.argsort(np.asarray(order))
-    got = np.asarray(adjacent(s, inv[u], inv[v]))
-    bad = int(np.sum(got != want))
-    assert bad == 0, name
-    print(f"{name:14s} adjacent: {bad} disagreements with the half-edge")'''),
+    jax.block_until_ready(queries(s, e))                 # compile + warm-up
+    t0 = time.perf_counter(); out = jax.block_until_ready(queries(s, e)); t = time.perf_counter() - t0
+    o, tg, tw, nx, _ = (np.asarray(x) for x in out)
+    order = np.arange(mesh.num_vertices) if s.vertex_order is None else np.asarray(s.vertex_order)
+    o, tg, tw, nx = order[o], order[tg], order[tw], order[nx]          # back to input vertex ids
+    k = rng.integers(0, Q, 1000)
+    ok = bool(np.all(tw == o)) and all(he_next_target[(a, b)] == c for a, b, c in zip(o[k], tg[k], nx[k]))
+    assert ok, name
+    timing.append(f"| {name} | {1e9 * t / Q:.1f} ns | {ok} |")
+display(Markdown("| structure | 4 operators, per dart | agrees with the half-edge |\\n|---|---|---|\\n" + "\\n".join(timing)))
+print("verify, per operator (mismatches), last structure:", rep.by_operator)'''),
     ("md", """\
 ## Degrees and normals on any structure
 `vertex_degrees` and `vertex_normals` are generic: they only use the navigation protocol, so
@@ -147,18 +165,9 @@ for name, s in structures.items():
     print(f"{name:14s} max |normal - half-edge normal| = {np.abs(n - n_ref).max():.1e}, "
           f"degrees equal: {bool(np.array_equal(d, d_ref))}, degree sum = {d.sum()} (= 2E = {2 * (3 * mesh.num_vertices - 6)})")'''),
     ("code", '''\
-def shaded(ax, P, F, normals, title):
-    """Flat render: faces shaded by their mean vertex normal against a fixed light."""
-    light = np.array([0.3, 0.3, 0.9]) / np.linalg.norm([0.3, 0.3, 0.9])
-    shade = np.clip(normals[F].mean(axis=1) @ light, 0, 1)
-    coll = ax.plot_trisurf(P[:, 0], P[:, 1], P[:, 2], triangles=F, linewidth=0)
-    coll.set_facecolor(plt.cm.Greys_r(0.15 + 0.7 * shade))
-    ax.set_axis_off(); ax.set_box_aspect(np.ptp(P, axis=0)); ax.view_init(20, -70)
-    ax.set_title(title)
-
-fig = plt.figure(figsize=(5, 5))
-shaded(fig.add_subplot(projection="3d"), np.asarray(mesh.vertices), mesh.faces, n_ref,
-       "shaded by vertex normals (half-edge)")
+fig = plt.figure(figsize=(6, 6))
+render(fig.add_subplot(projection="3d"), mesh.vertices, mesh.faces, normals=n_ref,
+       title="shaded by vertex normals (half-edge)")
 plt.show()'''),
     ("md", """\
 ## Many meshes at once: a packed batch
@@ -487,13 +496,11 @@ rank = np.full(m3.num_vertices, np.nan); rank[order3[:m_r]] = np.arange(m_r) / m
 face_rank = np.nanmean(rank[m3.faces], axis=1)
 P3 = np.asarray(m3.vertices)
 fig = plt.figure(figsize=(11, 5.5))
-for k, (el, az) in enumerate(((20, -70), (20, 110))):
+for k, (el, az) in enumerate(((12, -60), (12, 120))):
     ax = fig.add_subplot(1, 2, k + 1, projection="3d")
-    coll = ax.plot_trisurf(P3[:, 0], P3[:, 1], P3[:, 2], triangles=m3.faces, linewidth=0)
     colours = plt.cm.coolwarm(np.nan_to_num(face_rank, nan=0.5))
     colours[np.isnan(face_rank)] = (0.6, 0.6, 0.6, 1)
-    coll.set_facecolor(colours)
-    ax.set_axis_off(); ax.set_box_aspect(np.ptp(P3, axis=0)); ax.view_init(el, az)
+    render(ax, P3, m3.faces, face_colours=colours, elev=el, azim=az)
 fig.suptitle(f"{m3.source}: {m3.num_vertices} vertices, ring of {m_r}, {s3.num_isolated} isolated, "
              f"{s3.references / m3.num_faces:.2f} rpt")
 plt.tight_layout(); plt.show()'''),
@@ -505,7 +512,7 @@ DIFF: List[Cell] = [
 # 3. A differentiable pipeline on a compact structure
 
 Vertex normals computed by `jaxcds.algorithms.vertex_normals` on a **compact** structure
-(CDS5n, CDS paper Thm 4: 5 references per vertex, against 19 for the half-edge) are
+(CDS5n, CDS paper Thm 4; references per vertex printed below, against 19 for the half-edge) are
 differentiable with respect to the positions. We denoise a mesh by gradient descent on a
 *normal smoothing* energy: neighbouring vertex normals should agree, while positions stay close
 to the data. The gradient through the compact structure is compared with the gradient through
@@ -554,7 +561,9 @@ def smoothing_loss(P, normals_fn):
     return jnp.mean(jnp.sum((N[U] - N[W]) ** 2, axis=1)) + lam * jnp.mean(jnp.sum((P - P_noisy) ** 2, axis=1)) / scale**2
 
 loss_cds = lambda P: smoothing_loss(P, lambda P: vertex_normals(s, P))
-loss_faces = lambda P: smoothing_loss(P, lambda P: face_list_vertex_normals(P, jnp.asarray(F_s)))
+# the face list of the input file, renumbered like the structure (not read back from it)
+F_in = jnp.asarray(np.argsort(order)[mesh.faces].astype(np.int32))
+loss_faces = lambda P: smoothing_loss(P, lambda P: face_list_vertex_normals(P, F_in))
 
 g_cds = jax.jit(jax.grad(loss_cds))(P_noisy)
 g_faces = jax.jit(jax.grad(loss_faces))(P_noisy)
@@ -611,14 +620,9 @@ print(f"mean distance to the clean mesh: {err(P_noisy):.3f} h -> {err(P):.3f} h;
 assert losses[-1] < losses[0]'''),
     ("code", '''\
 def shaded(ax, P, title):
-    P = np.asarray(P); N = np.asarray(vertex_normals(s, jnp.asarray(P)))
-    light = np.array([0.3, 0.3, 0.9]) / np.linalg.norm([0.3, 0.3, 0.9])
-    shade = np.clip(N[F_s].mean(axis=1) @ light, 0, 1)
-    coll = ax.plot_trisurf(P[:, 0], P[:, 1], P[:, 2], triangles=F_s, linewidth=0)
-    coll.set_facecolor(plt.cm.Greys_r(0.15 + 0.7 * shade))
-    ax.set_axis_off(); ax.set_box_aspect(np.ptp(P, axis=0)); ax.view_init(20, -70); ax.set_title(title)
+    render(ax, P, F_s, normals=vertex_normals(s, jnp.asarray(P)), title=title)
 
-fig = plt.figure(figsize=(15, 4.8))
+fig = plt.figure(figsize=(18, 5))
 shaded(fig.add_subplot(1, 4, 1, projection="3d"), P_clean, "clean")
 shaded(fig.add_subplot(1, 4, 2, projection="3d"), P_noisy, "noisy (before)")
 shaded(fig.add_subplot(1, 4, 3, projection="3d"), P, f"after {steps} Adam steps")
@@ -664,30 +668,36 @@ for n in sizes:
     if n <= 100_000:   # the decoded triangulation is the input one, up to the vertex numbering
         assert np.array_equal(canon(np.asarray(enc.order)[faces]), canon(mesh.faces))
     rows.append(dict(n=n, bits=enc.words.num_bits, bpv=enc.bits_per_vertex, bytes=enc.words.bits.nbytes,
-                     enc=t_enc, dec=t_dec, dec5=t_dec5))
+                     enc=t_enc, wood=enc.wood_seconds, words=enc.words_seconds, dec=t_dec, dec5=t_dec5))
 
-display(Markdown("| n | bits | bits / vertex | bytes | encode | decode to faces | decode to CDS5n |\\n|---:|---:|---:|---:|---:|---:|---:|\\n" +
-                 "\\n".join(f"| {r['n']:,} | {r['bits']:,} | {r['bpv']:.4f} | {r['bytes']:,} | {r['enc']*1e3:.1f} ms | "
-                           f"{r['dec']*1e3:.1f} ms | {r['dec5']*1e3:.1f} ms |" for r in rows)))'''),
+display(Markdown("| n | bits | bits / vertex | bytes | encode (of which: wood, words) | decode to faces | decode to CDS5n |\\n"
+                 "|---:|---:|---:|---:|---:|---:|---:|\\n" +
+                 "\\n".join(f"| {r['n']:,} | {r['bits']:,} | {r['bpv']:.4f} | {r['bytes']:,} | {r['enc']*1e3:.1f} ms "
+                           f"({r['wood']*1e3:.1f}, {r['words']*1e3:.1f}) | {r['dec']*1e3:.1f} ms | {r['dec5']*1e3:.1f} ms |"
+                           for r in rows)))'''),
     ("md", """\
 For scale: a face list stores `2n` triangles of three 32-bit ints, **192 bits per vertex**; the
-corner table 13 references per vertex, 416 bits; CDS5n 5 references, 160 bits. The code uses
-`4 - 3/n` bits per vertex."""),
+navigable structures hold 32-bit references (counts measured below on a 10,000-vertex mesh). The
+code uses `4 - 3/n` bits per vertex, but is not navigable: decode it into a structure first."""),
     ("code", '''\
+import jaxcds
+m10k = random_planar_triangulation(10_000, seed=2)
+refs = {name: jaxcds.build(name, m10k).references_per_vertex for name in ("halfedge", "corner-table", "cds5n", "lr")}
+print({k: round(v, 2) for k, v in refs.items()}, "references per vertex")
 ns = np.array([r["n"] for r in rows])
 fig, axes = plt.subplots(1, 2, figsize=(12, 4))
 ax = axes[0]
 ax.plot(ns, [r["bpv"] for r in rows], "o-", label="4n-bit code (measured)")
-for lab, y, c in (("face list, int32", 192, "tab:gray"), ("CDS5n, 5 refs", 160, "tab:green"),
-                  ("corner table, 13 refs", 416, "tab:orange")):
-    ax.axhline(y, ls="--", color=c, label=lab)
+ax.axhline(192, ls="--", color="tab:gray", label="face list, int32")
+for (name, r), c in zip(refs.items(), ("tab:red", "tab:orange", "tab:green", "tab:purple")):
+    ax.axhline(32 * r, ls=":", color=c, label=f"{name}, {r:.2f} refs x 32 bits")
 ax.set_xscale("log"); ax.set_yscale("log"); ax.set_xlabel("vertices n"); ax.set_ylabel("bits per vertex")
 ax.set_title("size"); ax.legend(fontsize=8); ax.grid(alpha=0.3, which="both")
 ax = axes[1]
 for key, lab in (("enc", "encode (wood + words)"), ("dec", "decode to faces"), ("dec5", "decode into CDS5n")):
     ax.plot(ns, [r["n"] / r[key] / 1e6 for r in rows], "o-", label=lab)
-ax.set_xscale("log"); ax.set_xlabel("vertices n"); ax.set_ylabel("million vertices per second")
-ax.set_title("speed (linear time: flat curves)"); ax.legend(fontsize=8); ax.grid(alpha=0.3, which="both")
+ax.set_xscale("log"); ax.set_yscale("log"); ax.set_xlabel("vertices n"); ax.set_ylabel("million vertices per second")
+ax.set_title("throughput (a flat curve = linear time)"); ax.legend(fontsize=8); ax.grid(alpha=0.3, which="both")
 plt.tight_layout(); plt.show()'''),
 ]
 
