@@ -675,11 +675,8 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
 
     # construction-time check of the ring case analysis (Sec. 4.5, Fig. 6) on every regular
     # corner; a transversal corner it cannot resolve makes its slot irregular (stored in VO*).
-    zeros = np.zeros(m, np.int64)
-
-    def dec_np(v):
-        return _Slot(l=lv[v], r=rv[v], skl=skl[v], skr=skr[v], irl=zeros[v], irr=zeros[v],
-                     lo=zeros[v], ro=zeros[v])
+    def dec_np(v):  # the ring case analysis reads l, r and the skip bits only
+        return _Slot(l=lv[v], r=rv[v], skl=skl[v], skr=skr[v], irl=0, irr=0, lo=0, ro=0)
 
     truth = {}
     for i, base, red, fn in ((0, cL, redl, prv), (1, cL, redl, None), (2, cL, redl, nxt),

@@ -1,0 +1,386 @@
+"""LR benchmarks (Gurung, Luffel, Lindstrom, Rossignac, ACM TOG 2011): the paper's Table 1 on the
+shared meshes, construction throughput (Sec. 8: "two million triangles per second" from a corner
+table) and the Fig. 10 timings, for the CornerTable, ``lr`` and ``lr-bits``.
+
+* **Table 1**: every shared mesh that LR accepts (connected, manifold; holes closed by a dummy
+  vertex each, Sec. 4.6, dummies never on the ring and not counted in ``n`` or ``m_i``): ``n``
+  real triangles, % valence-6 vertices, standard LR (``m_i``, % T0, % T0^w, % T^i -- irregular
+  ring slots, T1^i and T2^i together --, references per triangle ``rpt = (2 m_r + 6 n0 + 3 n^i +
+  m_i) / n``), the Sec. 7 renderable index list (rpt), and ``lr-bits`` (chosen ``k``, % T0,
+  % T^i, % long entries T^l, bits per triangle ``32 (m_r + 6 n0 + |VO*| + m_i) / n``). Median
+  rpt / bpt over the closed (no dummy) meshes and over all of them.
+* **Construction** on a random planar triangulation (Poulalhon--Schaeffer) of ``>= 1M``
+  triangles: RING-EXPANDER alone, ring + tables + packed ``LR`` from a ``CornerTable``
+  (one seed, the paper's input), and end to end from the ``(F, 3)`` face array (validation,
+  corner table, ring, tables, packing); millions of triangles per second, median of repeats
+  after a warm-up (numba compiled and cached before).
+* **Fig. 10**: ``c.v`` and ``c.o`` over every corner, vertex valence and area-weighted vertex
+  normal by swinging around ``v.c`` (every vertex at once, a ``while_loop`` of max-degree
+  steps), and the plane-contour walk (``B`` contours walked ``S`` steps each, one ``c.o`` per
+  triangle crossed), ns per element, jitted, compile time apart, median of repeats, on a
+  random triangulation of ``>= 2M`` triangles (random positions on the sphere: the geometry only
+  drives the walk).
+
+Usage::
+
+    .venv/bin/python -m benchmarks.bench_lr            # full (minutes)
+    .venv/bin/python -m benchmarks.bench_lr --quick    # seconds, smoke test
+    .venv/bin/python -m benchmarks.bench_lr --json out.json
+
+Writes markdown tables to stdout. Timings on a shared machine are noisy: the JSON records the
+load average before and after each part.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from typing import Optional, Sequence
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SHARED = os.environ.get("JAXCDS_SHARED", os.path.join(HERE, "..", "..", "shared"))
+MESH_DIR = os.path.join(SHARED, "meshes")
+
+# the shared meshes LR accepts (README of ../shared/meshes): closed ones, then holed ones
+CLOSED = ["cube.off", "decimated-knight.off", "bunny.off", "spot.obj", "cheburashka.obj",
+          "elephant.obj", "fandisk.off", "bumpy-cube.obj", "armadillo.obj", "rocker-arm.obj",
+          "3holes.off"]
+HOLED = ["stanford-bunny.obj", "face.obj", "camelhead.off", "grid.off", "2triangles.off"]
+PAPER_BUNNY = {"n": 69451, "rpt": 1.062, "bpt": 20.27}
+
+
+def _log(msg: str) -> None:
+    print(f"[bench_lr] {msg}", file=sys.stderr, flush=True)
+
+
+def _load() -> list:
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:  # pragma: no cover
+        return []
+
+
+def _median_time(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+# ------------------------------------------------------------------------------ Table 1
+def _valence6(mesh) -> float:
+    f = mesh.faces
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    e = np.unique(e, axis=0)
+    deg = np.bincount(e.ravel(), minlength=mesh.num_vertices)
+    return 100.0 * float(np.mean(deg == 6))
+
+
+def table1(names: Sequence[str], *, seeds: int = 4, ks=None) -> list:
+    from jaxcds.mesh import load_mesh
+    from jaxcds.structures.lr import LR, LRBits, renderable_index_list, stats
+
+    rows = []
+    for name in names:
+        path = os.path.join(MESH_DIR, name)
+        if not os.path.exists(path):
+            _log(f"skip {name}: not found under {MESH_DIR}")
+            continue
+        mesh = load_mesh(path)
+        t0 = time.perf_counter()
+        lr = LR.from_mesh(mesh, seeds=seeds, check=False)
+        lr_s = time.perf_counter() - t0
+        st = stats(lr)
+        n = lr.num_faces
+        _, rst = renderable_index_list(lr)
+        t0 = time.perf_counter()
+        bits = LRBits.from_mesh(mesh, check=False, **({} if ks is None else {"k": ks}))
+        bits_s = time.perf_counter() - t0
+        sb = stats(bits)
+        rows.append({
+            "mesh": name, "n": n, "holes_closed": st["m_dummy"], "pct_v6": _valence6(mesh),
+            "m_i": st["m_i"], "pct_T0": 100.0 * lr.num_t0 / n, "pct_T0w": 100.0 * st["T0w"] / n,
+            "pct_Ti": 100.0 * st["irregular"] / n, "rpt": lr.references / n,
+            "render_rpt": rst["rpt"], "build_s": lr_s,
+            "bits_k": bits.k, "bits_m_i": sb["m_i"], "bits_pct_T0": 100.0 * bits.num_t0 / n,
+            "bits_pct_T0w": 100.0 * sb["T0w"] / n, "bits_pct_Ti": 100.0 * sb["irregular"] / n,
+            "bits_pct_Tl": 100.0 * bits.num_long * 2 / n, "bpt": bits.bits / n,
+            "bits_build_s": bits_s})
+        _log(f"{name}: n={n} rpt={rows[-1]['rpt']:.3f} bpt={rows[-1]['bpt']:.2f}")
+    return rows
+
+
+def _table1_md(rows: list) -> str:
+    out = ["| mesh | n | holes closed | %v6 | m_i | %T0 | %T0^w | %T^i | rpt | render rpt | "
+           "bits k | bits m_i | bits %T0 | bits %T^i | bits %T^l | bpt |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['mesh']} | {r['n']:,} | {r['holes_closed']} | {r['pct_v6']:.1f} | "
+                   f"{r['m_i']} | {r['pct_T0']:.2f} | {r['pct_T0w']:.2f} | {r['pct_Ti']:.2f} | "
+                   f"{r['rpt']:.3f} | {r['render_rpt']:.3f} | {r['bits_k'] or 'DFS'} | "
+                   f"{r['bits_m_i']} | {r['bits_pct_T0']:.2f} | {r['bits_pct_Ti']:.2f} | "
+                   f"{r['bits_pct_Tl']:.2f} | {r['bpt']:.2f} |")
+    return "\n".join(out)
+
+
+def _summary(rows: list) -> dict:
+    closed = [r for r in rows if r["holes_closed"] == 0 and r["n"] >= 100]
+    big = [r for r in rows if r["n"] >= 100]
+    out = {
+        "median_rpt_closed": statistics.median([r["rpt"] for r in closed]) if closed else None,
+        "median_bpt_closed": statistics.median([r["bpt"] for r in closed]) if closed else None,
+        "median_rpt_all": statistics.median([r["rpt"] for r in big]) if big else None,
+        "median_bpt_all": statistics.median([r["bpt"] for r in big]) if big else None,
+        "mean_render_rpt": statistics.mean([r["render_rpt"] for r in big]) if big else None,
+        "meshes_in_medians": "n >= 100 triangles (cube, grid... excluded when tiny)",
+    }
+    b = next((r for r in rows if r["mesh"] == "stanford-bunny.obj"), None)
+    if b is not None:
+        out["bunny"] = {"n": b["n"], "rpt": b["rpt"], "bpt": b["bpt"], "paper": PAPER_BUNNY,
+                        "rpt_rel_diff": b["rpt"] / PAPER_BUNNY["rpt"] - 1,
+                        "bpt_rel_diff": b["bpt"] / PAPER_BUNNY["bpt"] - 1}
+    return out
+
+
+# ------------------------------------------------------------------------------ construction
+def construction(num_faces: int, repeats: int) -> dict:
+    from jaxcds.construct.ring_expander import ring_expander
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures.corner_table import CornerTable
+    from jaxcds.structures.lr import LR
+
+    n = num_faces // 2 + 2
+    mesh = random_planar_triangulation(n, seed=1)
+    nf = mesh.num_faces
+    # warm up the numba kernels (cached on disk) and the packing on a small mesh
+    small = random_planar_triangulation(1000, seed=2)
+    LR.from_mesh(small, seeds=1, check=False)
+    ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices)
+    V, O = np.asarray(ct.V), np.asarray(ct.O)
+    load0 = _load()
+    ring_s = _median_time(lambda: ring_expander(V, O, mesh.num_vertices, 0), repeats)
+    tables_s = _median_time(lambda: LR.from_corner_table(ct, seeds=1, check=False), repeats)
+    e2e_s = _median_time(lambda: LR.from_mesh(mesh, seeds=1, check=False), repeats)
+    ct_s = _median_time(lambda: CornerTable.from_faces(mesh.faces, mesh.num_vertices), repeats)
+    return {"mesh": f"random:{n}", "triangles": nf, "repeats": repeats,
+            "ring_expander_s": ring_s, "ring_expander_Mtps": nf / ring_s / 1e6,
+            "lr_from_corner_table_s": tables_s, "lr_from_corner_table_Mtps": nf / tables_s / 1e6,
+            "corner_table_from_faces_s": ct_s,
+            "lr_end_to_end_s": e2e_s, "lr_end_to_end_Mtps": nf / e2e_s / 1e6,
+            "targets_Mtps": {"from_corner_table": 5.0, "end_to_end": 2.0},
+            "load_before": load0, "load_after": _load()}
+
+
+# ------------------------------------------------------------------------------ Fig. 10
+def _ops():
+    import jax
+    import jax.numpy as jnp
+
+    def vc(s, v):
+        return s.vc(v) if hasattr(s, "vc") else s.edge_of_vertex(v)
+
+    @jax.jit
+    def corner_v(s, c):
+        return s.v(c)
+
+    @jax.jit
+    def corner_o(s, c):
+        return s.o(c)
+
+    def _swing(s, pos, with_normals):
+        v = jnp.arange(s.num_vertices, dtype=jnp.int32)
+        c0 = vc(s, v)
+
+        def cond(st):
+            return jnp.any(st[1])
+
+        def body(st):
+            c, live, deg, nrm = st
+            deg = deg + live.astype(jnp.int32)
+            if with_normals:
+                p0 = pos[v]
+                a = pos[s.v(s.n(c))] - p0
+                b = pos[s.v(s.p(c))] - p0
+                nrm = nrm + jnp.where(live[:, None], jnp.cross(a, b), 0.0)
+            cn = s.s(c)
+            return cn, live & (cn != c0), deg, nrm
+
+        nrm0 = jnp.zeros((s.num_vertices, 3), pos.dtype)
+        st = jax.lax.while_loop(cond, body, (c0, jnp.ones_like(v, bool),
+                                             jnp.zeros_like(v), nrm0))
+        return st[2], st[3]
+
+    @jax.jit
+    def valence(s, pos):
+        return _swing(s, pos, False)[0]
+
+    @jax.jit
+    def normals(s, pos):
+        n = _swing(s, pos, True)[1]
+        ln = jnp.sqrt(jnp.sum(n * n, axis=-1, keepdims=True))
+        return n / jnp.where(ln > 0, ln, 1.0)
+
+    @jax.jit
+    def contour(s, pos, c0, h, steps):
+        """Walk ``B`` contours (plane z = h[b]) from corner c0[b] whose opposite edge crosses
+        the plane; returns the corners reached (one ``c.o`` per triangle crossed)."""
+        def body(_, c):
+            z = pos[s.v(c), 2] - h
+            zn = pos[s.v(s.n(c)), 2] - h
+            # entered across (c.n, c.p): leave across the other crossing edge
+            return jnp.where((z > 0) == (zn > 0), s.o(s.n(c)), s.o(s.p(c)))
+        return jax.lax.fori_loop(0, steps, body, c0)
+
+    return corner_v, corner_o, valence, normals, contour
+
+
+def _timeit(fn, args, repeats):
+    import jax
+
+    t0 = time.perf_counter()
+    compiled = fn.lower(*args).compile()
+    comp = time.perf_counter() - t0
+    jax.block_until_ready(compiled(*args))
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(compiled(*args))
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), comp
+
+
+def fig10(num_faces: int, repeats: int, contours: int, steps: int) -> list:
+    import jax
+    import jax.numpy as jnp
+
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures.corner_table import CornerTable
+    from jaxcds.structures.lr import LR, LRBits
+
+    n = num_faces // 2 + 2
+    mesh = random_planar_triangulation(n, seed=3)
+    _log(f"fig10 mesh: {mesh.num_faces} triangles; building structures")
+    structs = {"corner-table": CornerTable.from_faces(mesh.faces, mesh.num_vertices),
+               "lr": LR.from_mesh(mesh, seeds=1, check=False),
+               "lr-bits": LRBits.from_mesh(mesh, k=(64, 256), check=False)}
+    corner_v, corner_o, valence, normals, contour = _ops()
+    rows = []
+    ref_val = ref_nrm = None
+    for name, s in structs.items():
+        order = np.arange(mesh.num_vertices) if s.vertex_order is None else np.asarray(s.vertex_order)
+        pos = jnp.asarray(mesh.vertices[order], jnp.float32)
+        c = jnp.asarray(s.all_darts())
+        nc = int(c.shape[0])
+        row = {"structure": name, "triangles": mesh.num_faces, "references": int(s.references),
+               "load_before": _load()}
+        t, comp = _timeit(corner_v, (s, c), repeats)
+        row["c.v_ns"], row["c.v_compile_s"] = 1e9 * t / nc, comp
+        t, comp = _timeit(corner_o, (s, c), repeats)
+        row["c.o_ns"], row["c.o_compile_s"] = 1e9 * t / nc, comp
+        t, comp = _timeit(valence, (s, pos), repeats)
+        row["valence_ns"], row["valence_compile_s"] = 1e9 * t / s.num_vertices, comp
+        t, comp = _timeit(normals, (s, pos), repeats)
+        row["normal_ns"], row["normal_compile_s"] = 1e9 * t / s.num_vertices, comp
+        # results agree across structures (in input vertex order)
+        val = np.empty(mesh.num_vertices, np.int64)
+        val[order] = np.asarray(valence(s, pos))
+        nrm = np.empty((mesh.num_vertices, 3))
+        nrm[order] = np.asarray(normals(s, pos))
+        if ref_val is None:
+            ref_val, ref_nrm = val, nrm
+        row["valence_equal_ct"] = bool(np.array_equal(val, ref_val))
+        row["normal_max_diff_ct"] = float(np.abs(nrm - ref_nrm).max())
+        # contour walk: start corners whose opposite edge crosses z = h (host-side set-up)
+        rng = np.random.default_rng(0)
+        h = rng.uniform(-0.8, 0.8, contours).astype(np.float32)
+        zc = np.asarray(pos[:, 2])
+        cv = np.asarray(s.v(c))
+        cn = np.asarray(s.v(s.n(c)))
+        cp = np.asarray(s.v(s.p(c)))
+        cc = np.asarray(c)
+        starts = np.empty(contours, np.int32)
+        for b in range(contours):
+            cross = (zc[cn] > h[b]) != (zc[cp] > h[b])
+            starts[b] = cc[np.nonzero(cross)[0][0]]
+        t, comp = _timeit(contour, (s, pos, jnp.asarray(starts), jnp.asarray(h), steps), repeats)
+        row["contour_ns_per_triangle"], row["contour_compile_s"] = 1e9 * t / (contours * steps), comp
+        row["load_after"] = _load()
+        rows.append(row)
+        _log(f"{name}: {row}")
+    return rows
+
+
+def _fig10_md(rows: list) -> str:
+    out = ["| structure | refs | c.v ns | c.o ns | valence ns/vertex | normal ns/vertex | "
+           "contour ns/triangle | valence = CT | normal max diff |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['structure']} | {r['references']:,} | {r['c.v_ns']:.2f} | "
+                   f"{r['c.o_ns']:.2f} | {r['valence_ns']:.1f} | {r['normal_ns']:.1f} | "
+                   f"{r['contour_ns_per_triangle']:.1f} | {r['valence_equal_ct']} | "
+                   f"{r['normal_max_diff_ct']:.1e} |")
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------------------ main
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
+    ap.add_argument("--json", help="write the results as JSON here")
+    ap.add_argument("--meshes", nargs="+", help="Table 1 meshes (shared file names)")
+    ap.add_argument("--construction-faces", type=int, default=1_000_000)
+    ap.add_argument("--fig10-faces", type=int, default=2_000_000)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-table1", action="store_true")
+    ap.add_argument("--no-construction", action="store_true")
+    ap.add_argument("--no-fig10", action="store_true")
+    args = ap.parse_args(argv)
+    if args.quick:
+        meshes = args.meshes or ["cube.off", "grid.off", "3holes.off"]
+        cf, ff, rep, contours, steps = 20_000, 20_000, 2, 16, 64
+    else:
+        meshes = args.meshes or CLOSED + HOLED
+        cf, ff, rep, contours, steps = (args.construction_faces, args.fig10_faces, args.repeats,
+                                        64, 2048)
+    from benchmarks.harness import machine_info
+
+    res = {"machine": machine_info(), "command": " ".join(sys.argv), "quick": args.quick,
+           "note": "shared machine (other jobs running): see load_before/load_after"}
+    if not args.no_table1:
+        rows = table1(meshes)
+        res["table1"] = rows
+        res["table1_summary"] = _summary(rows)
+        print("## LR Table 1 (our meshes)\n")
+        print(_table1_md(rows))
+        print("\n```\n" + json.dumps(res["table1_summary"], indent=1) + "\n```\n")
+    if not args.no_construction:
+        c = construction(cf, rep)
+        res["construction"] = c
+        print("## LR construction\n")
+        print("| triangles | RING-EXPANDER M tri/s | LR from CornerTable M tri/s | "
+              "LR end to end M tri/s | CornerTable from faces s |\n|---|---|---|---|---|")
+        print(f"| {c['triangles']:,} | {c['ring_expander_Mtps']:.2f} | "
+              f"{c['lr_from_corner_table_Mtps']:.2f} | {c['lr_end_to_end_Mtps']:.2f} | "
+              f"{c['corner_table_from_faces_s']:.3f} |\n")
+    if not args.no_fig10:
+        rows = fig10(ff, rep, contours, steps)
+        res["fig10"] = rows
+        print("## Fig. 10 timings (ns per element)\n")
+        print(_fig10_md(rows))
+        print()
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(res, fh, indent=1, default=float)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
