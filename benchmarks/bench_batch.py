@@ -9,10 +9,13 @@ vertex count drawn uniformly in ``[--min, --max]`` (500 to 5,000). Timed, per ve
 
 * ``normals``: area-weighted vertex normals of the whole batch in ONE jitted call:
   - ``face-list``: the plain-JAX baseline ``face_list_vertex_normals(positions, union_faces)``;
-  - ``packed/<structure>``: ``vertex_normals(PackedBatch, positions)`` (scatter route);
+  - ``packed/<structure>``: ``vertex_normals(PackedBatch, positions)`` (scatter route); its
+    ratio to the face list comes from runs interleaved with face-list runs (same machine load);
   - ``loop/<structure>``: a Python loop calling ``vertex_normals`` mesh by mesh (jitted, warm
     cache: every distinct mesh size is one compilation, counted apart), timed on the first
-    ``--loop-meshes`` meshes and reported per vertex of those meshes.
+    ``--loop-meshes`` meshes and reported per vertex of those meshes (and against the face-list
+    batch of those same meshes: small meshes stay in cache, so per-vertex times of a small
+    subset and of the whole batch are not comparable).
 * ``target``: ``--queries`` Target queries given as (mesh, local dart) pairs:
   - ``face-list``: ``faces[(c // 3), (c + 1) % 3]`` after shifting ids (plain JAX);
   - ``packed/<structure>``: ``PackedBatch.query("target", mesh, local)``.
@@ -54,6 +57,20 @@ def timeit(fn, repeat: int):
         jax.block_until_ready(fn())
         ts.append(time.perf_counter() - t0)
     return first, statistics.median(ts)
+
+
+def timepair(fa, fb, repeat: int):
+    """Medians of ``fa`` and ``fb`` timed alternately (a, b, a, b ...) after one warm-up each,
+    so that both see the same machine load (the ratio is what the target is about)."""
+    jax.block_until_ready(fa())
+    jax.block_until_ready(fb())
+    ta, tb = [], []
+    for _ in range(repeat):
+        for fn, acc in ((fa, ta), (fb, tb)):
+            t0 = time.perf_counter()
+            jax.block_until_ready(fn())
+            acc.append(time.perf_counter() - t0)
+    return statistics.median(ta), statistics.median(tb)
 
 
 def make_meshes(k: int, lo: int, hi: int, seed: int):
@@ -121,10 +138,15 @@ def run(args) -> list[dict]:
              seconds_scaled_to_batch=tb * nv / nv_loop)
 
         f = jax.jit(lambda s, p: vertex_normals(s, p))
-        first, t = timeit(lambda: f(b, pos), args.repeat)
+        t0 = time.perf_counter()
+        jax.block_until_ready(f(b, pos))
+        first = time.perf_counter() - t0
+        # face-list timed again, interleaved with the packed runs: same load for both
+        t_fl, t = timepair(lambda: face_list_vertex_normals(pos, faces), lambda: f(b, pos), args.repeat)
         err = float(jnp.max(jnp.abs(f(b, pos) - face_list_vertex_normals(pos, faces))))
         emit(what="normals", impl=f"packed/{name}", vertices=nv, seconds=t, ns_per_vertex=1e9 * t / nv,
-             vs_face_list=t / base_normals, first_call_s=first, max_abs_diff_vs_face_list=err)
+             vs_face_list=t / t_fl, face_list_interleaved_s=t_fl, first_call_s=first,
+             max_abs_diff_vs_face_list=err)
 
         # Python loop over meshes (warm: compile every distinct size first, timed apart)
         ppos = [jnp.asarray(m.vertices, jnp.float32) for m in ms[:k]]
@@ -137,8 +159,14 @@ def run(args) -> list[dict]:
             jax.block_until_ready([vertex_normals(s, p) for s, p in zip(parts, ppos)])
             ts.append(time.perf_counter() - t0)
         t = statistics.median(ts)
+        # the loop's meshes are small (cache-resident): also compare with the face-list batch of
+        # the SAME meshes, not only with the big batch's per-vertex time
+        sub = B._union(ms[:k])
+        sp, sf = jnp.asarray(sub.vertices, jnp.float32), jnp.asarray(sub.faces)
+        t_sub, _ = timepair(lambda: face_list_vertex_normals(sp, sf), lambda: sp, args.repeat)
         emit(what="normals", impl=f"loop/{name}", meshes=k, vertices=nv_loop, seconds=t,
              ns_per_vertex=1e9 * t / nv_loop, vs_face_list=(t / nv_loop) / (base_normals / nv),
+             vs_face_list_same_meshes=t / t_sub, face_list_same_meshes_s=t_sub,
              first_pass_with_compiles_s=compile_loop)
 
         q = jax.jit(lambda s, m, c: s.query("target", m, c))
@@ -161,8 +189,10 @@ def table(rows, args) -> str:
         if r["what"] in ("normals", "target"):
             per = r.get("ns_per_vertex", r.get("ns_per_query"))
             vs = r.get("vs_face_list")
+            same = r.get("vs_face_list_same_meshes")
             lines.append(f"| {r['what']} | {r['impl']} | {r['seconds'] * 1e3:.1f} ms | {per:.2f} ns | "
-                         f"{'' if vs is None else f'{vs:.2f}x'} |")
+                         f"{'' if vs is None else f'{vs:.2f}x'}"
+                         f"{'' if same is None else f' ({same:.2f}x vs face-list of the same meshes)'} |")
         elif r["what"] == "build":
             lines.append(f"| build | {r['impl']} | {r['seconds']:.2f} s "
                          f"({r['vertices']:,} vertices) | {1e9 * r['seconds'] / r['vertices']:.0f} ns | |")
