@@ -73,7 +73,10 @@ class ShardedStructure(MeshStructure):
 
     Fields:
       structure: the padded structure (same class as the input; its arrays are sharded).
-      order: the input structure's ``vertex_order`` (replicated), or ``None``.
+      order: always ``None`` (kept for compatibility): a structure that renumbers vertices holds
+        its ``order`` as one of its own leaves (CDS4n, CDS5n-O(1), LR, pemb), row-sharded with
+        the rest; :attr:`vertex_order` reads it and slices the padding off. It used to be a
+        second, replicated copy: ``4 n`` bytes on every device for host-side metadata.
       num_vertices, num_faces: the input structure's sizes (static, unpadded).
       logical_darts: the input structure's ``num_darts`` (darts past it are padding).
       logical_references: the input structure's ``references``.
@@ -100,7 +103,8 @@ class ShardedStructure(MeshStructure):
 
     @property
     def vertex_order(self):
-        return None if self.order is None else np.asarray(self.order)
+        order = self.structure.vertex_order if self.order is None else np.asarray(self.order)
+        return None if order is None else np.asarray(order)[: self.num_vertices]
 
     @property
     def closed_triangles(self) -> bool:  # type: ignore[override]
@@ -151,8 +155,6 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
             "n_vertex", "n_face", "n_dart", "n_extra_dart", "vertex_offsets", "face_offsets",
             "dart_offsets", "extra_dart_offsets")}
         return replace(s, structure=shard_structure(s.structure, mesh), **tables)
-    order = s.vertex_order
-
     def place(x):
         x = np.asarray(x)
         if x.ndim == 0:
@@ -163,8 +165,7 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
     padded = jax.tree_util.tree_map(place, s)
     return ShardedStructure(
         structure=padded,
-        order=None if order is None else jax.device_put(
-            jnp.asarray(order, jnp.int32), NamedSharding(mesh, PartitionSpec())),
+        order=None,
         num_vertices=s.num_vertices, num_faces=s.num_faces, logical_darts=s.num_darts,
         logical_references=s.references, num_devices=d)
 

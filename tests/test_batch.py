@@ -58,7 +58,7 @@ def test_union_build_equals_concatenated_parts(name, cls, meshes):
 
 
 @pytest.mark.parametrize("name,cls,meshes", CASES)
-@pytest.mark.parametrize("jit", [False, True], ids=["eager", "jit"])
+@pytest.mark.parametrize("jit", [pytest.param(False, marks=pytest.mark.slow), True], ids=["eager", "jit"])
 def test_local_queries_equal_per_mesh_structures(name, cls, meshes, jit):
     ms = meshes()
     b = B.pack(ms, name)
@@ -115,7 +115,7 @@ def test_union_structure_passes_verify(name, cls, meshes):
     assert rep.ok, str(rep)
 
 
-@pytest.mark.parametrize("name,cls,meshes", CASES)
+@pytest.mark.parametrize("name,cls,meshes", [CASES[0], pytest.param(*CASES[1], marks=pytest.mark.slow)])
 def test_degrees_normals_and_gradients_equal_per_mesh(name, cls, meshes):
     ms = meshes()
     b = B.pack(ms, name)
@@ -227,6 +227,7 @@ def test_class_without_concatenate_is_refused():
 COMPACT = [n for n in registry.names() if n not in ("halfedge", "corner-table")]
 
 
+@pytest.mark.slow  # builds every registered structure (numba compiles on a cold cache)
 @pytest.mark.parametrize("name", COMPACT or ["(none registered)"])
 def test_registry_structures_pack(name):
     """Every other registered structure: packed through its ``concatenate`` and checked operator

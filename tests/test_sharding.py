@@ -19,15 +19,31 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEVICES = 4
 
 
-@pytest.fixture(scope="module")
-def report():
+#: operators checked in the quick set (one SPMD compilation each): every argument kind (dart,
+#: vertex, face) and every result kind, the CDS-style derived ones and the border-aware ones.
+#: The slow set checks every operator of ``jaxcds.batch.OPERATOR_KINDS``.
+QUICK_OPS = ("target", "next", "face_right", "corner_opposite", "edge_of_vertex", "edge_of_face")
+
+
+def _run_child(full: bool) -> dict:
     env = dict(os.environ)
     env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={DEVICES}").strip()
     env["JAX_PLATFORMS"] = "cpu"
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{ROOT / 'tests'}{os.pathsep}" + env.get("PYTHONPATH", "")
-    r = subprocess.run([sys.executable, __file__], env=env, capture_output=True, text=True, timeout=170)
+    cmd = [sys.executable, __file__] + (["--full"] if full else [])
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600 if full else 300)
     assert r.returncode == 0, r.stderr[-4000:]
     return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def report():
+    return _run_child(full=False)
+
+
+@pytest.fixture(scope="module")
+def full_report():
+    return _run_child(full=True)
 
 
 def test_four_devices(report):
@@ -46,7 +62,7 @@ def test_arrays_are_split_not_replicated(report, name):
 @pytest.mark.parametrize("name", ["halfedge", "corner-table", "packed-halfedge"])
 def test_queries_and_reductions_equal_unsharded(report, name):
     r = report[name]
-    assert r["ops_checked"] >= 20
+    assert r["ops_checked"] == len(QUICK_OPS)
     assert r["op_mismatches"] == {}, r["op_mismatches"]
     assert r["degrees_equal"]
     assert r["normals_max_err"] < 1e-5
@@ -63,13 +79,32 @@ def test_partitioner_never_gathers_the_structure(report):
     assert r["query_rows"] not in r["structure_rows"], r
 
 
+def test_renumbering_structure_sharded(report):
+    # CDS4n renumbers vertices (cwBFS, Thm 5): its ``order`` leaf is split like the rest (no
+    # replicated copy) and the sharded vertex_order drops the padding; Target through the
+    # partitioner equals the unsharded one
+    r = report["cds4n"]
+    assert r["split_leaves"] == r["leaves"] >= 3, r
+    assert r["order_equal"]
+
+
+@pytest.mark.slow  # ~75 SPMD compilations (every operator on every structure): minutes of CPU
+def test_every_operator_sharded(full_report):
+    for name in ("halfedge", "corner-table", "packed-halfedge"):
+        r = full_report[name]
+        assert r["ops_checked"] >= 20 and r["op_mismatches"] == {}, (name, r["op_mismatches"])
+        assert r["normals_max_err"] < 1e-5 and r["grad_max_err"] < 1e-4
+    r = full_report["cds4n"]
+    assert r["target_checked"] == 37 and r["target_mismatches"] == 0, r
+
+
 def test_packed_batch_local_queries_sharded(report):
     r = report["packed-halfedge"]
     assert r["local_query_mismatches"] == 0
 
 
 # ---------------------------------------------------------------------------------- child
-def _child() -> dict:
+def _child(full: bool) -> dict:
     import re
 
     import jax
@@ -81,7 +116,7 @@ def _child() -> dict:
     from jaxcds.algorithms import vertex_degrees, vertex_normals
     from jaxcds.generators import random_planar_triangulation
     from jaxcds.mesh import load_mesh
-    from jaxcds.structures import CornerTable, HalfEdge
+    from jaxcds.structures import CornerTable, HalfEdge, registry
 
     from conftest import load_shared
 
@@ -103,6 +138,8 @@ def _child() -> dict:
              "structure_rows": sorted({int(x.shape[0]) for x in leaves})}
         mism, n = {}, 0
         for op, (arg, _) in B.OPERATOR_KINDS.items():
+            if not full and op not in QUICK_OPS:
+                continue
             size = {"dart": s.num_darts, "vertex": s.num_vertices, "face": s.num_faces}[arg]
             ids = rng.integers(0, size, 37).astype(np.int32)  # 37: not a multiple of 4
             got = np.asarray(S.sharded_query(ss, op, ids, mesh))
@@ -131,6 +168,19 @@ def _child() -> dict:
 
     check("halfedge", HalfEdge.from_mesh(grid), jnp.asarray(grid.vertices, jnp.float32))
     check("corner-table", CornerTable.from_mesh(rpt), jnp.asarray(rpt.vertices, jnp.float32))
+    s4 = registry.build("cds4n", rpt)
+    ss4 = S.shard_structure(s4, mesh)
+    lv = [x for x in jax.tree_util.tree_leaves(ss4) if x.ndim > 0]
+    d4 = s4.all_darts()[rng.integers(0, 3 * s4.num_faces, 37)]
+    out["cds4n"] = {
+        "leaves": len(lv),
+        "split_leaves": sum({sh.data.shape[0] for sh in x.addressable_shards} == {x.shape[0] // DEVICES}
+                            for x in lv),
+        "order_equal": bool(np.array_equal(ss4.vertex_order, s4.vertex_order))}
+    if full:  # a sharded CDS gather is a long SPMD compilation
+        out["cds4n"]["target_checked"] = int(d4.size)
+        out["cds4n"]["target_mismatches"] = int(np.sum(
+            np.asarray(S.sharded_query(ss4, "target", d4, mesh)) != np.asarray(s4.target(jnp.asarray(d4)))))
     ms = [grid, rpt, load_shared("2triangles.off")]
     b = B.pack(ms, "halfedge")
     bs = check("packed-halfedge", b, B.pack_positions(b, ms))
@@ -144,4 +194,4 @@ def _child() -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps(_child()))
+    print(json.dumps(_child(full="--full" in sys.argv)))
