@@ -396,31 +396,106 @@ class _CDS(MeshStructure):
         _, t, _ = jax.lax.while_loop(cond, body, (cur0, t0, fin0))
         return t.astype(jnp.int32)
 
+    def _lf_cols(self):
+        """``(LeftFront(u_red), LeftFront(u_blue), LeftFront(u_black))`` for every ``u`` at once,
+        as the tables store them (no exterior patch), read column by column (no gather)."""
+        raise NotImplementedError
+
+    def _valid_cols(self):
+        """``edge_valid(3u + c)`` for every ``u``, per colour (three ``(n,)`` masks)."""
+        u = jnp.arange(self.num_vertices, dtype=jnp.int32)
+        return (u != self.v_red,
+                (u != self.v_red) & (u != self.v_blue),
+                (u != self.v_red) & (u != self.v_blue) & (u != self.v_black))
+
+    def _targets_cols(self, lfs=None):
+        """``Target(u_c)`` of every edge, per colour (three ``(n,)`` arrays, garbage where the
+        edge is absent): Thm 2's walk, all edges at once by pointer jumping.
+
+        ``LeftFront(u_c)`` leaving the target ``v`` gives ``v`` (its source); entering ``v`` (the
+        edge ``w_c``), ``Target(u_c) = Target(w_c)``. Every walk is a chain through one incoming
+        fan of ``v``; pointer jumping resolves all chains in ``ceil(log2(longest fan))`` rounds of
+        one gather each (state: the target where known, else ``-(edge + 1)`` of the edge whose
+        target it equals)."""
+        n = self.num_vertices
+        lfs = self._lf_cols() if lfs is None else lfs
+        u = jnp.arange(n, dtype=jnp.int32)
+        vals = []
+        for c, (lf, ok) in enumerate(zip(lfs, self._valid_cols())):
+            leaving = (lf & 1) == 0
+            val = jnp.where(leaving | ~ok, _src(lf), -((lf >> 1) + 1))
+            # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
+            if c == RED:
+                val = jnp.where(u == self.v_blue, self.v_red, val)
+            if c == BLUE:
+                val = jnp.where(u == self.v_black, self.v_blue, val)
+            vals.append(val)
+        val = jnp.stack(vals, axis=1).reshape(-1)  # edge id 3u + c
+
+        def cond(v):
+            return jnp.any(v < 0)
+
+        def body(v):
+            pend = v < 0
+            return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
+
+        t = jax.lax.while_loop(cond, body, val).reshape(n, 3)
+        return t[:, 0], t[:, 1], t[:, 2]
+
     def all_edge_targets(self) -> Int:
-        """``(3n,)`` ``Target(u_c)`` of every edge id (garbage on absent ids), all at once by
-        pointer jumping along the ``LeftFront`` chains of the Target walk: O(n log d)."""
-        e = jnp.arange(3 * self.num_vertices, dtype=jnp.int32)
-        valid = self.edge_valid(e)
-        lf = self._lf(e)
-        fin = ((lf & 1) == 0) | ~valid
-        t = jnp.where(valid, _src(lf), 0)
-        t = jnp.where(e == self._e_br, self.v_red, jnp.where(e == self._e_kb, self.v_blue, t))
-        fin = fin | (e == self._e_br) | (e == self._e_kb)
-        ptr = jnp.where(fin, e, lf >> 1)
+        """``(3n,)`` ``Target(u_c)`` of every edge id ``3u + c`` (garbage on absent ids)."""
+        return jnp.stack(self._targets_cols(), axis=1).reshape(-1).astype(jnp.int32)
 
-        def cond(state):
-            _, _, fin = state
-            return jnp.any(~fin)
+    # ---- whole mesh: faces and degrees in O(1) per face / edge (Thm 7)
+    def face_vertices(self) -> Int:
+        """``(F, 3)`` vertices of every face, ccw, row ``f`` = face id ``f``, in O(1) per face
+        from the face map of Thm 7 (no navigation operator is called):
 
-        def body(state):
-            t, ptr, fin = state
-            t2 = jnp.where(fin, t, t[ptr])
-            fin2 = fin | fin[ptr]
-            ptr2 = jnp.where(fin, ptr, ptr[ptr])
-            return t2, ptr2, fin2
+        * slot ``u`` (red triangle of ``u``, left of ``u_red``): ``(u, Target(u_red), w)`` with
+          ``w`` the origin of ``LeftFront(u_red)``: its source if it enters the target
+          (``w_red``), else ``Target(LeftFront)``;
+        * slot ``n + b``: ``b``'s black triangle when ``LeftFront(b_black)`` is black (``w_black``
+          entering: ``(b, Target(b_black), w)``), else the blue triangle of ``o = F_blue[b]``,
+          whose ``LeftFront(o_blue)`` is blue (``w_blue`` entering): ``(o, Target(o_blue), w)``;
+        * the four unused slots (static) are cut out.
+        """
+        n = self.num_vertices
+        u = jnp.arange(n, dtype=jnp.int32)
+        # optimization_barrier: materialise the columns once (XLA would otherwise re-evaluate
+        # them, table gathers included, inside every gather that reads them)
+        lf_r, lf_b, lf_k = jax.lax.optimization_barrier(self._lf_cols())
+        # _EXTERIOR: LeftFront((V_blue, V_red)) = (V_red, V_black): the red slot of V_blue is the
+        # outer face (V_blue, V_red, V_black)
+        lf_r = jnp.where(u == self.v_blue, self._d1, lf_r)
+        t_r, t_b, t_k = jax.lax.optimization_barrier(self._targets_cols((lf_r, lf_b, lf_k)))
+        t_flat = jnp.stack([t_r, t_b, t_k], axis=1).reshape(-1)
+        # red triangles: w = Source(LeftFront) when it is w_red entering v, else Target(v_blue)
+        w_r = jnp.where((lf_r & 1) == 1, _src(lf_r), t_flat[jnp.where((lf_r & 1) == 1, 0, lf_r >> 1)])
+        red = jnp.stack([u, t_r, w_r], axis=1)
+        # black triangle of b (LeftFront(b_black) black, entering) or blue triangle of F_blue[b]
+        black_matched = ((lf_k & 1) == 1) & self._valid_cols()[BLACK]
+        o = self.F_blue
+        blue_o = jnp.stack([o, t_b[o], _src(lf_b)[o]], axis=1)
+        black = jnp.stack([u, t_k, _src(lf_k)], axis=1)
+        kb = jnp.where(black_matched[:, None], black, blue_o)
+        slots = jnp.concatenate([red, kb], axis=0)
+        pieces, lo = [], 0
+        for x in self.unused_slots:  # sorted, static
+            pieces.append(slots[lo:x])
+            lo = x + 1
+        pieces.append(slots[lo:])
+        # materialised once: consumers (the normals' position gathers) would re-evaluate it
+        return jax.lax.optimization_barrier(jnp.concatenate(pieces, axis=0).astype(jnp.int32))
 
-        t, _, _ = jax.lax.while_loop(cond, body, (t, ptr, fin))
-        return t.astype(jnp.int32)
+    def vertex_degrees(self) -> Int:
+        """``(n,)`` degrees: the edges leaving ``u`` (3 for inner vertices, Definition 1) plus the
+        edges entering it, counted at every target (one ``segment_sum`` over the ``3n`` edges)."""
+        n = self.num_vertices
+        ok = jnp.stack(self._valid_cols(), axis=1)
+        t = jnp.stack(self._targets_cols(), axis=1)
+        inc = jax.ops.segment_sum(ok.reshape(-1).astype(jnp.int32), jnp.where(ok, t, n).reshape(-1),
+                                  num_segments=n + 1)[:n]
+        return (jnp.sum(ok, axis=1, dtype=jnp.int32) + inc).astype(jnp.int32)
 
     # ---- protocol core
     @property
@@ -596,21 +671,6 @@ class _CDS(MeshStructure):
         u, q = k % n, k // n
         return _dart(u, q % 3, q // 3)
 
-    # ---- whole mesh
-    def face_vertices(self) -> Int:
-        """``(F, 3)`` vertices of every face, ccw, with all targets computed at once."""
-        t = self.all_edge_targets()
-        f = jnp.arange(self.num_faces, dtype=jnp.int32)
-        d0 = self.edge_of_face(f)
-        d1 = self.next(d0)
-        d2 = self.prev(d0)
-
-        def org(d):
-            e = d >> 1
-            return jnp.where((d & 1) == 0, e // 3, t[e])
-
-        return jnp.stack([org(d0), org(d1), org(d2)], axis=-1).astype(jnp.int32)
-
     # ---- metadata
     @property
     def core_references(self) -> int:
@@ -666,6 +726,14 @@ class CDS6n(_CDS):
         s = _fld(x)
         # C_c^right true: RightFront is z_c entering v (r = 0); false: v_prev(c) leaving v (r = 1)
         return jnp.where(_bit30(x), _dart(s, c, 0), _dart(s, (c + 2) % 3, 1))
+
+    def _lf_cols(self):
+        out = []
+        for c in range(3):
+            x = self.refs[:, 2 * c]
+            s = _fld(x)
+            out.append(jnp.where(_bit30(x), _dart(s, c, 1), _dart(s, (c + 1) % 3, 0)))
+        return tuple(out)
 
     @classmethod
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS6n":
@@ -739,10 +807,6 @@ class _Tables:
 
 
 # ====================================================================================== CDS5n
-class _Tables5:
-    """Shared table decoding of Thm 4 / 5 / 6 (columns located by subclass constants)."""
-
-
 @pytree_dataclass
 class CDS5n(_CDS):
     """Thm 4 (Sec. 2.2, Fig. 4): 5 references per vertex (+1 for faces), maximal wood.
@@ -756,6 +820,10 @@ class CDS5n(_CDS):
         3: ``S_black^left[u]``, bit 30 ``C_black^left[u]``, bit 31 ``I_black[u]``;
         4: ``S_black^right[u]``, bit 30 ``C_black^right[u]``.
       F_blue: ``(n,)`` int32 face map of Thm 7.
+
+    Every per-vertex rule below reads one table *row* (``row = refs[u]``, one gather of the
+    whole row for batched queries) or, with ``row = refs`` and ``u = arange(n)``, the whole
+    table column by column (slices, no gather: :meth:`_lf_cols`, the whole-mesh queries).
     """
 
     refs: jnp.ndarray
@@ -770,30 +838,38 @@ class CDS5n(_CDS):
 
     name = "cds5n"
     _COL_TOLEFT, _COL_BLUE, _COL_BLACK_L, _COL_BLACK_R = 0, 2, 3, 4
+    # I_red, I_blue, I_black are bit 31 of columns 1, 2, 3 (the same columns in CDS4n)
+    _COL_INC = {RED: 1, BLUE: 2, BLACK: 3}
 
-    # incoming bits
+    # ---- row readers
+    def _inc_r(self, row, c: int):
+        """``I_c[u]`` (colour ``c`` static) from ``row``."""
+        return _bit31(row[..., self._COL_INC[c]])
+
     def _inc(self, u, c):
         row = self.refs[u]
-        return jnp.where(c == RED, _bit31(row[..., 1]),
-                         jnp.where(c == BLUE, _bit31(row[..., 2]), _bit31(row[..., 3])))
+        return jnp.where(c == RED, self._inc_r(row, RED),
+                         jnp.where(c == BLUE, self._inc_r(row, BLUE), self._inc_r(row, BLACK)))
 
-    # black: both fronts stored (Fig. 4 top-left)
-    def _lf_black(self, u):
-        x = self.refs[u, self._COL_BLACK_L]
-        s = _fld(x)
-        return jnp.where(_bit30(x), _dart(s, BLACK, 1), _dart(s, RED, 0))
-
-    def _rf_black(self, u):
-        x = self.refs[u, self._COL_BLACK_R]
-        s = _fld(x)
-        return jnp.where(_bit30(x), _dart(s, BLACK, 0), _dart(s, BLUE, 1))
-
-    def _toleft(self, u):
-        x = self.refs[u, self._COL_TOLEFT]
+    def _toleft_r(self, row):
+        x = row[..., self._COL_TOLEFT]
         return _fld(x), (x >> 30) & 3
 
-    def _lf_red(self, u):
-        s, ctl = self._toleft(u)
+    # black: both fronts stored (Fig. 4 top-left)
+    def _lf_black_r(self, row):
+        x = row[..., self._COL_BLACK_L]
+        s = _fld(x)
+        # C_black^left: LeftFront is w_black entering v; else v_red leaving v
+        return jnp.where(_bit30(x), _dart(s, BLACK, 1), _dart(s, RED, 0))
+
+    def _rf_black_r(self, row):
+        x = row[..., self._COL_BLACK_R]
+        s = _fld(x)
+        # C_black^right: RightFront is z_black entering v; else v_blue leaving v
+        return jnp.where(_bit30(x), _dart(s, BLACK, 0), _dart(s, BLUE, 1))
+
+    def _lf_red_r(self, u, row):
+        s, ctl = self._toleft_r(row)
         # C_red^toleft = red: LeftFront is w_red entering v, S = w
         red = _dart(s, RED, 1)
         # C_red^toleft = blue: LeftFront is v_blue, S = v
@@ -802,43 +878,54 @@ class CDS5n(_CDS):
         black = _dart(_fld(self.refs[s, self._COL_BLACK_R]), BLUE, 0)
         return jnp.where(ctl == 0, red, jnp.where(ctl == 1, blue, black))
 
-    def _rf_red(self, u):
-        x = self.refs[u, 1]
+    def _rf_red_r(self, u, row):
+        x = row[..., 1]
         s = _fld(x)
+        # C_red^right: RightFront is z_red entering v; else v_black leaving v
         return jnp.where(_bit30(x), _dart(s, RED, 0), _dart(s, BLACK, 1))
 
-    def _blue_stored(self, u):
-        x = self.refs[u, self._COL_BLUE]
+    def _blue_stored_r(self, row):
+        x = row[..., self._COL_BLUE]
         return _fld(x), _bit30(x)
 
-    def _lf_blue(self, u):
-        s, same = self._blue_stored(u)
+    def _lf_blue_r(self, row):
+        s, same = self._blue_stored_r(row)
         stored = jnp.where(same, _dart(s, BLUE, 1), _dart(s, BLACK, 0))
         # Case 1 (I_red[u] false, {u, w} black toward w): LeftFront = RightFront(u_black)
-        case1 = self._rf_black(u)
-        return jnp.where(self._inc(u, RED), stored, case1)
+        case1 = self._rf_black_r(row)
+        return jnp.where(self._inc_r(row, RED), stored, case1)
 
-    def _rf_blue(self, u):
-        s, same = self._blue_stored(u)
+    def _rf_blue_r(self, u, row):
+        s, same = self._blue_stored_r(row)
         # I_red[u] false: RightFront stored (colour blue -> z_blue, else v_red leaving v)
         stored = jnp.where(same, _dart(s, BLUE, 0), _dart(s, RED, 1))
         # Case 2a ({u, z} red toward z, I_black[u] false): RightFront = LeftFront(u_red)
-        case2a = self._lf_red(u)
+        case2a = self._lf_red_r(u, row)
         # Case 2b ({u, z} black toward u): z is stored at w_red (C_red^toleft[w] = black);
         # w = Source(LeftFront(LeftFront(e))) if LeftFront(e) is black, else Source(LeftFront(e))
         lf = jnp.where(same, _dart(s, BLUE, 1), _dart(s, BLACK, 0))
-        w = jnp.where(_col(lf) == BLACK, _src(self._lf_black(_src(lf))), _src(lf))
-        z, _ = self._toleft(w)
+        w = jnp.where(_col(lf) == BLACK, _src(self._lf_black_r(self.refs[_src(lf)])), _src(lf))
+        z, _ = self._toleft_r(self.refs[w])
         case2b = _dart(z, BLUE, 0)
-        return jnp.where(~self._inc(u, RED), stored, jnp.where(~self._inc(u, BLACK), case2a, case2b))
+        return jnp.where(~self._inc_r(row, RED), stored,
+                         jnp.where(~self._inc_r(row, BLACK), case2a, case2b))
 
     def _lf(self, e):
         u, c = e // 3, e % 3
-        return jnp.where(c == RED, self._lf_red(u), jnp.where(c == BLUE, self._lf_blue(u), self._lf_black(u)))
+        row = self.refs[u]
+        return jnp.where(c == RED, self._lf_red_r(u, row),
+                         jnp.where(c == BLUE, self._lf_blue_r(row), self._lf_black_r(row)))
 
     def _rf(self, e):
         u, c = e // 3, e % 3
-        return jnp.where(c == RED, self._rf_red(u), jnp.where(c == BLUE, self._rf_blue(u), self._rf_black(u)))
+        row = self.refs[u]
+        return jnp.where(c == RED, self._rf_red_r(u, row),
+                         jnp.where(c == BLUE, self._rf_blue_r(u, row), self._rf_black_r(row)))
+
+    def _lf_cols(self):
+        u = jnp.arange(self.num_vertices, dtype=jnp.int32)
+        r = self.refs
+        return self._lf_red_r(u, r), self._lf_blue_r(r), self._lf_black_r(r)
 
     @classmethod
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5n":
@@ -888,17 +975,12 @@ class CDS4n(CDS5n):
     def vertex_order(self):
         return np.asarray(self.order)
 
-    def _inc(self, u, c):
-        row = self.refs[u]
-        return jnp.where(c == RED, _bit31(row[..., 1]),
-                         jnp.where(c == BLUE, _bit31(row[..., 2]), _bit31(row[..., 3])))
-
-    def _rf_red(self, u):
+    def _rf_red_r(self, u, row):
         # RightFront(u_red) red => it is (u - 1)_red, which holds iff LeftFront((u-1)_red) = u_red
         um = jnp.maximum(u - 1, 0)
         sib = (u >= 2) & (self.left_front_edge(3 * um + RED) == _dart(u, RED, 1))
         # otherwise {v, z} and {u, z} are black (no cw triangle): RightFront = LeftFront(u_black)
-        return jnp.where(sib, _dart(um, RED, 0), self._lf_black(u))
+        return jnp.where(sib, _dart(um, RED, 0), self._lf_black_r(row))
 
     @classmethod
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS4n":
@@ -936,12 +1018,15 @@ class CDS5nO1(CDS4n):
         (then ``Target(u_red) = Source(RightFront(q_black))``, and Thm 4's Case 2b still reads
         ``q``);
       refs[:, 4]: ``W[u]`` (Thm 6), bit 30 ``D[u]`` (depth of ``u`` in the red tree is even).
+
+    A batched Target reads two rows: ``refs[u]``, then the row of the one vertex the case
+    analysis names (``q``, ``w'`` or ``z'``); Adjacent reads four per endpoint.
     """
 
     name = "cds5n-o1"
 
-    def _lf_red(self, u):
-        s, ctl = self._toleft(u)
+    def _lf_red_r(self, u, row):
+        s, ctl = self._toleft_r(row)
         # C_red^toleft = red: LeftFront is w_red with w = u + 1 (next cw sibling, cwBFS)
         red = _dart(u + 1, RED, 1)
         # blue: LeftFront = v_blue with v = Target(u_red) = S
@@ -950,61 +1035,90 @@ class CDS5nO1(CDS4n):
         black = _dart(_fld(self.refs[s, self._COL_BLACK_R]), BLUE, 0)
         return jnp.where(ctl == 0, red, jnp.where(ctl == 1, blue, black))
 
-    def _w(self, u):
-        x = self.refs[u, 4]
+    @staticmethod
+    def _w_r(row):
+        x = row[..., 4]
         return _fld(x), _bit30(x)
 
-    def _target_red(self, u):
-        s, ctl = self._toleft(u)
-        return jnp.where(ctl == 2, _fld(self.refs[s, self._COL_BLACK_R]), s)
-
-    def _leaf_blue(self, u):
-        # I_red[u] false: W[u] = Target(u_{Color(LeftFront(u_blue))})
-        lf = self._lf_blue(u)
-        w, _ = self._w(u)
+    def _leaf_r(self, row, lf=None):
+        """I_red[u] false (u is a leaf of the red tree): ``W[u] = Target(u_{Color(LeftFront(u_blue))})``;
+        returns ``(Target(u_blue), Target(u_black))`` by that rule."""
+        lf = self._lf_blue_r(row) if lf is None else lf
+        w, _ = self._w_r(row)
         # LeftFront(u_blue) blue (w' -> v): Target in W; black (v -> w'): its source is v
         t_blue = jnp.where((lf & 1) == 1, w, _src(lf))
         # Target(u_black) = w' = Source(LeftFront(u_blue)) if blue, else W[u]
         t_black = jnp.where((lf & 1) == 1, _src(lf), w)
         return t_blue, t_black
 
-    def _target_blue(self, u):
-        w, even = self._w(u)
-        leaf_b, _ = self._leaf_blue(u)
-        lf = self._lf_blue(u)
-        x = _src(lf)  # w' (odd depth) when LeftFront is blue
-        wx, _ = self._w(x)
-        leaf_x, _ = self._leaf_blue(x)
-        t_x = jnp.where(self._inc(x, RED), wx, leaf_x)
-        # I_red[u] false: leaf case; D[u] odd: W[u]; D even: LeftFront black -> its source,
-        # LeftFront blue (w' -> v) -> Target(w'_blue), w' of odd depth (W or leaf rule)
-        nonleaf = jnp.where(~even, w, jnp.where((lf & 1) == 0, _src(lf), t_x))
-        return jnp.where(self._inc(u, RED), nonleaf, leaf_b)
+    def _walk_end(self, row):
+        """``(for blue, for black)``: the target read at the vertex ``w'`` / ``z'`` the odd/even
+        case of Thm 6 moves to: ``W`` there if it has red children, else its leaf rule."""
+        w, _ = self._w_r(row)
+        lb, lk = self._leaf_r(row)
+        inner = self._inc_r(row, RED)
+        return jnp.where(inner, w, lb), jnp.where(inner, w, lk)
 
-    def _target_black(self, u):
-        w, even = self._w(u)
-        _, leaf_k = self._leaf_blue(u)
-        rf = self._rf_black(u)
-        z = _src(rf)  # z' (even depth) when RightFront is black
-        wz, _ = self._w(z)
-        _, leaf_z = self._leaf_blue(z)
-        t_z = jnp.where(self._inc(z, RED), wz, leaf_z)
-        # D[u] even: W[u]; odd: RightFront(u_black) blue (v -> z') -> its source v,
-        # black (z' -> v) -> Target(z'_black) (W or leaf rule)
-        nonleaf = jnp.where(even, w, jnp.where((rf & 1) == 1, _src(rf), t_z))
-        return jnp.where(self._inc(u, RED), nonleaf, leaf_k)
+    def _targets_r(self, u, row, at_q, at_x, at_z):
+        """``(Target(u_red), Target(u_blue), Target(u_black))`` from ``row`` (Thm 6); ``at_q(q)``
+        gives ``S_black^right[q]``, ``at_x(x)`` / ``at_z(z)`` the blue / black value of
+        :meth:`_walk_end` at another vertex."""
+        s, ctl = self._toleft_r(row)
+        # red: S_red^left is the target, except C_red^toleft black: Source(RightFront(q_black))
+        t_red = jnp.where(ctl == 2, at_q(s), s)
+        w, even = self._w_r(row)
+        inner = self._inc_r(row, RED)
+        lf = self._lf_blue_r(row)
+        leaf_b, leaf_k = self._leaf_r(row, lf)
+        # blue, u not a leaf: D[u] odd: W[u]; D even: LeftFront black -> its source,
+        # LeftFront blue (w' -> v) -> Target(w'_blue), w' of odd depth (W or leaf rule)
+        t_blue = jnp.where(inner, jnp.where(~even, w, jnp.where((lf & 1) == 0, _src(lf), at_x(_src(lf)))),
+                           leaf_b)
+        # black, u not a leaf: D[u] even: W[u]; odd: RightFront(u_black) blue (v -> z') -> its
+        # source v, black (z' -> v) -> Target(z'_black) (W or leaf rule)
+        rf = self._rf_black_r(row)
+        t_black = jnp.where(inner, jnp.where(even, w, jnp.where((rf & 1) == 1, _src(rf), at_z(_src(rf)))),
+                            leaf_k)
+        # _EXTERIOR: Target((V_black, V_blue)) = V_blue
+        t_blue = jnp.where(u == self.v_black, self.v_blue, t_blue)
+        return t_red, t_blue, t_black
 
     def _edge_target(self, e):
-        """Thm 6 Target: O(1), no loop."""
+        """Thm 6 Target: O(1), no loop; two row reads (``u``, then the vertex the case names)."""
         e = _ids(e)
         u, c = e // 3, e % 3
-        t = jnp.where(c == RED, self._target_red(u),
-                      jnp.where(c == BLUE, self._target_blue(u), self._target_black(u)))
-        # _EXTERIOR: Target((V_black, V_blue)) = V_blue
-        return jnp.where(e == self._e_kb, self.v_blue, t).astype(jnp.int32)
+        row = self.refs[u]
+        s, ctl = self._toleft_r(row)
+        lf = self._lf_blue_r(row)
+        rf = self._rf_black_r(row)
+        # the one other vertex a colour's case can name: q (red), w' (blue), z' (black)
+        y = jnp.where(c == RED, s, jnp.where(c == BLUE, _src(lf), _src(rf)))
+        ry = self.refs[y]
+        eb, ek = self._walk_end(ry)
+        at_q = lambda q: _fld(ry[..., self._COL_BLACK_R])  # noqa: E731
+        t_red, t_blue, t_black = self._targets_r(u, row, at_q, lambda x: eb, lambda z: ek)
+        return jnp.where(c == RED, t_red, jnp.where(c == BLUE, t_blue, t_black)).astype(jnp.int32)
 
-    def all_edge_targets(self) -> Int:
-        return self._edge_target(jnp.arange(3 * self.num_vertices, dtype=jnp.int32))
+    def _targets_cols(self, lfs=None):
+        """Every target at once, column by column: O(1) per edge, three gathers in all (no loop;
+        ``lfs`` is not needed)."""
+        r = self.refs
+        u = jnp.arange(self.num_vertices, dtype=jnp.int32)
+        eb, ek = jax.lax.optimization_barrier(self._walk_end(r))
+        black_r = _fld(r[:, self._COL_BLACK_R])
+        return self._targets_r(u, r, lambda q: black_r[q], lambda x: eb[x], lambda z: ek[z])
+
+    def _out_targets(self, u):
+        """Targets of the three edges leaving ``u`` (``num_vertices`` where absent): one row for
+        ``u`` and one each for ``q``, ``w'``, ``z'``."""
+        row = self.refs[u]
+        s, _ = self._toleft_r(row)
+        x = _src(self._lf_blue_r(row))
+        z = _src(self._rf_black_r(row))
+        rq, rx, rz = self.refs[s], self.refs[x], self.refs[z]
+        ts = self._targets_r(u, row, lambda q: _fld(rq[..., self._COL_BLACK_R]),
+                             lambda x: self._walk_end(rx)[0], lambda z: self._walk_end(rz)[1])
+        return [jnp.where(self.edge_valid(3 * u + c), t, self.num_vertices) for c, t in enumerate(ts)]
 
     @classmethod
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5nO1":
@@ -1018,13 +1132,8 @@ class CDS5nO1(CDS4n):
         tgt = np.where(w.out < n, w.out, 0)
         s0 = np.where(c_tl == 2, s_tl, tgt[:, RED])
         s_b, c_b = t.blue_single()
-        # depth parity in the red tree (labels are BFS order: parents come first)
-        depth = np.zeros(n, dtype=np.int64)
-        par = w.out[:, RED]
-        for_ = np.arange(n)
-        has_par = par < n
-        # BFS order: process labels increasing
-        depth = _depths(par.astype(np.int64), n, w.v_red)
+        # depth parity in the red tree
+        depth = _depths(w.out[:, RED].astype(np.int64), n, w.v_red)
         even = depth % 2 == 0
         lfc_blue = t.col(t.lf[:, BLUE])
         leaf = ~t.inc[:, RED]
