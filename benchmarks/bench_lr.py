@@ -257,16 +257,36 @@ def _timeit(fn, args, repeats):
     return statistics.median(times), comp
 
 
-def fig10(num_faces: int, repeats: int, contours: int, steps: int) -> list:
+def fig10_mesh(spec: Optional[str], num_faces: int):
+    """``None``: a random planar triangulation of ``num_faces`` triangles (very irregular: few
+    valence-6 vertices, so LR is far from 1 rpt on it); ``subdiv:NAME:K``: the closed shared mesh
+    ``NAME`` after ``K`` 1:4 midpoint subdivisions (regular like the paper's scans)."""
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.mesh import load_mesh
+
+    if spec is None:
+        return random_planar_triangulation(num_faces // 2 + 2, seed=3)
+    kind, name, k = spec.split(":")
+    if kind != "subdiv":
+        raise SystemExit(f"--fig10-mesh: expected subdiv:NAME:K, got {spec!r}")
+    import trimesh
+
+    m = load_mesh(os.path.join(MESH_DIR, name))
+    v, f = m.vertices, m.faces
+    for _ in range(int(k)):
+        v, f = trimesh.remesh.subdivide(v, f)
+    return load_mesh(v, f)
+
+
+def fig10(num_faces: int, repeats: int, contours: int, steps: int,
+          mesh_spec: Optional[str] = None) -> list:
     import jax
     import jax.numpy as jnp
 
-    from jaxcds.generators import random_planar_triangulation
     from jaxcds.structures.corner_table import CornerTable
     from jaxcds.structures.lr import LR, LRBits
 
-    n = num_faces // 2 + 2
-    mesh = random_planar_triangulation(n, seed=3)
+    mesh = fig10_mesh(mesh_spec, num_faces)
     _log(f"fig10 mesh: {mesh.num_faces} triangles; building structures")
     structs = {"corner-table": CornerTable.from_faces(mesh.faces, mesh.num_vertices),
                "lr": LR.from_mesh(mesh, seeds=1, check=False),
@@ -279,7 +299,8 @@ def fig10(num_faces: int, repeats: int, contours: int, steps: int) -> list:
         pos = jnp.asarray(mesh.vertices[order], jnp.float32)
         c = jnp.asarray(s.all_darts())
         nc = int(c.shape[0])
-        row = {"structure": name, "triangles": mesh.num_faces, "references": int(s.references),
+        row = {"structure": name, "mesh": mesh.source if mesh_spec is None else mesh_spec,
+               "triangles": mesh.num_faces, "references": int(s.references),
                "load_before": _load()}
         t, comp = _timeit(corner_v, (s, c), repeats)
         row["c.v_ns"], row["c.v_compile_s"] = 1e9 * t / nc, comp
@@ -319,11 +340,12 @@ def fig10(num_faces: int, repeats: int, contours: int, steps: int) -> list:
 
 
 def _fig10_md(rows: list) -> str:
-    out = ["| structure | refs | c.v ns | c.o ns | valence ns/vertex | normal ns/vertex | "
-           "contour ns/triangle | valence = CT | normal max diff |",
-           "|---|---|---|---|---|---|---|---|---|"]
+    out = ["| structure | mesh | triangles | refs | c.v ns | c.o ns | valence ns/vertex | "
+           "normal ns/vertex | contour ns/triangle | valence = CT | normal max diff |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        out.append(f"| {r['structure']} | {r['references']:,} | {r['c.v_ns']:.2f} | "
+        out.append(f"| {r['structure']} | {r['mesh']} | {r['triangles']:,} | {r['references']:,} | "
+                   f"{r['c.v_ns']:.2f} | "
                    f"{r['c.o_ns']:.2f} | {r['valence_ns']:.1f} | {r['normal_ns']:.1f} | "
                    f"{r['contour_ns_per_triangle']:.1f} | {r['valence_equal_ct']} | "
                    f"{r['normal_max_diff_ct']:.1e} |")
@@ -338,6 +360,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--meshes", nargs="+", help="Table 1 meshes (shared file names)")
     ap.add_argument("--construction-faces", type=int, default=1_000_000)
     ap.add_argument("--fig10-faces", type=int, default=2_000_000)
+    ap.add_argument("--fig10-mesh", help="subdiv:NAME:K (a subdivided shared mesh) instead of "
+                    "the random triangulation")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-table1", action="store_true")
     ap.add_argument("--no-construction", action="store_true")
@@ -371,7 +395,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
               f"{c['lr_from_corner_table_Mtps']:.2f} | {c['lr_end_to_end_Mtps']:.2f} | "
               f"{c['corner_table_from_faces_s']:.3f} |\n")
     if not args.no_fig10:
-        rows = fig10(ff, rep, contours, steps)
+        rows = fig10(ff, rep, contours, steps, args.fig10_mesh)
         res["fig10"] = rows
         print("## Fig. 10 timings (ns per element)\n")
         print(_fig10_md(rows))

@@ -35,7 +35,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct.ring_expander import LRTables, best_ring, lr_tables
-from jaxcds.mesh import TriMesh, close_boundaries, load_mesh, validate
+from jaxcds.mesh import TriMesh, boundary_loops, close_boundaries, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
 from jaxcds.structures.corner_table import CornerTable
 
@@ -569,6 +569,8 @@ def _prepare(mesh) -> TriMesh:
         validate(mesh, closed=True, connected=True, structure="lr")
         return mesh  # already closed by close_boundaries: keep its dummy flags
     validate(mesh, connected=True, structure="lr")
+    if not boundary_loops(mesh):
+        return mesh  # closed: close_boundaries would only validate it a second time
     return close_boundaries(mesh)
 
 
