@@ -113,8 +113,9 @@ def child(args) -> list[dict]:
             ss = jax.block_until_ready(S.shard_structure(s, dmesh))
             r["shard_s"] = time.perf_counter() - t0
             leaves = [x for x in jax.tree_util.tree_leaves(ss)]
-            split = [x for x in leaves if x.ndim > 0 and not x.sharding.is_fully_replicated]
-            rep = [x for x in leaves if x.sharding.is_fully_replicated]
+            # by PartitionSpec, not by is_fully_replicated (with D = 1 every array is "replicated")
+            split = [x for x in leaves if x.ndim > 0 and len(x.sharding.spec) and x.sharding.spec[0] is not None]
+            rep = [x for x in leaves if not (x.ndim > 0 and len(x.sharding.spec) and x.sharding.spec[0] is not None)]
             per_dev = [0] * d
             for x in leaves:
                 for sh in x.addressable_shards:
