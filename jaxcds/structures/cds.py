@@ -673,6 +673,21 @@ class _CDS(MeshStructure):
 
     # ---- metadata
     @property
+    def navigation_references(self) -> int:
+        """References the navigation needs (Thm 2/4/5/6: ``6n``, ``5n``, ``4n``, ``5n``), without
+        the face map of Thm 7; :attr:`references` counts both."""
+        return self.core_references
+
+    @property
+    def navigation_references_per_vertex(self) -> float:
+        return self.navigation_references / max(self.num_vertices, 1)
+
+    @property
+    def face_map_references_per_vertex(self) -> float:
+        """``F_blue`` (Thm 7): one reference per vertex."""
+        return int(self.F_blue.shape[0]) / max(self.num_vertices, 1)
+
+    @property
     def core_references(self) -> int:
         """References of the connectivity tables alone (``k n``, ``k = 6, 5, 4, 5``)."""
         return int(np.prod(self.refs.shape))

@@ -1,0 +1,249 @@
+"""The CDS family against the paper's claims (Castelli Aleardi & Devillers, JoCG 2018, Sec. 2):
+exact reference counts (Thm 2/4/5/6, +1 with the face map of Thm 7), the cwBFS numbering of
+Thm 5, the 2n face slots with four unused ones (Thm 7), the 6n corner numbering (Thm 8), O(1)
+Target and Adjacent for Thm 6 (no loop in the traced program), the whole-mesh routes (every
+target, face_vertices, degrees) against the wood and the half-edge, jit == no-jit, no retracing,
+holed meshes through ``close_boundaries``, typed refusals, and gradients of the normals.
+
+Cost: every structure is built once per module on one 300-vertex random triangulation, and each
+test checks many claims on it (few shapes, few compilations). Every operator on every dart
+against the half-edge runs in ``test_protocol.py`` (all registered structures); the large holed
+meshes here are ``slow``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxcds import errors
+from jaxcds.algorithms import adjacent, vertex_degrees, vertex_normals
+from jaxcds.algorithms.normals import face_list_vertex_normals
+from jaxcds.construct.schnyder import BLACK, BLUE, RED, schnyder_wood
+from jaxcds.generators import icosphere, random_planar_triangulation
+from jaxcds.mesh import close_boundaries
+from jaxcds.structures import cds, registry
+from jaxcds.structures.halfedge import HalfEdge
+from jaxcds.verify import verify
+
+from conftest import load_shared, octahedron
+
+CDS = ["cds6n", "cds5n", "cds4n", "cds5n-o1"]
+K = {"cds6n": 6, "cds5n": 5, "cds4n": 4, "cds5n-o1": 5}
+PERMUTED = {"cds4n", "cds5n-o1"}
+CLASSES = {c.name: c for c in (cds.CDS6n, cds.CDS5n, cds.CDS4n, cds.CDS5nO1)}
+
+
+@pytest.fixture(scope="module")
+def rnd():
+    return random_planar_triangulation(300, seed=3)
+
+
+@pytest.fixture(scope="module")
+def built(rnd):
+    """Every CDS on ``rnd`` and the maximal wood it comes from (input numbering)."""
+    wood = schnyder_wood(rnd.faces, rnd.num_vertices)
+    return wood, {name: registry.build(name, rnd) for name in CDS}
+
+
+def _order(s, n):
+    return np.arange(n) if s.vertex_order is None else np.asarray(s.vertex_order)
+
+
+def _has_loop(fn, *args):
+    return "while" in str(jax.make_jaxpr(fn)(*args))
+
+
+# ---------------------------------------------------------------- one structure, many claims
+@pytest.mark.parametrize("name", CDS)
+def test_paper_claims(name, rnd, built):
+    wood, structures = built
+    s = structures[name]
+    n = rnd.num_vertices
+    order = _order(s, n)
+    inv = np.empty(n, np.int64)
+    inv[order] = np.arange(n)
+
+    # memory (Thm 2/4/5/6, Thm 7): exactly k int32 per vertex + F_blue, no hidden arrays
+    assert s.core_references == K[name] * n and s.navigation_references == K[name] * n
+    assert s.references == (K[name] + 1) * n
+    assert s.navigation_references_per_vertex == K[name]
+    assert s.refs.dtype == jnp.int32 and s.F_blue.dtype == jnp.int32
+    stored = sum(int(np.prod(x.shape)) for x in jax.tree_util.tree_leaves(s))
+    assert stored == (K[name] + 1) * n + (n if name in PERMUTED else 0)  # + the permutation
+
+    # every target at once (pointer jumping, or Thm 6 column by column) == the wood's out table
+    t = np.asarray(s.all_edge_targets()).reshape(n, 3)
+    out = wood.out[order]  # structure numbering of the rows, input numbering of the values
+    has = out < n
+    np.testing.assert_array_equal(order[t[has]], out[has])
+    # ... and the batched Target on the same edges
+    e = np.nonzero(has.reshape(-1))[0].astype(np.int32)
+    np.testing.assert_array_equal(np.asarray(s.edge_target(jnp.asarray(e))), t.reshape(-1)[e])
+
+    # whole-mesh routes (O(1) per face / edge) vs the half-edge: faces as sets, degrees
+    he = HalfEdge.from_faces(rnd.faces, n)
+    fv = np.asarray(s.face_vertices())
+    assert fv.shape == (s.num_faces, 3) and fv.dtype == np.int32
+    got = {tuple(np.roll(r, -np.argmin(r))) for r in order[fv]}
+    want = {tuple(np.roll(r, -np.argmin(r))) for r in rnd.faces}
+    assert got == want  # same triangles, same ccw orientation
+    # row f of face_vertices is face f: the origin of Edge(f) is on row f
+    f = jnp.arange(s.num_faces, dtype=jnp.int32)
+    assert np.all(np.any(fv == np.asarray(s.origin(s.edge_of_face(f)))[:, None], axis=1))
+    np.testing.assert_array_equal(np.asarray(vertex_degrees(s)),
+                                  np.asarray(vertex_degrees(he))[order])
+
+    # faces (Thm 7): 2n slots, exactly four unused, dense ids a bijection, Edge(f) on f
+    d = s.all_darts()
+    slots = np.asarray(s.face_slot(jnp.asarray(d)))
+    faces = np.asarray(s.face(jnp.asarray(d)))
+    assert slots.min() >= 0 and slots.max() < 2 * n
+    assert np.unique(slots).size == 2 * n - 4
+    unused = sorted(set(range(2 * n)) - set(slots.tolist()))
+    # V_red's red slot and three black/blue slots (which ones depends on the F_blue matching)
+    assert len(unused) == 4 and s.v_red in unused and sum(x >= n for x in unused) == 3
+    assert list(s.unused_slots) == unused
+    assert np.unique(np.stack([slots, faces], 1), axis=0).shape[0] == 2 * n - 4
+    assert faces.max() == 2 * n - 5
+    u = np.array([x for x in range(n) if x != s.v_red])
+    np.testing.assert_array_equal(np.asarray(s.face_slot(jnp.asarray(2 * (3 * u + RED)))), u)
+    np.testing.assert_array_equal(np.asarray(s.face(s.edge_of_face(f))), np.arange(s.num_faces))
+
+    # corners (Thm 8): u + n (c + 3 r), a bijection onto the 6n - 12 darts, inverse O(1)
+    k = np.asarray(s.corner_index(jnp.asarray(d)))
+    assert k.min() >= 0 and k.max() < 6 * n and np.unique(k).size == d.size == 6 * n - 12
+    np.testing.assert_array_equal(np.asarray(s.corner_dart(jnp.asarray(k))), d)
+    np.testing.assert_array_equal(k, (d >> 1) // 3 + n * ((d >> 1) % 3 + 3 * (d & 1)))
+
+    # cwBFS (Thm 5): V_red is label 0, parents non-decreasing, siblings consecutive
+    if name in PERMUTED:
+        assert sorted(order.tolist()) == list(range(n)) and s.v_red == 0
+        parent = t[:, RED].copy()
+        parent[0] = -1
+        assert np.all(np.diff(parent[1:]) >= 0) and np.all(parent[1:] < np.arange(1, n))
+        for x in np.unique(parent[1:]):
+            kids = np.nonzero(parent == x)[0]
+            assert kids.max() - kids.min() + 1 == kids.size
+
+    # O(1) operators: no loop in the traced program (Target only for Thm 6)
+    e64 = jnp.asarray(d[:64])
+    for op in ("next", "prev", "twin", "left_front", "left_back", "right_front", "right_back",
+               "face_left", "face_right", "corner_opposite", "corner_swing"):
+        assert not _has_loop(lambda s, e: getattr(s, op)(e), s, e64), op
+    assert not _has_loop(lambda s: s.face_vertices(), s) or name != "cds5n-o1"
+    u8 = jnp.arange(8, dtype=jnp.int32)
+    o1 = name == "cds5n-o1"
+    assert _has_loop(lambda s, e: s.target(e), s, e64) != o1
+    assert _has_loop(lambda s, u, v: s.adjacent(u, v), s, u8, u8[::-1]) != o1
+
+    # Adjacent == the wood's edges (half true pairs)
+    src, dst = np.nonzero(has)[0], t[has]
+    rng = np.random.default_rng(0)
+    a = np.concatenate([src[:100], rng.integers(0, n, 100)]).astype(np.int32)
+    b = np.concatenate([dst[:100], rng.integers(0, n, 100)]).astype(np.int32)
+    edges = set(zip(src.tolist(), dst.tolist()))
+    want_adj = [(x, y) in edges or (y, x) in edges for x, y in zip(a.tolist(), b.tolist())]
+    np.testing.assert_array_equal(np.asarray(adjacent(s, a, b)), want_adj)
+
+    # jit == eager, no retrace on new ids or a rebuilt structure with the same static fields
+    traces = []
+
+    @jax.jit
+    def ops(s, e):
+        traces.append(1)
+        return (s.next(e), s.prev(e), s.origin(e), s.target(e), s.face(e), s.twin(e))
+
+    q = jnp.asarray(rng.choice(d, 200))
+    for g, w in zip(ops(s, q), (s.next(q), s.prev(q), s.origin(q), s.target(q), s.face(q), s.twin(q))):
+        np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+    ops(s, jnp.asarray(rng.choice(d, 200)))
+    s2 = CLASSES[name].from_wood(wood)  # the builder straight from the wood == registry.build
+    for x, y in zip(jax.tree_util.tree_leaves(s), jax.tree_util.tree_leaves(s2)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    ops(s2, q)
+    assert len(traces) == 1
+
+
+# ---------------------------------------------------------------- hand-checked fixtures
+def test_octahedron_by_hand():
+    """The octahedron wood worked by hand in tests/construct/test_schnyder.py (root face
+    (0, 2, 4): V_red = 0, V_black = 2, V_blue = 4): every structure's targets are that table,
+    every vertex has degree 4 and the 8 faces come back ccw."""
+    v, f = octahedron()
+    want = np.array([[6, 6, 6], [5, 4, 2], [0, 4, 6], [0, 4, 1], [0, 6, 6], [0, 3, 2]])
+    faces = {tuple(np.roll(r, -np.argmin(r))) for r in f}
+    for name in CDS:
+        s = CLASSES[name].from_wood(schnyder_wood(f, 6, root_face=0))
+        order = _order(s, 6)
+        t = np.asarray(s.all_edge_targets()).reshape(6, 3)
+        got = np.where(want[order] < 6, order[t], 6)
+        np.testing.assert_array_equal(got, want[order], err_msg=name)
+        np.testing.assert_array_equal(np.asarray(vertex_degrees(s)), 4)
+        assert {tuple(np.roll(r, -np.argmin(r))) for r in order[np.asarray(s.face_vertices())]} == faces
+
+
+def test_cube_by_hand():
+    """cube.off (8 vertices, 12 faces, 18 edges): 6/5/4/5 references per vertex (+1), the
+    half-edge's degrees, the 12 faces ccw (verify() on the cube: test_protocol.py)."""
+    m = load_shared("cube.off")
+    he = HalfEdge.from_faces(m.faces, 8)
+    for name in CDS:
+        s = registry.build(name, m)
+        assert s.navigation_references == 8 * K[name] and s.references == 8 * (K[name] + 1)
+        order = _order(s, 8)
+        np.testing.assert_array_equal(np.asarray(vertex_degrees(s)), np.asarray(vertex_degrees(he))[order])
+        assert np.asarray(vertex_degrees(s)).sum() == 2 * 18
+        got = {tuple(np.roll(r, -np.argmin(r))) for r in order[np.asarray(s.face_vertices())]}
+        assert got == {tuple(np.roll(r, -np.argmin(r))) for r in m.faces}
+
+
+# ---------------------------------------------------------------- holed meshes, refusals
+# default set: test_protocol.py already verifies every CDS on grid.off and 2triangles.off
+@pytest.mark.slow
+@pytest.mark.parametrize("mesh", ["2triangles.off", "grid.off", "camelhead.off", "face.obj",
+                                  "stanford-bunny.obj"])
+def test_every_cds_on_closed_holed_meshes(mesh):
+    m = load_shared(mesh)
+    closed = close_boundaries(m)
+    for name in CDS:
+        s = registry.build(name, m)
+        assert s.boundaries_closed and s.num_vertices == closed.num_vertices
+        rep = verify(s, closed)
+        assert rep.checked > 10 * closed.num_faces and rep.mismatches == 0, (name, str(rep))
+
+
+def test_refusals_are_typed_and_named():
+    for name in CDS:
+        for mesh, genus in (("rocker-arm.obj", 1), ("3holes.off", 3)):
+            with pytest.raises(errors.UnsupportedTopologyError, match=f"genus {genus}") as exc:
+                registry.build(name, load_shared(mesh))
+            assert "'lr'" in str(exc.value) and "'halfedge'" in str(exc.value)
+        with pytest.raises(errors.NonManifoldEdgeError):
+            registry.build(name, load_shared("cow.off"))
+
+
+# ---------------------------------------------------------------- gradients
+def test_normal_gradients_equal_face_list(x64):
+    m = icosphere(1)
+    rng = np.random.default_rng(1)
+    pos = jnp.asarray(m.vertices + 0.05 * rng.standard_normal(m.vertices.shape))
+    w = jnp.asarray(rng.standard_normal(m.vertices.shape))
+    faces = jnp.asarray(m.faces)
+
+    def loss_fl(p):
+        return jnp.sum(face_list_vertex_normals(p, faces) * w)
+
+    want, gwant = float(loss_fl(pos)), np.asarray(jax.grad(loss_fl)(pos))
+    for name in CDS:
+        s = registry.build(name, m)
+        order = _order(s, m.num_vertices)
+
+        def loss_s(p):  # p in input numbering
+            return jnp.sum(vertex_normals(s, p[order]) * w[order])
+
+        np.testing.assert_allclose(float(loss_s(pos)), want, rtol=1e-12, err_msg=name)
+        np.testing.assert_allclose(np.asarray(jax.grad(loss_s)(pos)), gwant, rtol=1e-9, atol=1e-12,
+                                   err_msg=name)
