@@ -94,3 +94,21 @@ def octahedron():
     f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4],
                   [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]], np.int32)
     return v, f
+
+
+# ---------------------------------------------------------------- CPU cost per test
+# `JAXCDS_CPU_TIMES=/tmp/cpu.txt make test` appends "<cpu seconds> <test id>" per test: CPU time
+# (XLA compiles on several threads) is the budget that matters on a shared 2-core CI machine,
+# where wall-clock durations mostly measure the neighbours.
+_CPU_LOG = os.environ.get("JAXCDS_CPU_TIMES")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):  # setup (fixtures) + call + teardown
+    import time
+
+    t0 = time.process_time()
+    yield
+    if _CPU_LOG:
+        with open(_CPU_LOG, "a") as fh:
+            fh.write(f"{time.process_time() - t0:.2f} {item.nodeid}\n")
