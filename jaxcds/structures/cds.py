@@ -1185,8 +1185,50 @@ def _depths(par, n, root):
 
 
 # ====================================================================================== registry
-def build_cds(cls, mesh, root_face: Optional[int] = None):
+#: meshes with at least this many vertices show a progress bar when stderr is a terminal
+PROGRESS_MIN_VERTICES = 1_000_000
+
+
+class _Progress:
+    """A tiny text progress bar on stderr (no dependency): one line rewritten per stage."""
+
+    def __init__(self, stages, label, enabled):
+        import sys
+        import time
+
+        self.stages, self.label, self.enabled = list(stages), label, enabled
+        self.k, self.t0, self._time, self._err = 0, time.perf_counter(), time.perf_counter, sys.stderr
+        self._draw("")
+
+    def _draw(self, end):
+        if not self.enabled:
+            return
+        n = len(self.stages)
+        bar = "#" * (20 * self.k // n) + "." * (20 - 20 * self.k // n)
+        what = self.stages[self.k] if self.k < n else "done"
+        self._err.write(f"\r{self.label} [{bar}] {self.k}/{n} {what:<24} {self._time() - self.t0:7.1f} s{end}")
+        self._err.flush()
+
+    def step(self):
+        self.k += 1
+        self._draw("\n" if self.k == len(self.stages) else "")
+
+
+def _want_progress(progress, n) -> bool:
+    import sys
+
+    if progress is not None:
+        return bool(progress)
+    isatty = getattr(sys.stderr, "isatty", None)
+    return n >= PROGRESS_MIN_VERTICES and bool(isatty and isatty())
+
+
+def build_cds(cls, mesh, root_face: Optional[int] = None, progress: Optional[bool] = None):
     """Validate (closing holes if any), compute the maximal Schnyder wood, build ``cls``.
+
+    ``progress``: a text progress bar on stderr, one step per stage (mesh checks, Schnyder wood,
+    tables); ``None`` (default) shows it for meshes of at least :data:`PROGRESS_MIN_VERTICES`
+    vertices when stderr is a terminal.
 
     Raises:
       UnsupportedTopologyError: genus > 0 (naming it and suggesting ``lr`` / ``halfedge``),
@@ -1194,9 +1236,16 @@ def build_cds(cls, mesh, root_face: Optional[int] = None):
     """
     from jaxcds.construct.schnyder import prepare_mesh
 
+    n0 = int(getattr(mesh, "num_vertices", 0) or 0)
+    bar = _Progress(["mesh checks", "Schnyder wood", f"{cls.name} tables"], f"build {cls.name}",
+                    _want_progress(progress, n0))
     m, closed = prepare_mesh(mesh, structure=f"{cls.name} (Schnyder woods)")
+    bar.step()
     wood = schnyder_wood(m.faces, m.num_vertices, root_face=root_face, maximal=True)
-    return cls.from_wood(wood, boundaries_closed=closed or m.closed_boundaries)
+    bar.step()
+    s = cls.from_wood(wood, boundaries_closed=closed or m.closed_boundaries)
+    bar.step()
+    return s
 
 
 for _cls, _desc in ((CDS6n, "Schnyder-wood compact structure, Thm 2 (6n + n references)"),

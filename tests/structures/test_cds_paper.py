@@ -247,3 +247,13 @@ def test_normal_gradients_equal_face_list(x64):
         np.testing.assert_allclose(float(loss_s(pos)), want, rtol=1e-12, err_msg=name)
         np.testing.assert_allclose(np.asarray(jax.grad(loss_s)(pos)), gwant, rtol=1e-9, atol=1e-12,
                                    err_msg=name)
+
+
+# ---------------------------------------------------------------- progress bar
+def test_progress_bar_only_when_asked_or_large_on_a_tty(rnd, capsys):
+    cds.build_cds(cds.CDS6n, rnd)  # small mesh, stderr captured (not a terminal): silent
+    assert capsys.readouterr().err == ""
+    cds.build_cds(cds.CDS6n, rnd, progress=True)
+    err = capsys.readouterr().err
+    assert err.count("\r") == 4 and "3/3 done" in err and err.endswith("\n")
+    assert cds.PROGRESS_MIN_VERTICES >= 100_000
