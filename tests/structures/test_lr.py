@@ -371,3 +371,21 @@ def test_large_meshes_corner_operators(key):
         real = m.faces if m.dummy_faces is None else m.faces[~m.dummy_faces]
         np.testing.assert_array_equal(_triangle_set(np.asarray(s.vertex_order)[tri]),
                                       _triangle_set(real))
+
+
+@pytest.mark.slow
+def test_bench_lr_quick_smoke(tmp_path, capsys):
+    """benchmarks/bench_lr.py --quick: Table 1 rows and construction numbers come out."""
+    import json
+
+    from benchmarks import bench_lr
+
+    out = tmp_path / "lr.json"
+    assert bench_lr.main(["--quick", "--no-fig10", "--meshes", "cube.off", "grid.off",
+                          "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert [r["mesh"] for r in res["table1"]] == ["cube.off", "grid.off"]
+    grid = res["table1"][1]
+    assert grid["n"] == 256 and grid["holes_closed"] == 1 and grid["rpt"] > 1
+    assert res["construction"]["triangles"] == 20_000
+    assert "| grid.off | 256 |" in capsys.readouterr().out
