@@ -4,8 +4,9 @@ generic algorithms (degrees, normals and their gradient) against the HalfEdge, t
 
 ``tests/structures/test_protocol.py`` already runs ``verify`` (every protocol operator, every
 dart, vs the HalfEdge) for the registered ``lr`` / ``lr-bits`` builds on the shared meshes and on
-random triangulations; here ``verify`` only runs on what it does not build (icosphere, wart
-skipping off, chosen hybrid periods, ``borders=False``).
+random triangulations; here ``verify`` only runs on what it does not build: the icosphere in
+the quick set; wart skipping off, chosen hybrid periods and ``borders=False`` in slow cases
+(one ``verify`` compiles for 7-15 s of CPU).
 
 Cost: every structure instance compiles the jitted checks once (its static sizes differ), so
 structures are built once per module (``_built``) and each is checked by one jitted call.
