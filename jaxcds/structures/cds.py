@@ -202,7 +202,18 @@ def relabel_wood(wood: SchnyderWood, order: np.ndarray) -> SchnyderWood:
         conquest_order=label[wood.conquest_order].astype(np.int32))
 
 
-def face_slots(wood: SchnyderWood, lf: np.ndarray, rf: np.ndarray):
+def _incoming(wood: SchnyderWood) -> np.ndarray:
+    """``(n, 3)`` bool ``I_c[u]``: ``u`` has an incoming edge of colour ``c`` (a scatter of the
+    ``out`` table, O(n))."""
+    n = wood.num_vertices
+    inc = np.zeros((n, 3), dtype=bool)
+    for c in range(3):
+        t = wood.out[:, c]
+        inc[t[t < n], c] = True
+    return inc
+
+
+def face_slots(wood: SchnyderWood, lf: np.ndarray, rf: np.ndarray, inc: Optional[np.ndarray] = None):
     """Thm 7's face map from the ground truth: ``(F_blue, unused)``.
 
     Every face gets the slot of the first rule that applies: red (left of a red edge, slot of its
@@ -218,9 +229,7 @@ def face_slots(wood: SchnyderWood, lf: np.ndarray, rf: np.ndarray):
     # blue triangle of u: left face of u_blue neither red (LeftBack red) nor black (LeftFront black)
     has_blue = wood.out[:, BLUE] < n
     # LeftBack(u_blue) is red iff u has an incoming red edge (local rule: ccw after out blue)
-    ired = np.zeros(n, dtype=bool)
-    src, dst, c = wood.edges().T
-    ired[dst[c == RED]] = True
+    ired = (_incoming(wood) if inc is None else inc)[:, RED]
     blue_matched = has_blue & ~ired & (lfc[:, BLUE] == BLUE)
     blue_matched[vk] = False  # the left face of (V_black, V_blue) is the outer face, red slot V_blue
     fb = np.zeros(n, dtype=np.int64)
@@ -782,11 +791,8 @@ class _Tables:
         c = np.arange(3)[None, :]
         self.lf_same = has & ((self.lf & 1) == 1)
         self.rf_same = has & ((self.rf & 1) == 0)
-        inc = np.zeros((n, 3), dtype=bool)
-        src, dst, col = wood.edges().T
-        inc[dst, col] = True
-        self.inc = inc
-        self.fblue, self.unused = face_slots(wood, self.lf, self.rf)
+        self.inc = _incoming(wood)
+        self.fblue, self.unused = face_slots(wood, self.lf, self.rf, self.inc)
 
     @staticmethod
     def src(d):
