@@ -75,7 +75,7 @@ from jaxcds.structures import registry
 from jaxcds.verify import verify
 
 mesh = random_planar_triangulation(300, seed=0) if SMALL else jaxcds.load_mesh(default_mesh_path())
-print(mesh.source, mesh.num_vertices, "vertices", mesh.num_faces, "faces")
+print(os.path.basename(mesh.source), mesh.num_vertices, "vertices", mesh.num_faces, "faces")
 print(jaxcds.topology(mesh))'''),
     ("md", """\
 ## Every structure of the registry
@@ -84,6 +84,8 @@ Each builder takes the validated mesh; compact structures may renumber vertices
 every array the structure holds (bit-packed structures hold fewer bytes than 4 per reference),
 and `verify` compares every operator on every dart with the half-edge."""),
     ("code", '''\
+from jaxcds.structures.halfedge import HalfEdge
+reference = HalfEdge.from_faces(mesh.faces, mesh.num_vertices)   # one reference for every check
 rows, structures = [], {}
 for name in registry.names():
     t0 = time.perf_counter()
@@ -93,7 +95,7 @@ for name in registry.names():
         rows.append(f"| {name} | refused: {type(exc).__name__} | | | | | |")
         continue
     t_build = time.perf_counter() - t0
-    rep = verify(s, mesh)
+    rep = verify(s, mesh, reference=reference, adjacency_samples=2000)
     assert rep.mismatches == 0, (name, str(rep))
     structures[name] = s
     rows.append(f"| {name} | {type(s).__name__} | {s.references:,} | {s.references_per_vertex:.2f} | "
@@ -111,7 +113,7 @@ axes[0].invert_yaxis()
 for ax, vals in zip(axes, (refs, nbytes)):
     for i, r in enumerate(vals):
         ax.text(r, i, f" {r:.2f}" if vals is refs else f" {r:.0f}", va="center")
-fig.suptitle(f"memory on {mesh.source} ({mesh.num_vertices} vertices)")
+fig.suptitle(f"memory on {os.path.basename(mesh.source)} ({mesh.num_vertices} vertices)")
 plt.tight_layout(); plt.show()'''),
     ("md", """\
 ## Batched queries, jitted
@@ -123,7 +125,7 @@ dart (its per-operator counts include `adjacent` on vertex pairs)."""),
     ("code", '''\
 he = structures["halfedge"]
 rng = np.random.default_rng(0)
-Q = 100_000 if SMALL else 1_000_000
+Q = 100_000 if SMALL else 400_000
 
 @jax.jit
 def queries(s, e):
@@ -501,7 +503,7 @@ for k, (el, az) in enumerate(((12, -60), (12, 120))):
     colours = plt.cm.coolwarm(np.nan_to_num(face_rank, nan=0.5))
     colours[np.isnan(face_rank)] = (0.6, 0.6, 0.6, 1)
     render(ax, P3, m3.faces, face_colours=colours, elev=el, azim=az)
-fig.suptitle(f"{m3.source}: {m3.num_vertices} vertices, ring of {m_r}, {s3.num_isolated} isolated, "
+fig.suptitle(f"{os.path.basename(m3.source)}: {m3.num_vertices} vertices, ring of {m_r}, {s3.num_isolated} isolated, "
              f"{s3.references / m3.num_faces:.2f} rpt")
 plt.tight_layout(); plt.show()'''),
 ]
@@ -547,7 +549,7 @@ P_noisy = P_clean + 0.35 * scale * rng.standard_normal((s.num_vertices, 1)).asty
 darts = jnp.asarray(s.all_darts())
 U, W = s.origin(darts), s.target(darts)                   # every edge, both directions
 F_s = np.asarray(s.face_vertices())                       # faces in the structure's numbering
-print(f"{mesh.source}: {s.num_vertices} vertices, {len(F_s)} faces, {s.references_per_vertex:.2f} refs/vertex "
+print(f"{os.path.basename(mesh.source)}: {s.num_vertices} vertices, {len(F_s)} faces, {s.references_per_vertex:.2f} refs/vertex "
       f"({type(s).__name__}); median edge {scale:.3g}; {darts.size} darts")'''),
     ("md", """\
 ## Loss
@@ -793,13 +795,20 @@ for path in saved:
     if isinstance(cand, dict) and {"timings", "memory", "meshes"} <= set(cand):
         res, source = cand, os.path.relpath(path, ROOT)
 if res is None:
-    # every structure at normal size; two at small size (each structure x op is one XLA compilation)
+    # Structures with the scatter normals, targets and faces; then the peers (face list, numba) and the
+    # face-list formulations in a second run, as `--ops` prefixes cannot keep the peers' `vertex_normals`
+    # without the structures' slow `vertex_normals[gather]`. Every structure x op is one XLA compilation:
+    # pemb and lr-bits (the slowest to compile) are left to `jaxcds bench`, and SMALL keeps two structures.
     mesh_spec = ["random:1000"] if SMALL else ["random:10000"]
-    structs = ["halfedge", "cds5n"] if SMALL else None
-    ops = ["vertex_degrees", "vertex_normals", "target"] if SMALL else ["vertex_degrees", "vertex_normals", "target", "face_left"]
-    res = harness.run(mesh_spec, structures=structs, peers=["plain-jax", "numba-loop"], ops=ops, repeats=3,
-                      queries=4096 if SMALL else 1 << 18, rss="inprocess", budget_s=2.0,
-                      command="harness.run (notebook 06)")
+    structs = ["halfedge", "cds5n"] if SMALL else ["halfedge", "corner-table", "cds6n", "cds5n", "cds4n", "cds5n-o1", "lr"]
+    common = dict(repeats=3, queries=4096 if SMALL else 1 << 18, rss="inprocess", budget_s=2.0,
+                  command="harness.run (notebook 06)")
+    res = harness.run(mesh_spec, structures=structs, peers=[],
+                      ops=["vertex_degrees", "vertex_normals[scatter]", "target", "face_left"], **common)
+    peers = harness.run(mesh_spec, structures=[], peers=["plain-jax", "numba-loop"],
+                        ops=["vertex_degrees", "vertex_normals"], **common)
+    res["timings"] += [r for r in peers["timings"] if r["kind"] == "peer"]   # formulations: already in res
+    res["summary"] = harness.summarize(res)
     source = f"harness.run({mesh_spec}) in this notebook"
 print("results from:", source)
 print("machine:", {k: res["machine"].get(k) for k in ("cpu", "cores", "jax") if k in res["machine"]})
@@ -838,10 +847,15 @@ for st, refs in mem.items():
         ax.scatter(refs, t, s=40); ax.annotate(st, (refs, t), xytext=(4, 3), textcoords="offset points", fontsize=9)
 ax.set_xlabel("references per vertex"); ax.set_ylabel("Target, ns per query")
 ax.set_title(f"memory vs Target time ({name})"); ax.grid(alpha=0.3)
-plt.tight_layout(); plt.show()'''),
+plt.tight_layout()
+display(fig); plt.close(fig)   # report.write_report switched matplotlib to Agg: display explicitly'''),
     ("code", '''\
 display(Markdown(report.markdown(res)))'''),
 ]
+
+# Last cell of every notebook: its cost (the machine is shared, so CPU time says more than wall time).
+_FOOTER: Cell = ("code", '''\
+print(f"CPU time of this kernel: {time.process_time():.1f} s (all threads; includes XLA compilation)")''')
 
 NOTEBOOKS: Dict[str, List[Cell]] = {
     "01_tour": TOUR,
@@ -860,7 +874,7 @@ def make(name: str):
     nb = nbformat.v4.new_notebook()
     nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
     nb.metadata["language_info"] = {"name": "python"}
-    for i, (kind, src) in enumerate(NOTEBOOKS[name]):
+    for i, (kind, src) in enumerate(NOTEBOOKS[name] + [_FOOTER]):
         cell = nbformat.v4.new_markdown_cell(src) if kind == "md" else nbformat.v4.new_code_cell(src)
         cell["id"] = f"{name[:2]}-{i:02d}"   # stable ids: regenerating gives the same file
         nb.cells.append(cell)
