@@ -60,8 +60,11 @@ Target
 ------
 CDS6n / CDS5n / CDS4n: ``Target(u_c)`` turns cw around the target with ``LeftFront`` until an
 edge leaving it shows up (Thm 2, "Operator Target"), a masked ``while_loop`` over the batch: O(d).
-CDS5nO1: O(1) (Thm 6). Whole-mesh queries (``face_vertices``, used by the normals) compute all
-``3n`` targets at once by pointer jumping along the same ``LeftFront`` chains (O(n log d)).
+CDS5nO1: O(1) (Thm 6), two table-row reads. Whole-mesh queries (``face_vertices``, used by the
+normals, and ``vertex_degrees``) read the tables column by column (slices, no gather), compute all
+``3n`` targets at once -- by pointer jumping along the same ``LeftFront`` chains (one gather per
+round, ``ceil(log2(longest fan))`` rounds) or, for CDS5nO1, by Thm 6 in O(1) per edge -- and
+assemble every face from its Thm 7 slot in O(1) (no navigation operator is called).
 """
 
 from __future__ import annotations
@@ -1108,13 +1111,15 @@ class CDS5nO1(CDS4n):
         """Thm 6 Target: O(1), no loop; two row reads (``u``, then the vertex the case names)."""
         e = _ids(e)
         u, c = e // 3, e % 3
-        row = self.refs[u]
+        # optimization_barrier: one gather per row, materialised (XLA would otherwise fuse a
+        # copy of the gather into every column read)
+        row = jax.lax.optimization_barrier(self.refs[u])
         s, ctl = self._toleft_r(row)
         lf = self._lf_blue_r(row)
         rf = self._rf_black_r(row)
         # the one other vertex a colour's case can name: q (red), w' (blue), z' (black)
         y = jnp.where(c == RED, s, jnp.where(c == BLUE, _src(lf), _src(rf)))
-        ry = self.refs[y]
+        ry = jax.lax.optimization_barrier(self.refs[y])
         eb, ek = self._walk_end(ry)
         at_q = lambda q: _fld(ry[..., self._COL_BLACK_R])  # noqa: E731
         t_red, t_blue, t_black = self._targets_r(u, row, at_q, lambda x: eb, lambda z: ek)
@@ -1132,11 +1137,11 @@ class CDS5nO1(CDS4n):
     def _out_targets(self, u):
         """Targets of the three edges leaving ``u`` (``num_vertices`` where absent): one row for
         ``u`` and one each for ``q``, ``w'``, ``z'``."""
-        row = self.refs[u]
+        row = jax.lax.optimization_barrier(self.refs[u])
         s, _ = self._toleft_r(row)
         x = _src(self._lf_blue_r(row))
         z = _src(self._rf_black_r(row))
-        rq, rx, rz = self.refs[s], self.refs[x], self.refs[z]
+        rq, rx, rz = jax.lax.optimization_barrier((self.refs[s], self.refs[x], self.refs[z]))
         ts = self._targets_r(u, row, lambda q: _fld(rq[..., self._COL_BLACK_R]),
                              lambda x: self._walk_end(rx)[0], lambda z: self._walk_end(rz)[1])
         return [jnp.where(self.edge_valid(3 * u + c), t, self.num_vertices) for c, t in enumerate(ts)]
