@@ -65,3 +65,13 @@ def test_missing_file_no_traceback():
     r = subprocess.run([sys.executable, "-m", "jaxcds", "info", "/nonexistent/x.off"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "no such file" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("structure,nav", [("cds6n", 6), ("cds5n", 5), ("cds4n", 4), ("cds5n-o1", 5)])
+def test_build_prints_the_papers_reference_counts(capsys, structure, nav):
+    """CDS Thm 2/4/5/6: exactly 6, 5, 4, 5 references per vertex, +1 with the Thm 7 face map."""
+    rc, d = run_json(capsys, ["build", mesh_path("cube.off"), "--structure", structure, "--json"])
+    assert rc == 0
+    assert d["navigation_references_per_vertex"] == nav
+    assert d["face_map_references_per_vertex"] == 1
+    assert d["references_per_vertex"] == nav + 1

@@ -92,7 +92,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E
 # ring), and every new shape recompiles every operator; seeds are free.
 @pytest.mark.parametrize("structure", STRUCTURES)
 @settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(n=st.sampled_from([4, 5, 7, 64, 300]), seed=st.integers(0, 2**31 - 1))
+@given(n=st.sampled_from([4, 6, 300]), seed=st.integers(0, 2**31 - 1))
 def test_every_structure_on_random_planar_triangulations(structure, n, seed):
     from jaxcds.generators import random_planar_triangulation
 
