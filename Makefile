@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-quick test-all bench bench-quick venv clean
+.PHONY: demo test test-quick test-all bench bench-quick notebooks venv clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -17,10 +17,10 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/jaxcds demo
 
-# The quick set (CI runs this: about 10 min on 2 cores from a fresh clone): every structure on
+# The quick set (CI runs this: about 15 min on 2 loaded cores from a fresh clone, install included): every structure on
 # every kind of input. `test-all` adds the slow cases: every accepted shared mesh, large random
 # triangulations, notebooks at full size, benchmark probes.
-PYTEST := $(PY) -m pytest -q -n 2 --timeout 900 --durations 15
+PYTEST := $(PY) -m pytest -q -n 2 --timeout 900 --timeout-method thread --durations 15
 
 test: $(STAMP)
 	$(PYTEST) -m "not slow" tests
@@ -33,6 +33,9 @@ test-all: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m pip install -q -e '.[bench]' || echo "some benchmark peers failed to install; they will be skipped"
 	$(VENV)/bin/jaxcds bench
+
+notebooks: $(STAMP)
+	$(PY) notebooks/make_notebooks.py --execute
 
 bench-quick: $(STAMP)
 	$(VENV)/bin/jaxcds bench --quick

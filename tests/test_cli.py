@@ -53,9 +53,19 @@ def test_unknown_structure(capsys):
     assert "unknown structure" in capsys.readouterr().err
 
 
+def test_demo_on_a_small_mesh(capsys):
+    """The demo's whole job (every structure built, verified, degrees and normals compared) on
+    the cube; the bundled bunny is `make demo` itself and the slow test below."""
+    assert main(["demo", mesh_path("cube.off")]) == 0
+    out = capsys.readouterr().out
+    assert "all structures agree with the half-edge" in out
+    assert all(name in out for name in ("halfedge", "corner-table", "cds5n", "lr", "pemb"))
+
+
+@pytest.mark.slow
 def test_python_dash_m_and_demo():
     r = subprocess.run([sys.executable, "-m", "jaxcds", "demo"], capture_output=True, text=True,
-                       timeout=600)
+                       timeout=900)
     assert r.returncode == 0, r.stderr
     assert "all structures agree with the half-edge" in r.stdout
     assert "halfedge" in r.stdout and "corner-table" in r.stdout

@@ -391,21 +391,28 @@ class _CDS(MeshStructure):
             fin = fin | (cur == self._e_br) | (cur == self._e_kb)
             return fin, t, lf >> 1
 
+        # An id that is not an edge (a hole of the id space, or out of range) answers
+        # ``num_vertices`` at once: its walk would never meet a stop and the loop would not end.
+        valid = (e >= 0) & (e < 3 * self.num_vertices) & self.edge_valid(jnp.clip(e, 0, 3 * self.num_vertices - 1))
+        e = jnp.where(valid, e, 0)
         fin0, t0, nxt0 = stop(e)
+        fin0 = fin0 | ~valid
+        t0 = jnp.where(valid, t0, self.num_vertices)
+        limit = self.num_vertices + 3  # no degree exceeds n - 1: a safety net, never reached
 
         def cond(state):
-            return jnp.any(~state[2])
+            return jnp.any(~state[2]) & (state[3] < limit)
 
         def body(state):
-            cur, t, done = state
+            cur, t, done, k = state
             fin, t2, nxt = stop(cur)
             t = jnp.where(done, t, t2)
             newdone = done | fin
             cur = jnp.where(newdone, cur, nxt)
-            return cur, t, newdone
+            return cur, t, newdone, k + 1
 
         cur0 = jnp.where(fin0, e, nxt0)
-        _, t, _ = jax.lax.while_loop(cond, body, (cur0, t0, fin0))
+        _, t, _, _ = jax.lax.while_loop(cond, body, (cur0, t0, fin0, jnp.int32(0)))
         return t.astype(jnp.int32)
 
     def _lf_cols(self):

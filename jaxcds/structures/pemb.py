@@ -398,15 +398,17 @@ class PEMB(MeshStructure):
         v = jnp.asarray(v, jnp.int32)
         f0 = self.first(v)
 
+        limit = 2 * self.num_edges + 1  # a safety net for ids that are not vertices
+
         def cond(c):
-            return jnp.any(c[1] != f0)
+            return jnp.any(c[1] != f0) & (c[2] < limit)
 
         def body(c):
-            d, e = c
+            d, e, k = c
             more = e != f0
-            return jnp.where(more, d + 1, d), jnp.where(more, self.next_p(e), e)
+            return jnp.where(more, d + 1, d), jnp.where(more, self.next_p(e), e), k + 1
 
-        d, _ = jax.lax.while_loop(cond, body, (jnp.ones_like(v), self.next_p(f0)))
+        d, _, _ = jax.lax.while_loop(cond, body, (jnp.ones_like(v), self.next_p(f0), jnp.int32(0)))
         return d
 
     def get_face(self, i: Int) -> Int:
