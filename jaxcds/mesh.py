@@ -14,6 +14,7 @@ from typing import Any, Optional, Sequence
 import numba
 import numpy as np
 
+from jaxcds import _mesh_kernels as kernels
 from jaxcds import errors
 
 __all__ = [
@@ -192,27 +193,28 @@ class EdgeTable:
     """Undirected edges of a face list, with their incidences.
 
     ``dart_edge[3f + k]`` is the undirected edge of the dart from ``faces[f, k]`` to
-    ``faces[f, (k+1) % 3]``; ``edges`` are ``(E, 2)`` sorted pairs; ``count[e]`` is how many darts
-    (face sides) lie on edge ``e``, ``forward[e]`` how many of them run low -> high.
+    ``faces[f, (k+1) % 3]``; ``edges`` are ``(E, 2)`` sorted pairs in lexicographic order;
+    ``count[e]`` is how many darts (face sides) lie on edge ``e``, ``forward[e]`` how many of them
+    run low -> high; ``order[starts[e]:starts[e+1]]`` are the darts of edge ``e``, increasing.
     """
 
     edges: np.ndarray
     dart_edge: np.ndarray
     count: np.ndarray
     forward: np.ndarray
+    order: np.ndarray
+    starts: np.ndarray
 
 
 def edge_table(faces: np.ndarray) -> EdgeTable:
-    f = np.asarray(faces, dtype=np.int64)
-    a = f.ravel()
-    b = np.roll(f, -1, axis=1).ravel()
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    n = int(max(a.max(initial=0), b.max(initial=0))) + 1
-    key = lo * n + hi
-    uniq, dart_edge, count = np.unique(key, return_inverse=True, return_counts=True)
-    forward = np.bincount(dart_edge, weights=(a < b), minlength=uniq.size).astype(np.int64)
-    edges = np.stack([uniq // n, uniq % n], axis=1)
-    return EdgeTable(edges=edges, dart_edge=dart_edge.astype(np.int64), count=count, forward=forward)
+    """Group the darts by undirected edge in O(F + V) (two counting sorts, see
+    :mod:`jaxcds._mesh_kernels`)."""
+    f = np.ascontiguousarray(faces)
+    n = int(f.max(initial=-1)) + 1
+    order, starts, dart_edge, forward = kernels.edge_groups(f, n)
+    edges = kernels.edge_endpoints(f, order, starts)
+    return EdgeTable(edges=edges, dart_edge=dart_edge, count=np.diff(starts), forward=forward,
+                     order=order, starts=starts)
 
 
 # ---------------------------------------------------------------------------------- defects
@@ -235,18 +237,16 @@ def find_defects(mesh: TriMesh) -> list[errors.MeshError]:
         fi = int(degenerate[0])
         found.append(errors.DegenerateFaceError(
             f"{src}: face {fi} repeats a vertex {f[fi].tolist()} ({degenerate.size} degenerate faces)"))
-    sorted_f = np.sort(f, axis=1)
-    _, first, inv, counts = np.unique(sorted_f, axis=0, return_index=True, return_inverse=True,
-                                      return_counts=True)
-    inv = inv.ravel()
-    dup = np.nonzero(counts[inv] > 1)[0]
+    et = edge_table(f)
+    partner, ok = kernels.duplicate_faces(f, et.order, et.starts, 64)
+    if not ok:  # a huge non-manifold edge: sort the faces instead of comparing pairs
+        partner = _duplicate_faces_by_sorting(f)
+    dup = np.nonzero(partner >= 0)[0]
     if dup.size:
         fi = int(dup[0])
-        other = int(dup[1]) if dup.size > 1 else fi
         found.append(errors.DuplicateFaceError(
-            f"{src}: faces {fi} and {other} use the same vertices {f[fi].tolist()} "
+            f"{src}: faces {fi} and {int(partner[fi])} use the same vertices {f[fi].tolist()} "
             f"({dup.size} faces in duplicate groups)"))
-    et = edge_table(f)
     nm = np.nonzero(et.count > 2)[0]
     if nm.size:
         a, b = (int(x) for x in et.edges[nm[0]])
@@ -271,37 +271,33 @@ def find_defects(mesh: TriMesh) -> list[errors.MeshError]:
     return found
 
 
+def _duplicate_faces_by_sorting(f: np.ndarray) -> np.ndarray:
+    """``partner[f]`` as :func:`kernels.duplicate_faces` gives it, by one sort of the faces."""
+    _, inv, counts = np.unique(np.sort(f, axis=1), axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    partner = np.full(f.shape[0], -1, dtype=np.int64)
+    dup = np.nonzero(counts[inv] > 1)[0]
+    order = dup[np.argsort(inv[dup], kind="stable")]  # duplicate faces grouped, increasing
+    grp = inv[order]
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = grp[1:] != grp[:-1]
+    idx = np.arange(order.size)
+    head = order[np.maximum.accumulate(np.where(first, idx, 0))]
+    # the group's first face pairs with the second, every other face with the first
+    partner[order] = np.where(first, order[np.minimum(idx + 1, order.size - 1)], head)
+    return partner
+
+
 def _fans_per_vertex(f: np.ndarray, et: EdgeTable, num_vertices: int) -> np.ndarray:
     """Number of edge-connected fans of faces around each vertex (1 for a manifold vertex)."""
-    key = _corner_fans(f, et)
-    return np.bincount(np.unique(key) // (3 * f.shape[0]), minlength=num_vertices)
+    return kernels.fans_per_vertex(f, kernels.corner_fans(f, et.order, et.starts), num_vertices)
 
 
 def _corner_fans(f: np.ndarray, et: EdgeTable) -> np.ndarray:
     """For every corner ``3f+k``, a key ``vertex * 3F + fan label``: corners of one vertex in the
-    same edge-connected fan share the key."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    nf = f.shape[0]
-    # corner (f, k) has id 3f+k at vertex f[f, k]; dart 3f+k runs f[f,k] -> f[f,k+1].
-    # Two faces sharing edge (a, b) link their corners at a and at b.
-    order = np.argsort(et.dart_edge, kind="stable")
-    de = et.dart_edge[order]
-    pair = np.nonzero(de[1:] == de[:-1])[0]
-    d1, d2 = order[pair], order[pair + 1]
-    # dart d = 3f+k: corners at its two ends are 3f+k (origin) and 3f+(k+1)%3 (target)
-    nxt = lambda d: 3 * (d // 3) + (d % 3 + 1) % 3  # noqa: E731
-    # d1: a->b, d2: b->a (manifold, consistent) or a->b (flipped); match corners by vertex id
-    c1o, c1t = d1, nxt(d1)
-    c2o, c2t = d2, nxt(d2)
-    vert = f.ravel()
-    same = vert[c1o] == vert[c2o]
-    rows = np.concatenate([c1o, c1t])
-    cols = np.concatenate([np.where(same, c2o, c2t), np.where(same, c2t, c2o)])
-    g = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(3 * nf, 3 * nf))
-    _, label = connected_components(g, directed=False)
-    return vert.astype(np.int64) * (3 * nf) + label
+    same edge-connected fan share the key (labels increase with the fan's smallest corner)."""
+    label = kernels.corner_fans(f, et.order, et.starts)
+    return f.ravel().astype(np.int64) * (3 * f.shape[0]) + label
 
 
 def split_nonmanifold_vertices(mesh: TriMesh) -> TriMesh:
@@ -356,18 +352,10 @@ def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,
 
 # ---------------------------------------------------------------------------------- topology
 def _components(mesh: TriMesh) -> tuple[int, np.ndarray]:
-    """Connected components of the faces (through shared vertices): (count, face label)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    f = mesh.faces.astype(np.int64)
-    nf, nv = f.shape[0], mesh.num_vertices
-    rows = np.repeat(np.arange(nf), 3)
-    g = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, nf + f.ravel())), shape=(nf + nv, nf + nv))
-    n, label = connected_components(g, directed=False)
-    face_label = label[:nf]
-    uniq, face_label = np.unique(face_label, return_inverse=True)
-    return int(uniq.size), face_label.ravel()
+    """Connected components of the faces (through shared vertices): (count, face label), labels
+    in order of each component's first face."""
+    n, label = kernels.face_components(np.ascontiguousarray(mesh.faces), mesh.num_vertices)
+    return int(n), label
 
 
 def boundary_loops(mesh: TriMesh) -> list[np.ndarray]:
@@ -383,7 +371,8 @@ def boundary_loops(mesh: TriMesh) -> list[np.ndarray]:
     # border dart runs b -> a; chain: the border dart leaving a is the one whose origin b' == a
     origin, dest = b, a
     nxt = _chain(origin, dest, mesh.num_vertices, mesh.source)
-    return [origin[loop] for loop in _cycles(nxt)]
+    items, offsets = kernels.cycles(nxt)
+    return [origin[items[offsets[k]:offsets[k + 1]]] for k in range(offsets.size - 1)]
 
 
 def _chain(origin: np.ndarray, dest: np.ndarray, num_vertices: int, source: str) -> np.ndarray:
@@ -395,39 +384,6 @@ def _chain(origin: np.ndarray, dest: np.ndarray, num_vertices: int, source: str)
             f"{source}: boundary vertex {v} starts {int(counts[v])} border edges (a pinched boundary)")
     by_origin[origin] = np.arange(origin.size)
     return by_origin[dest]
-
-
-@numba.njit(cache=True)
-def _cycle_labels(nxt: np.ndarray) -> np.ndarray:
-    label = np.full(nxt.size, -1, dtype=np.int64)
-    k = 0
-    for s in range(nxt.size):
-        if label[s] >= 0:
-            continue
-        e = s
-        while label[e] < 0:
-            label[e] = k
-            e = nxt[e]
-        k += 1
-    return label
-
-
-def _cycles(nxt: np.ndarray) -> list[np.ndarray]:
-    """Cycles of a permutation given as a successor array, each in successor order."""
-    out = []
-    seen = np.zeros(nxt.size, dtype=bool)
-    for s in range(nxt.size):
-        if seen[s]:
-            continue
-        cyc = [s]
-        seen[s] = True
-        e = int(nxt[s])
-        while not seen[e]:
-            cyc.append(e)
-            seen[e] = True
-            e = int(nxt[e])
-        out.append(np.asarray(cyc, dtype=np.int64))
-    return out
 
 
 def topology(mesh: TriMesh) -> dict:
@@ -480,7 +436,7 @@ def topology(mesh: TriMesh) -> dict:
 
 def _orientable(f: np.ndarray, et: EdgeTable) -> bool:
     """Whether faces can be flipped to a consistent orientation (2-colouring of flip parity)."""
-    order = np.argsort(et.dart_edge, kind="stable")
+    order = et.order
     de = et.dart_edge[order]
     pair = np.nonzero((de[1:] == de[:-1]))[0]
     d1, d2 = order[pair], order[pair + 1]

@@ -205,3 +205,87 @@ def test_trimesh_input():
     tm = trimesh.creation.icosphere(2)
     m = load_mesh(tm)
     assert isinstance(m, TriMesh) and m.num_faces == len(tm.faces)
+
+
+# --------------------------------------------------------------- linear-time kernels vs oracles
+def _random_soup(rng, nv, nf):
+    """Faces drawn at random: duplicates, repeated vertices, non-manifold edges all occur."""
+    return rng.integers(0, nv, size=(nf, 3)).astype(np.int32)
+
+
+def _oracle_edges(f):
+    f = f.astype(np.int64)
+    a, b = f.ravel(), np.roll(f, -1, axis=1).ravel()
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    n = int(f.max()) + 1
+    uniq, inv, cnt = np.unique(lo * n + hi, return_inverse=True, return_counts=True)
+    fw = np.bincount(inv, weights=(a < b), minlength=uniq.size).astype(np.int64)
+    return np.stack([uniq // n, uniq % n], 1), inv.ravel(), cnt, fw
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_edge_table_and_duplicates_match_sorting_oracles(seed):
+    from jaxcds import _mesh_kernels as kernels
+    from jaxcds.mesh import _duplicate_faces_by_sorting, edge_table
+
+    rng = np.random.default_rng(seed)
+    f = _random_soup(rng, nv=int(rng.integers(4, 40)), nf=int(rng.integers(1, 300)))
+    et = edge_table(f)
+    edges, inv, cnt, fw = _oracle_edges(f)
+    np.testing.assert_array_equal(et.edges, edges)
+    np.testing.assert_array_equal(et.dart_edge, inv)
+    np.testing.assert_array_equal(et.count, cnt)
+    np.testing.assert_array_equal(et.forward, fw)
+    for e in range(0, et.edges.shape[0], 7):  # darts of an edge: increasing, all on that edge
+        darts = et.order[et.starts[e]:et.starts[e + 1]]
+        assert (np.diff(darts) > 0).all() and (et.dart_edge[darts] == e).all()
+    partner, ok = kernels.duplicate_faces(f, et.order, et.starts, 10**9)
+    assert ok
+    np.testing.assert_array_equal(partner, _duplicate_faces_by_sorting(f))
+    _, small = kernels.duplicate_faces(f, et.order, et.starts, 1)
+    assert not small or (et.count <= 1).all()  # the quadratic guard gives up on big groups
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_components_and_fans_match_scipy(seed):
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from jaxcds.mesh import _components, _corner_fans, edge_table
+
+    rng = np.random.default_rng(seed)
+    f = _random_soup(rng, nv=60, nf=40)
+    m = TriMesh(vertices=np.zeros((60, 3)), faces=f)
+    nf, nv = f.shape[0], 60
+    rows = np.repeat(np.arange(nf), 3)
+    g = coo_matrix((np.ones(rows.size), (rows, nf + f.ravel().astype(np.int64))), shape=(nf + nv,) * 2)
+    _, lab = connected_components(g, directed=False)
+    uniq, want = np.unique(lab[:nf], return_inverse=True)
+    n, got = _components(m)
+    assert n == uniq.size
+    np.testing.assert_array_equal(got, want.ravel())
+    # fans: corners with the same key are joined through faces sharing an edge at that vertex
+    key = _corner_fans(f, edge_table(f))
+    vert = f.ravel()
+    assert (key // (3 * nf) == vert).all()
+    et = edge_table(f)
+    rows, cols = [], []
+    for e in range(et.edges.shape[0]):
+        darts = et.order[et.starts[e]:et.starts[e + 1]]
+        for d1, d2 in zip(darts[:-1], darts[1:]):
+            for c1 in (d1, 3 * (d1 // 3) + (d1 % 3 + 1) % 3):
+                c2 = [c for c in (d2, 3 * (d2 // 3) + (d2 % 3 + 1) % 3) if vert[c] == vert[c1]]
+                assert all(key[c] == key[c1] for c in c2)
+                rows += [c1] * len(c2)
+                cols += c2
+    # ... and no more joined than that: as many fans as components of that corner graph
+    g = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * nf, 3 * nf))
+    assert np.unique(key).size == connected_components(g, directed=False)[0]
+
+
+def test_duplicate_faces_on_a_huge_non_manifold_edge():
+    # 200 faces on one edge, two of them the same: the pairwise guard hands over to sorting
+    f = np.array([[0, 1, 2 + k] for k in range(200)] + [[0, 1, 50]], dtype=np.int32)
+    m = TriMesh(vertices=np.random.default_rng(0).normal(size=(202, 3)), faces=f)
+    dup = [d for d in find_defects(m) if isinstance(d, errors.DuplicateFaceError)]
+    assert dup and "faces 48 and 200" in str(dup[0])

@@ -1,0 +1,238 @@
+"""Linear-time numba kernels behind :mod:`jaxcds.mesh` (validation and the topology report).
+
+Why a module of its own: validation runs before every build, so at 10M vertices it must cost a
+few linear passes, not ``np.unique`` on 60M keys (a sort) and scipy's graph components on 60M
+corners. Everything here is O(F + V) except where a comment says otherwise:
+
+* darts are grouped by undirected edge with two stable counting sorts (by the larger end, then by
+  the smaller), which yields exactly the order of ``np.unique(lo * V + hi)``;
+* fans of faces around a vertex, and connected components, are union-find with the smallest id as
+  the root, so labels come out in the order a graph search from id 0 upward would give them.
+
+Dart ``d = 3f + k`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``; corner ``3f + k`` is
+the corner of face ``f`` at ``faces[f, k]``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def _dart_ends(faces, d):
+    f, k = d // 3, d % 3
+    return faces[f, k], faces[f, (k + 1) % 3]
+
+
+@numba.njit(cache=True)
+def edge_groups(faces, num_vertices):
+    """Darts grouped by undirected edge, edges in lexicographic ``(lo, hi)`` order.
+
+    Returns ``(order, starts, dart_edge, forward)``: ``order[starts[e]:starts[e+1]]`` are the
+    darts on edge ``e`` in increasing id; ``dart_edge[d]`` is ``e``; ``forward[e]`` counts the
+    darts of ``e`` that run low -> high.
+    """
+    nd = faces.shape[0] * 3
+    count = np.zeros(num_vertices + 1, dtype=np.int64)
+    for d in range(nd):
+        a, b = _dart_ends(faces, d)
+        count[max(a, b) + 1] += 1
+    for v in range(num_vertices):
+        count[v + 1] += count[v]
+    by_hi = np.empty(nd, dtype=np.int64)
+    for d in range(nd):
+        a, b = _dart_ends(faces, d)
+        h = max(a, b)
+        by_hi[count[h]] = d
+        count[h] += 1
+    count[:] = 0
+    for d in range(nd):
+        a, b = _dart_ends(faces, d)
+        count[min(a, b) + 1] += 1
+    for v in range(num_vertices):
+        count[v + 1] += count[v]
+    order = np.empty(nd, dtype=np.int64)
+    for i in range(nd):  # stable: equal lo keep their hi order, and darts their id order
+        d = by_hi[i]
+        a, b = _dart_ends(faces, d)
+        lo = min(a, b)
+        order[count[lo]] = d
+        count[lo] += 1
+    dart_edge = np.empty(nd, dtype=np.int64)
+    starts = np.empty(nd + 1, dtype=np.int64)
+    ne = 0
+    plo, phi = -1, -1
+    for i in range(nd):
+        d = order[i]
+        a, b = _dart_ends(faces, d)
+        lo, hi = min(a, b), max(a, b)
+        if lo != plo or hi != phi:
+            starts[ne] = i
+            ne += 1
+            plo, phi = lo, hi
+        dart_edge[d] = ne - 1
+    starts[ne] = nd
+    forward = np.zeros(ne, dtype=np.int64)
+    for d in range(nd):
+        a, b = _dart_ends(faces, d)
+        if a < b:
+            forward[dart_edge[d]] += 1
+    return order, starts[: ne + 1].copy(), dart_edge, forward
+
+
+@numba.njit(cache=True)
+def edge_endpoints(faces, order, starts):
+    ne = starts.size - 1
+    edges = np.empty((ne, 2), dtype=np.int64)
+    for e in range(ne):
+        a, b = _dart_ends(faces, order[starts[e]])
+        edges[e, 0] = min(a, b)
+        edges[e, 1] = max(a, b)
+    return edges
+
+
+@numba.njit(cache=True)
+def _sorted3(faces, f):
+    a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+    if a > b:
+        a, b = b, a
+    if b > c:
+        b, c = c, b
+    if a > b:
+        a, b = b, a
+    return a, b, c
+
+
+@numba.njit(cache=True)
+def duplicate_faces(faces, order, starts, max_group):
+    """``partner[f]``: the smallest other face on the same vertex set as ``f``, or -1.
+
+    Two duplicate faces share all their edges, so comparing the faces around each edge finds them
+    all. Pairs are compared within an edge's group: O(sum of squared edge counts). Returns
+    ``ok = False`` (and gives up) if a group is larger than ``max_group``, so a pathological
+    non-manifold edge cannot make this quadratic; the caller then sorts instead.
+    """
+    nf = faces.shape[0]
+    partner = np.full(nf, -1, dtype=np.int64)
+    for e in range(starts.size - 1):
+        s, t = starts[e], starts[e + 1]
+        if t - s < 2:
+            continue
+        if t - s > max_group:
+            return partner, False
+        for i in range(s, t):
+            fa = order[i] // 3
+            a0, a1, a2 = _sorted3(faces, fa)
+            for j in range(i + 1, t):
+                fb = order[j] // 3
+                if fa == fb:
+                    continue
+                b0, b1, b2 = _sorted3(faces, fb)
+                if a0 == b0 and a1 == b1 and a2 == b2:
+                    if partner[fa] < 0 or fb < partner[fa]:
+                        partner[fa] = fb
+                    if partner[fb] < 0 or fa < partner[fb]:
+                        partner[fb] = fa
+    return partner, True
+
+
+@numba.njit(cache=True)
+def _root(parent, x):
+    r = x
+    while parent[r] != r:
+        r = parent[r]
+    while parent[x] != r:  # path compression
+        nxt = parent[x]
+        parent[x] = r
+        x = nxt
+    return r
+
+
+@numba.njit(cache=True)
+def _union_min(parent, x, y):
+    """Join the sets of x and y; the smaller root stays the root."""
+    rx, ry = _root(parent, x), _root(parent, y)
+    if rx < ry:
+        parent[ry] = rx
+    elif ry < rx:
+        parent[rx] = ry
+
+
+@numba.njit(cache=True)
+def corner_fans(faces, order, starts):
+    """``label[c]``: the smallest corner of the edge-connected fan of faces around corner ``c``'s
+    vertex that holds ``c`` (one label per fan; a manifold vertex has one fan)."""
+    nc = faces.shape[0] * 3
+    parent = np.arange(nc)
+    for e in range(starts.size - 1):
+        for i in range(starts[e], starts[e + 1] - 1):
+            d1, d2 = order[i], order[i + 1]
+            # corners at the two ends of each dart: origin 3f+k, target 3f+(k+1)%3
+            c1o, c1t = d1, 3 * (d1 // 3) + (d1 % 3 + 1) % 3
+            c2o, c2t = d2, 3 * (d2 // 3) + (d2 % 3 + 1) % 3
+            v1o = faces[d1 // 3, d1 % 3]
+            v2o = faces[d2 // 3, d2 % 3]
+            if v1o == v2o:  # same direction (an orientation defect): origins meet
+                _union_min(parent, c1o, c2o)
+                _union_min(parent, c1t, c2t)
+            else:
+                _union_min(parent, c1o, c2t)
+                _union_min(parent, c1t, c2o)
+    for c in range(nc):
+        parent[c] = _root(parent, c)
+    return parent
+
+
+@numba.njit(cache=True)
+def fans_per_vertex(faces, label, num_vertices):
+    fans = np.zeros(num_vertices, dtype=np.int64)
+    for c in range(label.size):
+        if label[c] == c:
+            fans[faces[c // 3, c % 3]] += 1
+    return fans
+
+
+@numba.njit(cache=True)
+def face_components(faces, num_vertices):
+    """Components of faces joined through shared vertices: ``(count, label)``, labels numbered in
+    order of each component's smallest face."""
+    parent = np.arange(num_vertices)
+    nf = faces.shape[0]
+    for f in range(nf):
+        _union_min(parent, faces[f, 0], faces[f, 1])
+        _union_min(parent, faces[f, 0], faces[f, 2])
+    comp = np.full(num_vertices, -1, dtype=np.int64)
+    label = np.empty(nf, dtype=np.int64)
+    k = 0
+    for f in range(nf):
+        r = _root(parent, faces[f, 0])
+        if comp[r] < 0:
+            comp[r] = k
+            k += 1
+        label[f] = comp[r]
+    return k, label
+
+
+@numba.njit(cache=True)
+def cycles(nxt):
+    """Cycles of a permutation given by successors: ``(items, offsets)``, each cycle from its
+    smallest element in successor order."""
+    n = nxt.size
+    seen = np.zeros(n, dtype=np.bool_)
+    items = np.empty(n, dtype=np.int64)
+    offsets = np.empty(n + 1, dtype=np.int64)
+    k, pos = 0, 0
+    for s in range(n):
+        if seen[s]:
+            continue
+        offsets[k] = pos
+        k += 1
+        e = s
+        while e >= 0 and not seen[e]:  # -1: an open chain ends
+            seen[e] = True
+            items[pos] = e
+            pos += 1
+            e = nxt[e]
+    offsets[k] = pos
+    return items, offsets[: k + 1].copy()
