@@ -249,6 +249,204 @@ def face_slots(wood: SchnyderWood, lf: np.ndarray, rf: np.ndarray, inc: Optional
     return fb.astype(np.int32), tuple(int(x) for x in unused)
 
 
+# ---------------------------------------------------------------- fused table builder (numba)
+# Kinds of the fused builder: the column layout of each structure's ``refs`` (see the classes).
+_KIND_6N, _KIND_5N, _KIND_4N, _KIND_5N_O1 = 0, 1, 2, 3
+
+
+@numba.njit(cache=True, inline="always")
+def _pk(s, b30, b31):
+    """One packed reference (Sec. 2.1, "References Encoding"): index in bits 0-29, service bits
+    30 and 31 (as uint32; the host views the table as int32)."""
+    return np.uint32((s & _IDX) | (np.int64(b30) << 30) | (np.int64(b31) << 31))
+
+
+@numba.njit(cache=True)
+def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, label):
+    """Every table row of a CDS in one pass over the vertices (linear time).
+
+    Row ``i`` is vertex ``u = order[i]`` of the wood (``order`` empty: no renumbering, ``u = i``),
+    and every stored vertex index ``x`` is written as ``label[x]`` -- the cwBFS relabelling of
+    Sec. 2.3 applied on the fly, without building a relabelled wood. The fronts of ``u_c`` are
+    read in the rotation of its target ``v``, around ``u``'s entry (``LeftFront`` = cw neighbour,
+    ``RightFront`` = ccw neighbour, Sec. 2.2's ``q`` = two steps cw); ``I_c`` is a scatter of
+    ``out``; the Thm 7 face map pairs, in row order, each blue triangle whose own slot is taken
+    with the next free black slot. Absent edges store 0 with clear service bits.
+
+    Returns ``(refs uint32 (n, k), F_blue int32 (n,), free int64 (n,), n_need, n_free, bad)``:
+    ``free[n_need:n_free]`` are the unused black slots (rows), ``bad`` a vertex whose edge was not
+    found in its target's rotation (-1: none).
+    """
+    width = 6 if kind == _KIND_6N else (4 if kind == _KIND_4N else 5)
+    relab = order.shape[0] == n
+    refs = np.zeros((n, width), dtype=np.uint32)
+    fblue = np.zeros(n, dtype=np.int32)
+    need = np.empty(n, dtype=np.int64)
+    free = np.empty(n, dtype=np.int64)
+    n_need = 0
+    n_free = 0
+    # I_c[u]: u has an incoming edge of colour c
+    inc = np.zeros((n, 3), dtype=np.bool_)
+    for x in range(n):
+        for c in range(3):
+            t = out[x, c]
+            if t < n:
+                inc[t, c] = True
+    # D (Thm 6): depth parity in the red tree; in cwBFS order every parent precedes its children
+    even = np.zeros(n, dtype=np.bool_)
+    if kind == _KIND_5N_O1:
+        for i in range(n):
+            u = order[i]
+            even[u] = True if u == v_red else not even[out[u, RED]]
+    has = np.zeros(3, dtype=np.bool_)
+    lsrc = np.zeros(3, dtype=np.int64)   # Source(LeftFront(u_c))
+    lsame = np.zeros(3, dtype=np.bool_)  # C^left: LeftFront has colour c
+    lcol = np.zeros(3, dtype=np.int64)   # colour of LeftFront(u_c), -1 if absent
+    rsrc = np.zeros(3, dtype=np.int64)   # Source(RightFront(u_c))
+    rsame = np.zeros(3, dtype=np.bool_)  # C^right: RightFront has colour c
+    tgt = np.zeros(3, dtype=np.int64)    # Target(u_c), 0 if absent
+    for i in range(n):
+        u = order[i] if relab else i
+        q_src = 0
+        q_black_in = False
+        for c in range(3):
+            v = out[u, c]
+            if v >= n:
+                has[c] = False
+                lsrc[c] = 0
+                lsame[c] = False
+                lcol[c] = -1
+                rsrc[c] = 0
+                rsame[c] = False
+                tgt[c] = 0
+                continue
+            a = offsets[v]
+            d = offsets[v + 1] - a
+            j = -1
+            for k in range(d):
+                if nbr[a + k] == u:
+                    j = k
+                    break
+            if j < 0:
+                return refs, fblue, free, n_need, n_free, u
+            jl = a + (j - 1) % d
+            jr = a + (j + 1) % d
+            has[c] = True
+            # a dart (v, y) of v's rotation: source v if the edge leaves v, else y (reversed)
+            x = v if outg[jl] else nbr[jl]
+            lsrc[c] = label[x] if relab else x
+            lsame[c] = not outg[jl]
+            lcol[c] = col[jl]
+            x = v if outg[jr] else nbr[jr]
+            rsrc[c] = label[x] if relab else x
+            rsame[c] = not outg[jr]
+            tgt[c] = label[v] if relab else v
+            if c == RED:
+                # Sec. 2.2: q, one more step cw around v; {v, q} black toward v
+                j2 = a + (j - 2) % d
+                x = v if outg[j2] else nbr[j2]
+                q_src = label[x] if relab else x
+                q_black_in = col[j2] == BLACK and not outg[j2]
+        if kind == _KIND_6N:
+            for c in range(3):
+                refs[i, 2 * c] = _pk(lsrc[c], lsame[c], inc[u, c])
+                refs[i, 2 * c + 1] = _pk(rsrc[c], rsame[c], False)
+        else:
+            # S_red^toleft / C_red^toleft (Sec. 2.2): 0 red, 1 blue, 2 black (then S = q)
+            s_tl = 0
+            c_tl = 0
+            if has[RED]:
+                if lcol[RED] == RED:
+                    s_tl = lsrc[RED]
+                elif q_black_in:
+                    s_tl = q_src
+                    c_tl = 2
+                else:
+                    s_tl = lsrc[RED]
+                    c_tl = 1
+            # S_blue / C_blue (Sec. 2.2): LeftFront if I_red[u], else RightFront
+            if inc[u, RED]:
+                s_b = lsrc[BLUE]
+                c_b = lsame[BLUE]
+            else:
+                s_b = rsrc[BLUE]
+                c_b = rsame[BLUE]
+            if kind == _KIND_5N:
+                refs[i, 0] = _pk(s_tl, c_tl & 1, c_tl >> 1)
+                refs[i, 1] = _pk(rsrc[RED], rsame[RED], inc[u, RED])
+                refs[i, 2] = _pk(s_b, c_b, inc[u, BLUE])
+                refs[i, 3] = _pk(lsrc[BLACK], lsame[BLACK], inc[u, BLACK])
+                refs[i, 4] = _pk(rsrc[BLACK], rsame[BLACK], False)
+            else:
+                s0 = s_tl
+                if kind == _KIND_5N_O1 and c_tl != 2:
+                    s0 = tgt[RED]  # Thm 6: S_red^left = Target(u_red)
+                refs[i, 0] = _pk(s0, c_tl & 1, c_tl >> 1)
+                refs[i, 1] = _pk(s_b, c_b, inc[u, RED])
+                refs[i, 2] = _pk(lsrc[BLACK], lsame[BLACK], inc[u, BLUE])
+                refs[i, 3] = _pk(rsrc[BLACK], rsame[BLACK], inc[u, BLACK])
+                if kind == _KIND_5N_O1:
+                    # W (Thm 6): a leaf of the red tree stores Target(u_blue) if LeftFront(u_blue)
+                    # is blue, else Target(u_black); an inner vertex Target(u_black) at even
+                    # depth, Target(u_blue) at odd depth
+                    if not inc[u, RED]:
+                        w = tgt[BLUE] if lcol[BLUE] == BLUE else tgt[BLACK]
+                    else:
+                        w = tgt[BLACK] if even[u] else tgt[BLUE]
+                    refs[i, 4] = _pk(w, even[u], False)
+        # Thm 7 face map (see face_slots): black triangle of u is its left face of u_black
+        # unless LeftFront(u_black) is red; blue triangle left of u_blue unless LeftBack is red
+        # (I_red[u]) or LeftFront black; (V_black, V_blue) borders the outer face
+        black_matched = has[BLACK] and lcol[BLACK] == BLACK
+        blue_matched = has[BLUE] and not inc[u, RED] and lcol[BLUE] == BLUE and u != v_black
+        if blue_matched:
+            if not black_matched:
+                fblue[i] = i
+            else:
+                need[n_need] = i
+                n_need += 1
+        elif not black_matched:
+            free[n_free] = i
+            n_free += 1
+    for k in range(min(n_need, n_free)):
+        fblue[need[k]] = free[k]
+        fblue[free[k]] = need[k]
+    return refs, fblue, free, n_need, n_free, -1
+
+
+def _build_rows(wood: SchnyderWood, kind: int, order=None, label=None):
+    """``(refs int32 (n, k), F_blue, unused_slots, static fields)`` of a CDS from ``wood``, by
+    :func:`_cds_rows`; ``order``/``label``: the cwBFS renumbering (Sec. 2.3), or ``None``."""
+    n = wood.num_vertices
+    if n >= _MAX_VERTICES:
+        raise errors.UnsupportedTopologyError(f"{n} vertices: the packed references hold at most 2^30")
+    if order is None:
+        order = label = np.empty(0, dtype=np.int64)
+    refs, fblue, free, n_need, n_free, bad = _cds_rows(
+        wood.offsets, wood.neighbors, wood.colour, wood.outgoing, wood.out, n, wood.v_red,
+        wood.v_black, kind, order, label)
+    if bad >= 0:
+        raise errors.StructureError(f"Schnyder wood: an edge of vertex {bad} is missing from its "
+                                    "target's rotation")
+    if n_free < n_need + 3:
+        raise errors.StructureError(f"face map: {n_need} blue triangles but {n_free} free slots")
+    relab = (lambda x: int(label[x])) if label.size else int
+    unused = (relab(wood.v_red),) + tuple(int(n + x) for x in free[n_need:n_free])
+    static = dict(num_vertices=n, num_faces=2 * n - 4, v_red=relab(wood.v_red),
+                  v_blue=relab(wood.v_blue), v_black=relab(wood.v_black), unused_slots=unused)
+    return refs.view(np.int32), fblue, static
+
+
+def _cwbfs_checked(wood: SchnyderWood):
+    """``(order, label)`` of the cwBFS of the red tree (Sec. 2.3), int64."""
+    order, label, count = _cwbfs(wood.offsets, wood.neighbors, wood.colour, wood.outgoing,
+                                 wood.num_vertices, wood.v_red)
+    if count != wood.num_vertices:
+        raise errors.StructureError(f"cwBFS reached {count} of {wood.num_vertices} vertices: the red "
+                                    "tree does not span the mesh")
+    return order, label
+
+
 # ====================================================================================== base
 def _ids(x):
     return jnp.asarray(x, dtype=jnp.int32)
@@ -771,15 +969,11 @@ class CDS6n(_CDS):
 
     @classmethod
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS6n":
-        """Build from a (maximal, for the face map) Schnyder wood in linear time."""
-        t = _Tables(wood)
-        n = wood.num_vertices
-        cols = []
-        for c in range(3):
-            cols.append(_pack(t.src(t.lf[:, c]), t.lf_same[:, c], t.inc[:, c]))
-            cols.append(_pack(t.src(t.rf[:, c]), t.rf_same[:, c]))
-        return cls(refs=jnp.asarray(np.stack(cols, axis=1)), F_blue=jnp.asarray(t.fblue),
-                   **t.static(boundaries_closed))
+        """Build from a (maximal, for the face map) Schnyder wood in linear time (one numba
+        pass, :func:`_cds_rows`)."""
+        refs, fblue, static = _build_rows(wood, _KIND_6N)
+        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(fblue),
+                   boundaries_closed=bool(boundaries_closed), **static)
 
     @classmethod
     def from_mesh(cls, mesh, root_face: Optional[int] = None) -> "CDS6n":
@@ -963,17 +1157,9 @@ class CDS5n(_CDS):
         """Build from a maximal Schnyder wood in linear time."""
         if not wood.maximal:
             raise errors.StructureError("CDS5n needs the maximal Schnyder wood (Thm 4)")
-        t = _Tables(wood)
-        s_tl, c_tl = t.toleft()
-        s_b, c_b = t.blue_single()
-        refs = np.stack([
-            _pack(s_tl, c_tl & 1, c_tl >> 1),
-            _pack(t.src(t.rf[:, RED]), t.rf_same[:, RED], t.inc[:, RED]),
-            _pack(s_b, c_b, t.inc[:, BLUE]),
-            _pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLACK]),
-            _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK]),
-        ], axis=1)
-        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(t.fblue), **t.static(boundaries_closed))
+        refs, fblue, static = _build_rows(wood, _KIND_5N)
+        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(fblue),
+                   boundaries_closed=bool(boundaries_closed), **static)
 
     @classmethod
     def from_mesh(cls, mesh, root_face: Optional[int] = None) -> "CDS5n":
@@ -1015,22 +1201,15 @@ class CDS4n(CDS5n):
 
     @classmethod
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS4n":
-        """Relabel ``wood`` by cwBFS (Sec. 2.3) and build, in linear time."""
+        """Relabel ``wood`` by cwBFS (Sec. 2.3) and build, in linear time: the labels are applied
+        while the rows are written (:func:`_cds_rows`), no relabelled wood is built."""
         if not wood.maximal:
             raise errors.StructureError("CDS4n needs the maximal Schnyder wood (Thm 5)")
-        order = cw_bfs_order(wood)
-        w = relabel_wood(wood, order)
-        t = _Tables(w)
-        s_tl, c_tl = t.toleft()
-        s_b, c_b = t.blue_single()
-        refs = np.stack([
-            _pack(s_tl, c_tl & 1, c_tl >> 1),
-            _pack(s_b, c_b, t.inc[:, RED]),
-            _pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLUE]),
-            _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK], t.inc[:, BLACK]),
-        ], axis=1)
-        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(t.fblue), order=jnp.asarray(order),
-                   **t.static(boundaries_closed))
+        order, label = _cwbfs_checked(wood)
+        refs, fblue, static = _build_rows(wood, _KIND_4N, order, label)
+        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(fblue),
+                   order=jnp.asarray(order.astype(np.int32)),
+                   boundaries_closed=bool(boundaries_closed), **static)
 
     @property
     def references(self) -> int:
@@ -1157,30 +1336,13 @@ class CDS5nO1(CDS4n):
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5nO1":
         if not wood.maximal:
             raise errors.StructureError("CDS5n-O(1) needs the maximal Schnyder wood (Thm 6)")
-        order = cw_bfs_order(wood)
-        w = relabel_wood(wood, order)
-        t = _Tables(w)
-        n = w.num_vertices
-        s_tl, c_tl = t.toleft()
-        tgt = np.where(w.out < n, w.out, 0)
-        s0 = np.where(c_tl == 2, s_tl, tgt[:, RED])
-        s_b, c_b = t.blue_single()
-        # depth parity in the red tree
-        depth = _depths(w.out[:, RED].astype(np.int64), n, w.v_red)
-        even = depth % 2 == 0
-        lfc_blue = t.col(t.lf[:, BLUE])
-        leaf = ~t.inc[:, RED]
-        W = np.where(leaf, np.where(lfc_blue == BLUE, tgt[:, BLUE], tgt[:, BLACK]),
-                     np.where(even, tgt[:, BLACK], tgt[:, BLUE]))
-        refs = np.stack([
-            _pack(s0, c_tl & 1, c_tl >> 1),
-            _pack(s_b, c_b, t.inc[:, RED]),
-            _pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLUE]),
-            _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK], t.inc[:, BLACK]),
-            _pack(W, even),
-        ], axis=1)
-        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(t.fblue), order=jnp.asarray(order),
-                   **t.static(boundaries_closed))
+        # cwBFS labels applied while the rows are written; D from the cwBFS order (parents
+        # first), W from the targets (:func:`_cds_rows`)
+        order, label = _cwbfs_checked(wood)
+        refs, fblue, static = _build_rows(wood, _KIND_5N_O1, order, label)
+        return cls(refs=jnp.asarray(refs), F_blue=jnp.asarray(fblue),
+                   order=jnp.asarray(order.astype(np.int32)),
+                   boundaries_closed=bool(boundaries_closed), **static)
 
 
 @numba.njit(cache=True)
