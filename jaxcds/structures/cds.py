@@ -914,6 +914,18 @@ class _CDS(MeshStructure):
         """Tables + the face map ``F_blue`` (Thm 7, one reference per vertex)."""
         return self.core_references + int(self.F_blue.shape[0])
 
+    # ---- packed batches (jaxcds.batch): one block, the machinery lives in cds_packed
+    @classmethod
+    def concatenate(cls, parts):
+        """One structure over the disjoint union of ``parts`` (all of class ``cls``, one per
+        mesh) for :func:`jaxcds.batch.pack`: every 30-bit vertex field of the tables and
+        ``F_blue`` shifted by the mesh's vertex offset (service bits kept, Sec. 2.1), the cwBFS
+        ``vertex_order`` composed; the outer vertices and unused Thm 7 slots, which a single
+        structure keeps static, become per-mesh tables (:mod:`jaxcds.structures.cds_packed`)."""
+        from jaxcds.structures.cds_packed import concatenate_cds
+
+        return concatenate_cds(cls, parts)
+
 
 # ====================================================================================== CDS6n
 @pytree_dataclass
