@@ -83,7 +83,7 @@ from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
-           "edge_fronts", "face_slots"]
+           "edge_fronts", "face_slots", "tables_reference"]
 
 _IDX = (1 << 30) - 1
 _MAX_VERTICES = 1 << 30
@@ -993,7 +993,8 @@ class CDS6n(_CDS):
 
 
 class _Tables:
-    """Host-side ground truth for the builders (linear time)."""
+    """Host-side ground truth, vectorised numpy (linear time): the previous builders, now the
+    oracle of :func:`tables_reference`."""
 
     def __init__(self, wood: SchnyderWood):
         n = wood.num_vertices
@@ -1041,6 +1042,51 @@ class _Tables:
         s = np.where(use_left, self.src(self.lf[:, BLUE]), self.src(self.rf[:, BLUE]))
         cc = np.where(use_left, self.lf_same[:, BLUE], self.rf_same[:, BLUE])
         return s, cc & self.has[:, BLUE]
+
+
+def tables_reference(name: str, wood: SchnyderWood):
+    """The tables of structure ``name`` (``cds6n``, ``cds5n``, ``cds4n``, ``cds5n-o1``) by the
+    vectorised numpy route -- ground truth from the rotation system (:func:`edge_fronts`), an
+    explicitly relabelled wood (:func:`relabel_wood`) and :func:`face_slots` -- for tests of the
+    fused builder :func:`_cds_rows`. Returns ``(refs int32, F_blue int32, order or None, static)``
+    with ``static`` the fields ``from_wood`` passes on (without ``boundaries_closed``)."""
+    order = None
+    if name in ("cds4n", "cds5n-o1"):
+        order = cw_bfs_order(wood)
+        wood = relabel_wood(wood, order)
+    t = _Tables(wood)
+    n = wood.num_vertices
+    if name == "cds6n":
+        cols = []
+        for c in range(3):
+            cols.append(_pack(t.src(t.lf[:, c]), t.lf_same[:, c], t.inc[:, c]))
+            cols.append(_pack(t.src(t.rf[:, c]), t.rf_same[:, c]))
+    else:
+        s_tl, c_tl = t.toleft()
+        s_b, c_b = t.blue_single()
+        black = [_pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLACK]),
+                 _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK])]
+        if name == "cds5n":
+            cols = [_pack(s_tl, c_tl & 1, c_tl >> 1),
+                    _pack(t.src(t.rf[:, RED]), t.rf_same[:, RED], t.inc[:, RED]),
+                    _pack(s_b, c_b, t.inc[:, BLUE])] + black
+        else:
+            tgt = np.where(wood.out < n, wood.out, 0)
+            s0 = s_tl if name == "cds4n" else np.where(c_tl == 2, s_tl, tgt[:, RED])
+            cols = [_pack(s0, c_tl & 1, c_tl >> 1),
+                    _pack(s_b, c_b, t.inc[:, RED]),
+                    _pack(t.src(t.lf[:, BLACK]), t.lf_same[:, BLACK], t.inc[:, BLUE]),
+                    _pack(t.src(t.rf[:, BLACK]), t.rf_same[:, BLACK], t.inc[:, BLACK])]
+            if name == "cds5n-o1":
+                even = _depths(wood.out[:, RED].astype(np.int64), n, wood.v_red) % 2 == 0
+                lfc_blue = t.col(t.lf[:, BLUE])
+                leaf = ~t.inc[:, RED]
+                W = np.where(leaf, np.where(lfc_blue == BLUE, tgt[:, BLUE], tgt[:, BLACK]),
+                             np.where(even, tgt[:, BLACK], tgt[:, BLUE]))
+                cols.append(_pack(W, even))
+    static = t.static(False)
+    static.pop("boundaries_closed")
+    return np.stack(cols, axis=1), t.fblue, order, static
 
 
 # ====================================================================================== CDS5n
