@@ -780,15 +780,20 @@ def prepare_mesh(mesh, structure: str = "Schnyder woods"):
     m = _mesh.load_mesh(mesh)
     _mesh.validate(m, connected=True, structure=structure)
     closed = False
-    if _mesh.boundary_loops(m):
+    loops = len(_mesh.boundary_loops(m))
+    if loops:
         m = _mesh.close_boundaries(m)
         closed = True
-    topo = _mesh.topology(m)
-    if topo["genus"] != 0:
+    # No full topology report (it rebuilds the edge table and reruns the defect checks): the mesh
+    # is now a connected, consistently oriented (so orientable), closed manifold, every edge has
+    # two faces, E = 3F/2 and the Euler characteristic is V - E + F = V - F/2 = 2 - 2 genus.
+    chi = m.num_vertices - m.num_faces // 2
+    if chi != 2:
+        holes = f" after closing {loops} boundary loop(s)" if loops else ""
         raise errors.UnsupportedTopologyError(
             f"{m.source}: {structure} need a genus-0 surface (a planar triangulation); this mesh has "
-            f"genus {topo['genus']} (Euler characteristic {topo['euler_characteristic']}, "
-            f"{topo['boundary_loops']} boundary loops); use the 'lr' or 'halfedge' structure for it")
+            f"genus {(2 - chi) // 2} (Euler characteristic {chi}{holes}); use the 'lr' or "
+            "'halfedge' structure for it")
     if m.num_vertices < 4:
         raise errors.UnsupportedTopologyError(
             f"{m.source}: {structure} need at least 4 vertices, got {m.num_vertices}")
