@@ -388,6 +388,18 @@ class _LRNavigation(MeshStructure):
         """Words of the dense-face directory (protocol adapter, not in the paper's count)."""
         return int(self.slot_words.shape[0] + self.slot_rank.shape[0])
 
+    # ---- packed batches (jaxcds.batch): one block, the machinery lives in lr_packed
+    @classmethod
+    def concatenate(cls, parts):
+        """One structure over the disjoint union of ``parts`` (all of class ``cls``, one per mesh)
+        for :func:`jaxcds.batch.pack`. The union of rings is not a ring (``v.n = v + 1 mod m_r``,
+        corners ``8v + i``, T0 corners from ``8 m_r``, lr-bits offsets mod ``m_r``): the arrays
+        are concatenated unshifted and every operator runs on each element's mesh-local ids
+        (:mod:`jaxcds.structures.lr_packed`)."""
+        from jaxcds.structures.lr_packed import concatenate_lr
+
+        return concatenate_lr(cls, parts)
+
 
 def _directory(hidden: np.ndarray):
     """Popcount rank directory over the ``2 m_r`` ring slots (bit set = a face of its own)."""

@@ -1,0 +1,265 @@
+"""Packed batches of LR / lr-bits structures (the ``concatenate`` hook of :mod:`jaxcds.batch`).
+
+Paper: Gurung, Luffel, Lindstrom, Rossignac, *LR* (ACM TOG 2011), Sec. 4.2-4.7 and Sec. 6.
+
+Why the union is not one LR (no shift, no global renumbering)
+-------------------------------------------------------------
+An LR's ids *are* its ring: ring vertices are ``0 .. m_r - 1`` with ``v.n = v + 1 mod m_r``
+(Sec. 4.2), ring corners are ``8v + i`` and the T0 corners start at ``8 m_r`` (Sec. 4.7), the
+dense face ids come from a popcount directory over the ``2 m_r`` ring slots, and lr-bits stores
+``v.l``, ``v.r`` as 15-bit offsets *modulo* ``m_r`` (Sec. 6.1). The union of ``B`` meshes has
+``B`` rings, i.e. ``B`` different moduli: shifting mesh ``i``'s ids by an offset breaks
+``v.n`` at the end of its ring (it must wrap to the ring's own start), and one global renumbering
+(all rings first, then all T0) would need a per-ring modulus and base in every ``v.n`` anyway,
+while separating each mesh's corners into two ranges (so per-mesh dart ids are no longer one
+contiguous block, as :mod:`jaxcds.batch` wants). A union of rings is not a ring.
+
+So the union *keeps every mesh's ids local*: the arrays of all meshes are concatenated
+**unshifted** (lr-bits' relative offsets stay valid: they are differences inside one ring) with
+per-mesh start offsets of every array and per-mesh sizes (``m_r``, ``n0``, ...). Each operator
+takes global ids, finds the mesh of each element (one binary search over ``B`` offsets), runs the
+class's own code on a *view* whose array reads add the element's segment start and whose sizes
+are the element's mesh's, and maps the local answer back to a global id (a local sentinel --
+a dummy vertex, a border face -- to the global one). Global ids are jraph's packed layout: mesh
+``i``'s vertex ``v`` is ``vertex_offsets[i] + v``, dart ``c`` is ``dart_offsets[i] + c`` with
+``8 m_r + 4 n0`` darts per mesh, face ``f`` is ``face_offsets[i] + f``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds import errors
+from jaxcds._dataclass import pytree_dataclass
+
+__all__ = ["concatenate_lr", "packed_class"]
+
+#: static sizes of one LR that become per-mesh arrays (columns of ``mesh_sizes``)
+_SIZES = ("num_vertices", "num_faces", "num_ring", "num_t0", "num_vos", "num_ring_faces",
+          "num_closed_vertices", "num_closed_faces")
+
+
+class _Seg:
+    """The segment ``a[off : off + n]`` of a concatenated array, per query element (``off``,
+    ``n`` broadcast with the index): what an LR operator sees as its own array."""
+
+    def __init__(self, a, off, n):
+        self.a, self.off, self.n = a, off, n
+
+    def __getitem__(self, i):
+        return self.a[self.off + i]
+
+    @property
+    def shape(self):
+        return (self.n,)
+
+
+class _ViewMixin:
+    """An LR whose arrays are :class:`_Seg` and whose sizes are arrays (per query element).
+    Overrides the three spots of :class:`jaxcds.structures.lr._LRNavigation` that need a Python
+    int or a whole array; ``_has_border`` (static) is the union's."""
+
+    @property
+    def has_border(self) -> bool:
+        return self._has_border
+
+    def _t0_index(self, c):
+        # Sec. 4.7 "i = c - floor(c/4) - 6 m_r", clipped to the mesh's T0 range
+        i = c - (c >> 2) - 6 * self.num_ring
+        return jnp.clip(i, 0, jnp.maximum(3 * self.num_t0 - 1, 0))
+
+    def edge_of_face(self, f):
+        """As the class's (select on the rank directory, then in-word binary lifting), with the
+        directory search on the union's cumulative ranks (``_rank_glob``) within the mesh."""
+        f = jnp.asarray(f, jnp.int32)
+        ring = f < self.num_ring_faces
+        fr = jnp.where(ring, f, 0)
+        nw = self.slot_rank.shape[0]
+        woff = self.slot_rank.off
+        w = jnp.searchsorted(self._rank_glob, fr + self._rf_off, side="right").astype(jnp.int32) - 1
+        w = jnp.clip(w - woff, 0, nw - 1)
+        k = (fr - self.slot_rank[w]).astype(jnp.uint32)
+        word = jax.lax.bitcast_convert_type(self.slot_words[w], jnp.uint32)
+        pos = jnp.zeros_like(k)
+        for step in (16, 8, 4, 2, 1):
+            cand = pos + jnp.uint32(step)
+            low = jax.lax.population_count(word & ((jnp.uint32(1) << cand) - jnp.uint32(1)))
+            pos = jnp.where(low <= k, cand, pos)
+        slot = 32 * w + pos.astype(jnp.int32)
+        t0 = f - self.num_ring_faces + 2 * self.num_ring
+        return (4 * jnp.where(ring, slot, t0)).astype(jnp.int32)
+
+
+# operator -> (argument kind, result kind); the rest of the protocol is derived from these
+_OPS = {
+    **{op: ("dart", "vertex") for op in ("origin", "v")},
+    **{op: ("dart", "dart") for op in ("twin", "next", "prev", "o", "s", "l", "r", "n", "p",
+                                       "corner_opposite", "corner_swing")},
+    "dart_valid": ("dart", "bool"),
+    "face": ("dart", "face"),
+    "edge_of_face": ("face", "dart"),
+    **{op: ("vertex", "dart") for op in ("edge_of_vertex", "vc")},
+}
+
+
+class _PackedMixin:
+    """Operators of the union (module docstring): global ids in, the class's code on local ids
+    of each element's mesh, global ids out."""
+
+    packed = True
+
+    def _tables(self, kind):
+        if kind == "vertex":
+            return self.mesh_vertex_offsets, self.mesh_sizes[:, 0], self.num_vertices
+        if kind == "face":
+            return self.mesh_face_offsets, self.mesh_sizes[:, 1], self.num_faces
+        return self.mesh_dart_offsets, 8 * self.mesh_sizes[:, 2] + 4 * self.mesh_sizes[:, 3], self.num_darts
+
+    def _local(self, kind, x):
+        """``(mesh, local id)`` of global ids ``x``; ids out of range stay out of range."""
+        off, _, total = self._tables(kind)
+        xc = jnp.clip(x, 0, max(total - 1, 0))
+        m = (jnp.searchsorted(off, xc, side="right") - 1).astype(jnp.int32)
+        return m, (x - off[m]).astype(jnp.int32)
+
+    def _global(self, kind, m, y):
+        if kind == "bool":
+            return y
+        off, cnt, total = self._tables(kind)
+        return jnp.where((y < 0) | (y >= cnt[m]), total, off[m] + y).astype(jnp.int32)
+
+    def _view_of(self, m):
+        base = type(self)._base
+        kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(base)}
+        for j, name in enumerate(_SIZES):
+            kw[name] = self.mesh_sizes[m, j]
+        for j, name in enumerate(self._arrays):
+            kw[name] = _Seg(getattr(self, name), self.mesh_array_offsets[m, j],
+                            self.mesh_array_lengths[m, j])
+        v = type(self)._view_cls(**kw)
+        rf = jnp.concatenate([jnp.zeros(1, jnp.int32), jnp.cumsum(self.mesh_sizes[:, 5])[:-1]])
+        for name, val in (("_has_border", self.has_border), ("_rf_off", rf[m]),
+                          ("_rank_glob", self.slot_rank_cumulative)):
+            object.__setattr__(v, name, val)
+        return v
+
+    @property
+    def has_border(self) -> bool:
+        return bool(self.union_has_border)
+
+    @property
+    def num_darts(self) -> int:
+        return self.union_num_darts
+
+    def face_vertices(self):
+        """``(F, 3)`` per mesh, each face's three corners from its local ``edge_of_face``
+        (per-face mesh ids by one repeat: no search)."""
+        b = self.mesh_sizes.shape[0]
+        m = jnp.repeat(jnp.arange(b, dtype=jnp.int32), self.mesh_sizes[:, 1],
+                       total_repeat_length=self.num_faces)
+        f = jnp.arange(self.num_faces, dtype=jnp.int32) - self.mesh_face_offsets[m]
+        v = self._view_of(m)
+        e0 = v.edge_of_face(f)
+        e1 = v.next(e0)
+        e2 = v.next(e1)
+        vs = jnp.stack([v.origin(e0), v.origin(e1), v.origin(e2)], axis=-1)
+        return (vs + self.mesh_vertex_offsets[m][:, None]).astype(jnp.int32)
+
+    @property
+    def references(self) -> int:
+        """Sum of the meshes' counts (the per-mesh tables are batch metadata, not counted)."""
+        return int(self.union_references)
+
+    @property
+    def aux_references(self) -> int:
+        return int(self.slot_words.shape[0] + self.slot_rank.shape[0])
+
+
+def _make_entry(name, arg, res):
+    def method(self, x):
+        m, loc = self._local(arg, jnp.asarray(x, jnp.int32))
+        return self._global(res, m, getattr(self._view_of(m), name)(loc))
+
+    method.__name__ = name
+    method.__doc__ = f"The class's ``{name}`` on the local ids of each element's mesh (global ids)."
+    return method
+
+
+for _name, (_arg, _res) in _OPS.items():
+    setattr(_PackedMixin, _name, _make_entry(_name, _arg, _res))
+
+_FIELDS = ("mesh_vertex_offsets", "mesh_face_offsets", "mesh_dart_offsets", "mesh_sizes",
+           "mesh_array_offsets", "mesh_array_lengths", "slot_rank_cumulative")
+_STATIC = ("union_num_darts", "union_has_border", "union_references")
+_CLASSES: dict = {}
+
+
+def packed_class(base):
+    """The packed (union) class of ``base`` (``LR`` or ``LRBits``): ``base``'s array fields
+    concatenated unshifted, its sizes those of the union, plus per-mesh tables (``(B,)`` offsets
+    of vertices, faces, darts; ``mesh_sizes`` ``(B, 8)``; start and length of every array per
+    mesh) and ``slot_rank_cumulative`` (the rank directories shifted by the ring faces of the
+    previous meshes: the directory search of ``edge_of_face``)."""
+    if base not in _CLASSES:
+        from jaxcds._dataclass import static_field
+
+        arrays = tuple(f.name for f in dataclasses.fields(base)
+                       if not f.metadata.get("static", False) and f.name != "order")
+        ns = {"__annotations__": {**{f: jnp.ndarray for f in _FIELDS}, **{f: int for f in _STATIC}},
+              **{f: None for f in _FIELDS}, **{f: static_field(default=0) for f in _STATIC},
+              "_base": base, "_arrays": arrays, "__module__": __name__}
+        cls = pytree_dataclass(type(f"Packed{base.__name__}", (_PackedMixin, base), ns))
+        cls._view_cls = type(f"_View{base.__name__}", (_ViewMixin, base), {"__module__": __name__})
+        _CLASSES[base] = cls
+    return _CLASSES[base]
+
+
+def concatenate_lr(cls, parts: Sequence) -> object:
+    """Join LR (or LRBits) structures, one per mesh, into one :func:`packed_class` structure.
+
+    Raises:
+      UnsupportedTopologyError: a part of another class, or an id over int32.
+    """
+    parts = list(parts)
+    if not parts:
+        raise errors.EmptyMeshError("concatenate: no structures given")
+    for i, p in enumerate(parts):
+        if type(p) is not cls:
+            raise errors.UnsupportedTopologyError(
+                f"{cls.__name__}.concatenate: part {i} is a {type(p).__name__}; pack one structure kind "
+                "(a packed batch cannot be packed again)")
+    P = packed_class(cls)
+    sizes = np.array([[getattr(p, s) for s in _SIZES] for p in parts], np.int64)
+    nd = np.array([p.num_darts for p in parts], np.int64)
+    if np.any(nd != 8 * sizes[:, 2] + 4 * sizes[:, 3]):
+        raise errors.StructureError(f"{cls.__name__}.concatenate: num_darts != 8 m_r + 4 n0")
+    excl = lambda c: np.concatenate([[0], np.cumsum(c)[:-1]])  # noqa: E731
+    lens = np.array([[np.asarray(getattr(p, a)).shape[0] for a in P._arrays] for p in parts], np.int64)
+    if max(int(nd.sum()), int(sizes[:, 7].sum()) * 3, int(lens.sum(axis=0).max())) >= 2**31 - 1:
+        raise errors.UnsupportedTopologyError(
+            f"{cls.__name__}.concatenate: ids over int32; pack fewer meshes per batch")
+    kw = {f.name: getattr(parts[0], f.name) for f in dataclasses.fields(cls)}
+    for a in P._arrays:
+        kw[a] = jnp.asarray(np.concatenate([np.asarray(getattr(p, a)) for p in parts]))
+    for j, s in enumerate(_SIZES):
+        kw[s] = int(sizes[:, j].sum())
+    if "num_long" in kw:  # lr-bits: long entries in all; the period k is per mesh (construction only)
+        kw["num_long"] = int(sum(p.num_long for p in parts))
+        kw["k"] = int(parts[0].k) if len({p.k for p in parts}) == 1 else -1
+    kw["order"] = jnp.asarray(np.concatenate(
+        [np.asarray(p.order, np.int64) + o for p, o in zip(parts, excl(sizes[:, 0]))]).astype(np.int32))
+    rf_off = excl(sizes[:, 5])
+    rank_cum = np.concatenate([np.asarray(p.slot_rank, np.int64) + o for p, o in zip(parts, rf_off)])
+    i32 = lambda a: jnp.asarray(np.asarray(a).astype(np.int32))  # noqa: E731
+    kw.update(mesh_vertex_offsets=i32(excl(sizes[:, 0])), mesh_face_offsets=i32(excl(sizes[:, 1])),
+              mesh_dart_offsets=i32(excl(nd)), mesh_sizes=i32(sizes),
+              mesh_array_offsets=i32(np.stack([excl(lens[:, j]) for j in range(lens.shape[1])], axis=1)),
+              mesh_array_lengths=i32(lens), slot_rank_cumulative=i32(rank_cum),
+              union_num_darts=int(nd.sum()), union_has_border=any(p.has_border for p in parts),
+              union_references=int(sum(p.references for p in parts)))
+    return P(**kw)
