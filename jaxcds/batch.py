@@ -14,9 +14,24 @@ Building (:func:`pack`):
 * HalfEdge and CornerTable accept several components, so the batch is built ONCE on the union
   face list (one numba pass for all meshes); the result is id-for-id the concatenation of the
   per-mesh builds (tested).
-* Structures that need a connected mesh (CDS family, LR, pemb) are built per mesh and joined by
-  the class's ``concatenate(parts)`` classmethod (ids shifted with :func:`shift_ids` /
-  :func:`shift_darts`). A class without it is refused with :class:`UnsupportedTopologyError`.
+* Structures that need a connected mesh are built per mesh and joined by the class's
+  ``concatenate(parts)`` classmethod. Two ways, decided by the id layout of each paper:
+
+  - *Shift* (CDS6n, CDS5n, CDS4n, CDS5n-O(1); :mod:`jaxcds.structures.cds_packed`): every table
+    entry is a vertex id in 30 bits plus service bits (CDS Sec. 2.1), edges are ``3u + c``, so
+    mesh ``i``'s ids shifted by its vertex offset keep every formula. The three outer vertices
+    and the four unused Thm 7 face slots, static ints of one structure, become per-mesh tables;
+    each operator reads them for the mesh of each query element.
+  - *Local evaluation* (LR, lr-bits; :mod:`jaxcds.structures.lr_packed`): an LR's ids are its
+    ring (``v.n = v + 1 mod m_r``, corners ``8v + i``, T0 corners from ``8 m_r``, lr-bits'
+    offsets mod ``m_r``, LR Sec. 4.2/4.7/6.1), and a union of rings is not a ring, so nothing is
+    shifted: arrays are concatenated as they are and each operator runs on the mesh-local ids of
+    each element, answers mapped back to global ids.
+
+  pemb is refused (:data:`REFUSED`): one pemb encodes one spanning tree whose root has no
+  parenthesis pair. A class without ``concatenate`` is refused with
+  :class:`UnsupportedTopologyError`. :func:`shift_ids` / :func:`shift_darts` are the helpers
+  for id-valued fields of a shifted layout.
 
 Dart blocks. Most structures number the darts of a mesh contiguously, but the HalfEdge puts its
 border darts after all inner darts (``3F ... 3F + B - 1``), which must stay true of the union.
@@ -353,7 +368,10 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
     one :class:`PackedBatch` of structure ``structure`` (a registry name).
 
     HalfEdge and CornerTable are built once on the union faces; other structures are built per
-    mesh through the registry and joined with their class's ``concatenate`` classmethod.
+    mesh through the registry and joined with their class's ``concatenate`` classmethod (CDS
+    family, LR, lr-bits; pemb is refused, see :data:`REFUSED`). Structures that renumber vertices
+    get the union ``vertex_order`` (each mesh's order shifted by its vertex offset):
+    :func:`pack_positions` applies it.
 
     Raises:
       MeshError: a defective mesh; the message names the mesh index and the defect.
@@ -369,6 +387,8 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
         raise errors.JaxcdsError(f"unknown structure {structure!r}; available: {', '.join(names)}")
     if structure in _UNION_BUILDERS:
         return _pack_union(ms, structure, check)
+    if structure in REFUSED:  # before building anything
+        raise errors.UnsupportedTopologyError(f"pack: {structure} cannot be packed: {REFUSED[structure]}")
     parts = []
     for i, m in enumerate(ms):
         try:
@@ -469,7 +489,21 @@ def concatenate(parts: Sequence[MeshStructure]) -> PackedBatch:
                      [p.num_darts - q for p, q in zip(parts, pd)])
 
 
+#: structures that cannot be packed, and why (``pack`` / ``concatenate`` refuse them by name)
+REFUSED = {
+    "pemb": "pemb (Ferres et al.) encodes ONE connected plane graph: the balanced parentheses of one "
+            "spanning tree and of its dual, each root without a pair (vertex 0, face 0, the walk's "
+            "start), with rank/select samples and the rmM tree over the whole sequences; B meshes "
+            "would need B roots inside those sequences, which its operators do not know (first/last "
+            "of the root, the root face are special cases), so the joined bit vectors are not a "
+            "pemb. Pack the meshes as 'halfedge' (same protocol) or build one pemb per mesh",
+}
+
+
 def _check_hook(cls) -> None:
+    name = getattr(cls, "name", "?")
+    if name in REFUSED:
+        raise errors.UnsupportedTopologyError(f"{cls.__name__} ({name}) cannot be packed: {REFUSED[name]}")
     if not hasattr(cls, "concatenate"):
         raise errors.UnsupportedTopologyError(
             f"{cls.__name__} ({getattr(cls, 'name', '?')}) cannot be packed: the class has no "
