@@ -78,12 +78,11 @@ def build_report(structure_name: str, mesh, verify: bool = False) -> dict:
             f"unknown structure {structure_name!r}; available: {', '.join(registry.names())}")
     closed = False
     if info.name not in ("halfedge", "pemb") and not info.closes_boundaries:
-        from jaxcds.mesh import boundary_loops, validate
+        from jaxcds.mesh import validate_and_close
 
-        validate(mesh, structure=structure_name)
-        if boundary_loops(mesh):
-            mesh = close_boundaries(mesh)
-            closed = True
+        closed_mesh = validate_and_close(mesh, connected=False, structure=structure_name)
+        closed = closed_mesh is not mesh
+        mesh = closed_mesh
     t0 = time.perf_counter()
     s = info.builder(mesh)
     build_s = time.perf_counter() - t0

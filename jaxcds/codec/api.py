@@ -22,7 +22,8 @@ from jaxcds.codec import fileformat as ff
 from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n
 from jaxcds.codec.encode import encode_schnyder
 from jaxcds.codec.words import Words, to_mixed
-from jaxcds.mesh import TriMesh, boundary_loops, close_boundaries, load_mesh, topology, validate
+from jaxcds.mesh import (TriMesh, boundary_loops, close_boundaries, load_mesh, topology, validate,
+                         validate_and_close)
 
 __all__ = ["EncodedMesh", "encode_mesh", "decode", "write_cds", "read_cds", "cds_info",
            "encode_file", "decode_file", "write_mesh_atomic"]
@@ -67,9 +68,11 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     from jaxcds.construct.schnyder import schnyder_wood
 
     mesh = load_mesh(mesh)
-    if check:
+    if check and close:
+        mesh = validate_and_close(mesh, structure="the 4n-bit encoding")
+    elif check:
         validate(mesh, connected=True, structure="the 4n-bit encoding")
-    if close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
+    elif close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
         mesh = close_boundaries(mesh)
     t0 = time.perf_counter()
     wood = schnyder_wood(mesh.faces, mesh.num_vertices, root_face=root_face, maximal=maximal)
