@@ -20,6 +20,9 @@ Usage::
     .venv/bin/python -m benchmarks.bench_cds --meshes random:100000 bunny.off --repeats 5
     .venv/bin/python -m benchmarks.bench_cds --quick          # seconds, for smoke tests
     .venv/bin/python -m benchmarks.bench_cds --json out.json  # machine-readable
+    # build_cds stage by stage (checks / wood / tables, absolute peak RSS), e.g. 10M vertices:
+    .venv/bin/python -m benchmarks.bench_cds --meshes random:10000000:1 --stages \
+        --no-construction --no-navigation --repeats 1
 
 Meshes: ``random:N[:SEED]`` (Poulalhon--Schaeffer uniform random planar triangulation),
 ``icosphere:S``, or a path (holed genus-0 meshes are closed with dummy vertices first).
@@ -130,6 +133,63 @@ def bench_construction(mesh_name: str, mesh, repeats: int) -> list[dict]:
     return rows
 
 
+def bench_build_stages(mesh_name: str, mesh, repeats: int = 1) -> list[dict]:
+    """``build_cds`` stage by stage, per structure: mesh checks (``prepare_mesh``: validation,
+    holes, genus), the maximal Schnyder wood, the tables (``from_wood``); faces per second with
+    and without the mesh checks, and the process's peak RSS (``VmHWM``, absolute: mesh included)
+    over the build, reset before each structure. Medians of ``repeats`` runs (after a warm-up on
+    a small mesh: numba compilation excluded)."""
+    from jaxcds.construct.schnyder import prepare_mesh, schnyder_wood
+    from jaxcds.generators import random_planar_triangulation
+
+    small = random_planar_triangulation(64, seed=0)
+    for cls in _cds_classes().values():  # compile every kernel first
+        cls.from_wood(schnyder_wood(small.faces, small.num_vertices))
+    prepare_mesh(small)
+    nf = mesh.num_faces
+    rows = []
+    for name, cls in _cds_classes().items():
+        _reset_peak_rss()
+        rss0 = _proc_status().get("VmRSS")
+        t_chk, t_wood, t_tab = [], [], []
+        for _ in range(max(1, repeats)):
+            t0 = time.perf_counter()
+            m, closed = prepare_mesh(mesh, structure=name)
+            t1 = time.perf_counter()
+            wood = schnyder_wood(m.faces, m.num_vertices)
+            t2 = time.perf_counter()
+            s = cls.from_wood(wood, boundaries_closed=closed)
+            s.refs.block_until_ready()
+            t3 = time.perf_counter()
+            t_chk.append(t1 - t0)
+            t_wood.append(t2 - t1)
+            t_tab.append(t3 - t2)
+            del wood, s
+        peak = _proc_status().get("VmHWM")
+        chk, wd, tab = (statistics.median(x) for x in (t_chk, t_wood, t_tab))
+        row = {"mesh": mesh_name, "structure": name, "vertices": mesh.num_vertices, "faces": nf,
+               "checks_s": chk, "wood_s": wd, "tables_s": tab,
+               "mfaces_per_s": nf / (wd + tab) / 1e6,
+               "mfaces_per_s_with_checks": nf / (chk + wd + tab) / 1e6,
+               "rss_before_bytes": rss0, "peak_rss_bytes": peak}
+        rows.append(row)
+        _log(f"  {name}: checks {chk:.2f} s, wood {wd:.2f} s, tables {tab:.2f} s: "
+             f"{row['mfaces_per_s']:.2f} M faces/s ({row['mfaces_per_s_with_checks']:.2f} with the "
+             f"checks), peak RSS {peak / 2**30 if peak else float('nan'):.2f} GiB")
+    return rows
+
+
+def stages_markdown(rows: list[dict]) -> str:
+    out = ["| mesh | structure | faces | checks s | wood s | tables s | M faces/s (wood + tables) "
+           "| M faces/s (with checks) | peak RSS GiB |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        peak = f"{r['peak_rss_bytes'] / 2**30:.2f}" if r.get("peak_rss_bytes") else ""
+        out.append(f"| {r['mesh']} | {r['structure']} | {r['faces']} | {r['checks_s']:.2f} | "
+                   f"{r['wood_s']:.2f} | {r['tables_s']:.2f} | {r['mfaces_per_s']:.2f} | "
+                   f"{r['mfaces_per_s_with_checks']:.2f} | {peak} |")
+    return "\n".join(out)
+
+
 def _nav_refs(s) -> int:
     for attr in ("navigation_references", "core_references"):
         if hasattr(s, attr):
@@ -197,9 +257,10 @@ def bench_navigation(mesh_name: str, mesh, repeats: int, queries: int, structure
 
 
 def run(meshes: Sequence[str], repeats: int = 5, queries: int = 1_000_000,
-        navigation: bool = True, construction: bool = True, structures=None, ops=None) -> dict:
+        navigation: bool = True, construction: bool = True, structures=None, ops=None,
+        stages: bool = False) -> dict:
     res = {"machine": machine_info(), "command": " ".join(sys.argv), "construction": [],
-           "navigation": []}
+           "navigation": [], "build_stages": []}
     try:
         res["machine"]["load_average"] = os.getloadavg()
     except OSError:
@@ -210,6 +271,10 @@ def run(meshes: Sequence[str], repeats: int = 5, queries: int = 1_000_000,
         if closed:
             name += " (holes closed)"
         _log(f"{name}: {mesh.num_vertices} vertices, {mesh.num_faces} faces")
+        if stages:
+            rows = bench_build_stages(name, mesh, repeats)
+            res["build_stages"] += rows
+            print(stages_markdown(rows), flush=True)
         if construction:
             res["construction"] += bench_construction(name, mesh, repeats)
         if navigation:
@@ -254,6 +319,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                     "(default: halfedge, corner-table and every cds*)")
     ap.add_argument("--ops", nargs="+", help="navigation: these ops only (vertex_degrees, "
                     "vertex_normals, target, adjacent, face_left)")
+    ap.add_argument("--stages", action="store_true", help="build_cds stage by stage (mesh "
+                    "checks, wood, tables) with the absolute peak RSS; combine with "
+                    "--no-construction --no-navigation for large meshes")
     ap.add_argument("--json", help="write the results as JSON here")
     a = ap.parse_args(argv)
     if a.quick:
@@ -261,7 +329,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         a.structures = a.structures or ["cds6n"]
         a.ops = a.ops or ["vertex_normals", "target"]
     res = run(a.meshes, a.repeats, a.queries, navigation=not a.no_navigation,
-              construction=not a.no_construction, structures=a.structures, ops=a.ops)
+              construction=not a.no_construction, structures=a.structures, ops=a.ops,
+              stages=a.stages)
     m = res["machine"]
     print(f"\n{m['cpu']}, {m['cores']} cores, jax {m['jax']} ({m['jax_backend']}), "
           f"load average {m.get('load_average')}, {m['date']}; command: {res['command']}")
