@@ -11,7 +11,9 @@ Closed, consistently oriented manifold meshes only (close holes with
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
+import numba
 import numpy as np
 
 from jaxcds._dataclass import pytree_dataclass, static_field
@@ -20,6 +22,16 @@ from jaxcds.structures.base import Int, MeshStructure
 from jaxcds.structures.halfedge import halfedge_arrays
 
 __all__ = ["CornerTable"]
+
+
+@numba.njit(cache=True)
+def _opposites(opp, nf):
+    """``O[c] = prev(twin(next(c)))``: the corner facing the edge ``(c.n.v, c.p.v)``, one pass."""
+    O = np.empty(3 * nf, np.int32)
+    for c in range(3 * nf):
+        t = opp[3 * (c // 3) + (c + 1) % 3]
+        O[c] = 3 * (t // 3) + (t + 2) % 3
+    return O
 
 
 @pytree_dataclass
@@ -52,14 +64,10 @@ class CornerTable(MeshStructure):
         f = np.ascontiguousarray(faces, dtype=np.int32)
         nf = f.shape[0]
         _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices))
-        c = np.arange(3 * nf)
-        nxt = 3 * (c // 3) + (c + 1) % 3
-        prv = 3 * (c // 3) + (c + 2) % 3
-        # c.o = prev(twin(next(c))): the corner facing the edge (c.n.v, c.p.v)
-        t = opp[nxt]
-        O = 3 * (t // 3) + (t + 2) % 3
-        return cls(V=jnp.asarray(vert[: 3 * nf]), O=jnp.asarray(O.astype(np.int32)),
-                   vertex_corner=jnp.asarray(vedge), num_vertices=int(num_vertices), num_faces=nf)
+        O = _opposites(opp, nf)
+        # jax.device_put: a plain copy (jnp.asarray compiles a conversion per new array shape)
+        return cls(V=jax.device_put(vert[: 3 * nf]), O=jax.device_put(O),
+                   vertex_corner=jax.device_put(vedge), num_vertices=int(num_vertices), num_faces=nf)
 
     # Rossignac's operators, named as in the LR paper (Sec. 2)
     def n(self, c: Int) -> Int:

@@ -34,6 +34,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, lr_tables
 from jaxcds.mesh import TriMesh, boundary_loops, close_boundaries, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
@@ -570,6 +571,14 @@ class LRBits(_LRNavigation):
         """Build with HYBRID-RING-EXPANDER; ``k="auto"`` keeps the period with the fewest bits."""
         return build_lr(mesh, bits=True, k=k, seeds=seeds, check=check, borders=borders)
 
+    @classmethod
+    def from_corner_table(cls, ct: CornerTable, *, k: int = 64, dummy=None, seeds=1,
+                          check: bool = True, wart_skipping: bool = True) -> "LRBits":
+        """HYBRID-RING-EXPANDER of period ``k`` (Sec. 6.1; 0 = depth-first) and the 16-bit tables
+        from a :class:`CornerTable`; ``dummy``: mask of dummy vertices (shown as borders)."""
+        return _from_corner_table(cls, ct, dummy=dummy, seeds=seeds, k=int(k), check=check,
+                                  wart_skipping=wart_skipping)
+
 
 # --------------------------------------------------------------------------------- construction
 _AUTO_K = (16, 32, 64, 128, 256, 512, 1024, 0)
@@ -652,135 +661,44 @@ def _best_tables(V, O, nv, *, seeds, k, dummy, wart_skipping) -> LRTables:
 
 
 def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: int, dummy=None):
+    """Pack the tables ``tb`` into ``cls`` (Sec. 4.5-4.7, Sec. 6 for ``LRBits``): a few O(n)
+    numba passes (:mod:`jaxcds.construct.lr_pack`); the ring case analysis of Sec. 4.5 / Fig. 6
+    runs on every regular corner and makes a slot irregular (``VO*``) where it cannot resolve a
+    transversal corner. ``check``: verify every canonical corner's ``c.v`` and ``c.o`` against
+    the corner table (:func:`_check`, also linear)."""
     m = tb.num_ring
     nf = V.shape[0] // 3
+    _dev = jax.device_put  # a plain copy (jnp.asarray compiles a conversion per new shape)
     if nv >= 1 << _VALUE_BITS:
         raise errors.UnsupportedTopologyError(f"{nv} vertices: LR entries hold 29-bit vertex ids")
     dmask = np.zeros(nv, bool) if dummy is None else np.asarray(dummy, bool)
-    dface = dmask[V].reshape(-1, 3).any(axis=1)
-    nv_real = int(nv - dmask.sum())
-    nf_real = int(nf - dface.sum())
-    # vertex renumbering: ring order first, then isolated vertices, dummies last (null index)
-    new_of_old = np.full(nv, -1, np.int64)
-    new_of_old[tb.order] = np.arange(m)
-    iso = np.nonzero(new_of_old < 0)[0]
-    iso = iso[np.argsort(dmask[iso], kind="stable")]
-    new_of_old[iso] = m + np.arange(iso.size)
-    order = np.empty(nv, np.int32)
-    order[new_of_old] = np.arange(nv)
-    lrc = tb.lr_corner.astype(np.int64)
-    # real T0 triangles first (dense face ids), dummy T0 after them
-    t0 = tb.t0.astype(np.int64)
-    perm = np.argsort(dface[t0], kind="stable")
-    inv = np.empty_like(perm)
-    inv[perm] = np.arange(perm.size)
-    t0 = t0[perm]
-    hi = lrc >= 8 * m
-    lrc[hi] = 8 * m + 4 * inv[(lrc[hi] - 8 * m) >> 2] + (lrc[hi] & 3)
-    nxt = lambda c: 3 * (c // 3) + (c + 1) % 3  # noqa: E731
-    prv = lambda c: 3 * (c // 3) + (c + 2) % 3  # noqa: E731
-    cL = tb.left_corner.astype(np.int64)
-    cR = tb.right_corner.astype(np.int64)
-    lv = new_of_old[V[cL]]
-    rv = new_of_old[V[cR]]
-    skl = tb.skip_left.astype(np.int64)
-    skr = tb.skip_right.astype(np.int64)
-    redl, redr = tb.red_left, tb.red_right
-
-    # construction-time check of the ring case analysis (Sec. 4.5, Fig. 6) on every regular
-    # corner; a transversal corner it cannot resolve makes its slot irregular (stored in VO*).
-    def dec_np(v):  # the ring case analysis reads l, r and the skip bits only
-        return _Slot(l=lv[v], r=rv[v], skl=skl[v], skr=skr[v], irl=0, irr=0, lo=0, ro=0)
-
-    truth = {}
-    for i, base, red, fn in ((0, cL, redl, prv), (1, cL, redl, None), (2, cL, redl, nxt),
-                             (4, cR, redr, prv), (5, cR, redr, None), (6, cR, redr, nxt)):
-        ctc = base if fn is None else fn(base)
-        truth[i] = lrc[O[ctc]]
-    irl = tb.irr_left.copy()
-    irr = tb.irr_right.copy()
-    v_all = np.arange(m, dtype=np.int64)
-    unexpected = 0
-    for i in (0, 1, 2, 4, 5, 6):
-        c = 8 * v_all + i
-        got = _canonical(np, dec_np, m, _cheap_opposite(np, dec_np, m, c).astype(np.int64))
-        red = redl if i < 4 else redr
-        bad = (got != truth[i]) & ~red
-        if i in (1, 5):
-            if np.any(bad):
-                w = int(np.nonzero(bad)[0][0])
-                raise errors.StructureError(
-                    f"LR: quad opposite of corner {8 * w + i} (ring vertex {w}) is wrong")
-            continue
-        side = irl if i < 4 else irr
-        unexpected += int(np.sum(bad & ~side))
-        side |= bad
-    # VO* (standard: triplets; bits: records built below)
-    n0 = int(t0.size)
-    ct0 = (3 * t0[:, None] + np.arange(3)).ravel()
-    V0 = new_of_old[V[ct0]].astype(np.int32)
-    O0 = lrc[O[ct0]].astype(np.int32)
-    C = lrc[vertex_corner[order[m:nv_real]]].astype(np.int32)
-    hidden = np.empty(2 * m, bool)  # redundant T2 copies and dummy triangles: no dense face id
-    hidden[0::2] = redl | dface[cL // 3]
-    hidden[1::2] = redr | dface[cR // 3]
-    words, rank, nring_faces = _directory(hidden)
-    common = dict(V0=jnp.asarray(_nonempty(V0)), O0=jnp.asarray(_nonempty(O0)),
-                  C=jnp.asarray(_nonempty(C)), slot_words=jnp.asarray(words),
-                  slot_rank=jnp.asarray(rank), order=jnp.asarray(order[:nv_real]),
-                  num_vertices=nv_real, num_faces=nf_real, num_ring=int(m), num_t0=n0,
-                  num_ring_faces=nring_faces, num_closed_vertices=int(nv),
-                  num_closed_faces=int(nf))
+    p = lr_pack.pack_common(V, O, vertex_corner, tb, dmask)
+    if p["bad_quad"] is not None:
+        i, w = p["bad_quad"]
+        raise errors.StructureError(
+            f"LR: quad opposite of corner {8 * w + i} (ring vertex {w}) is wrong")
+    nv_real, nf_real, n0 = p["nv_real"], p["nf_real"], int(p["t0"].size)
+    irl, irr = p["irl"], p["irr"]
+    words, rank, nring_faces = lr_pack.directory(p["hidden"])
+    order = p["order"]
+    common = dict(V0=_dev(p["V0"]), O0=_dev(p["O0"]), C=_dev(p["C"]),
+                  slot_words=_dev(words), slot_rank=_dev(rank),
+                  order=_dev(order[:nv_real]), num_vertices=nv_real, num_faces=nf_real,
+                  num_ring=int(m), num_t0=n0, num_ring_faces=int(nring_faces),
+                  num_closed_vertices=int(nv), num_closed_faces=int(nf))
     if cls is LR:
-        il = np.nonzero(irl)[0]
-        ir = np.nonzero(irr)[0]
-        vos = np.empty((il.size + ir.size, 3), np.int64)
-        vos[: il.size] = np.stack([lv[il], truth[0][il], truth[2][il]], axis=1)
-        vos[il.size:] = np.stack([rv[ir], truth[4][ir], truth[6][ir]], axis=1)
-        Lval = lv.copy()
-        Rval = rv.copy()
-        Lval[il] = np.arange(il.size)
-        Rval[ir] = il.size + np.arange(ir.size)
-        Lp = Lval | (skl << _SKIP_BIT) | (irl.astype(np.int64) << _IRR_BIT)
-        Rp = Rval | (skr << _SKIP_BIT) | (irr.astype(np.int64) << _IRR_BIT)
-        s = LR(L=jnp.asarray(Lp.astype(np.int32)), R=jnp.asarray(Rp.astype(np.int32)),
-               VOs=jnp.asarray(_nonempty(vos.ravel())), num_vos=int(vos.size), **common)
+        L, R, vos = lr_pack.pack_lr(p["E"], irl, irr, p["truth"])
+        s = LR(L=_dev(L), R=_dev(R), VOs=_dev(_nonempty(vos)),
+               num_vos=int(vos.size), **common)
     else:
-        half = m // 2
-
-        def offset(x):
-            d = (x - v_all) % m
-            return np.where(d > half, d - m, d)
-
-        dl, dr = offset(lv), offset(rv)
-        fits = lambda x, d: (x < m) & (d >= -(1 << 14)) & (d < (1 << 14))  # noqa: E731
-        long_ = irl | irr | ~fits(lv, dl) | ~fits(rv, dr)
-        nlong = int(long_.sum())
-        reclen = np.where(long_, 2 + 2 * irl + 2 * irr, 0)
-        start = np.concatenate([[0], np.cumsum(reclen)[:-1]]).astype(np.int64)
-        vos = np.zeros(int(reclen.sum()), np.int64)
-        lg = np.nonzero(long_)[0]
-        vos[start[lg]] = lv[lg]
-        vos[start[lg] + 1] = rv[lg]
-        a_l = lg[irl[lg]]
-        vos[start[a_l] + 2] = truth[0][a_l]
-        vos[start[a_l] + 3] = truth[2][a_l]
-        a_r = lg[irr[lg]]
-        off_r = start[a_r] + 2 + 2 * irl[a_r]
-        vos[off_r] = truth[4][a_r]
-        vos[off_r + 1] = truth[6][a_r]
-        if vos.size >= 1 << 26:
+        lr16, vos, num_vos, nlong = lr_pack.pack_lr_bits(p["E"], irl, irr, p["truth"])
+        if nlong < 0:
             raise errors.UnsupportedTopologyError("lr-bits: VO* exceeds the 26-bit long index")
-        payload = (start << 4) | skl | (skr << 1) | (irl.astype(np.int64) << 2) | (irr.astype(np.int64) << 3)
-        el = np.where(long_, (((payload >> 15) & 0x7FFF) << 1) | 1, ((dl & 0x7FFF) << 1) | skl)
-        er = np.where(long_, ((payload & 0x7FFF) << 1) | 1, ((dr & 0x7FFF) << 1) | skr)
-        lr16 = np.empty(2 * m, np.uint16)
-        lr16[0::2] = el
-        lr16[1::2] = er
-        s = LRBits(LR16=jnp.asarray(lr16.view(np.int16)), VOs=jnp.asarray(_nonempty(vos, size=2)),
-                   num_vos=int(vos.size), num_long=nlong, k=int(k), **common)
-    object.__setattr__(s, "_stats", dict(tb.stats(nf, nf_real), unexpected_irregular=unexpected,
-                                         irregular=int(irl.sum() + irr.sum()), seed=tb.ring.seed,
+        s = LRBits(LR16=_dev(lr16), VOs=_dev(vos), num_vos=int(num_vos),
+                   num_long=int(nlong), k=int(k), **common)
+    lrc, new_of_old = p["lrc"], p["new_of_old"]
+    object.__setattr__(s, "_stats", dict(tb.stats(nf, nf_real), unexpected_irregular=p["unexpected"],
+                                         irregular=int(irl.sum()) + int(irr.sum()), seed=tb.ring.seed,
                                          _lrc=lrc, _new_of_old=new_of_old))
     s._stats.update(m_i=nv_real - m, m_dummy=int(nv - nv_real), n=nf_real)
     if check:
@@ -795,19 +713,23 @@ def _check_against(s, ct: CornerTable):
 
 def _check(s, V, O, lrc, new_of_old):
     """Invariant check at construction (typed error): ``c.v`` and ``c.o`` of every canonical
-    corner equal the corner table's."""
-    ct = np.nonzero(lrc >= 0)[0]
-    c = jnp.asarray(lrc[ct].astype(np.int32))
-    # eager (op by op): no compilation per mesh size
-    got_v = np.asarray(s.v(c))
-    got_o = np.asarray(s.o(c))
-    bad = (got_v != new_of_old[V[ct]]) | (got_o != lrc[O[ct]])
-    if np.any(bad):
-        j = int(np.nonzero(bad)[0][0])
+    corner equal the corner table's. One linear numba pass that decodes the packed arrays exactly
+    as the jitted operators do (:func:`jaxcds.construct.lr_pack.check_lr`; the tests compare that
+    decoder with the operators on every corner)."""
+    if isinstance(s, LR):
+        nbad, j, gv, go = lr_pack.check_lr(np.asarray(s.L), np.asarray(s.R), np.asarray(s.VOs),
+                                           np.asarray(s.V0), np.asarray(s.O0), s.num_t0, V, O,
+                                           lrc, new_of_old)
+    else:
+        nbad, j, gv, go = lr_pack.check_lr_bits(np.asarray(s.LR16), np.asarray(s.VOs),
+                                                np.asarray(s.V0), np.asarray(s.O0), s.num_ring,
+                                                s.num_t0, V, O, lrc, new_of_old)
+    if nbad:
+        j = int(j)
         raise errors.StructureError(
-            f"{s.name}: corner {int(lrc[ct[j]])} (corner-table corner {int(ct[j])}) has "
-            f"c.v={int(got_v[j])}, c.o={int(got_o[j])}, expected {int(new_of_old[V[ct[j]]])}, "
-            f"{int(lrc[O[ct[j]]])}; {int(bad.sum())} corners wrong")
+            f"{s.name}: corner {int(lrc[j])} (corner-table corner {j}) has "
+            f"c.v={int(gv)}, c.o={int(go)}, expected {int(new_of_old[V[j]])}, "
+            f"{int(lrc[O[j]])}; {int(nbad)} corners wrong")
 
 
 def stats(s) -> dict:

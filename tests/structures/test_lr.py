@@ -390,3 +390,86 @@ def test_bench_lr_quick_smoke(tmp_path, capsys):
     assert grid["n"] == 256 and grid["holes_closed"] == 1 and grid["rpt"] > 1
     assert res["construction"]["triangles"] == 20_000
     assert "| grid.off | 256 |" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------------ construction check (numba)
+def _decoded(s):
+    """The numba decoder of the construction check (:mod:`jaxcds.construct.lr_pack`)."""
+    from jaxcds.construct import lr_pack
+
+    VOs = np.asarray(s.VOs, np.int32)
+    if isinstance(s, LR):
+        E, X = lr_pack.decode_lr(np.asarray(s.L), np.asarray(s.R), VOs)
+    else:
+        E, X = lr_pack.decode_lr_bits(np.asarray(s.LR16), VOs, np.int64(s.num_ring))
+    return E, X, VOs
+
+
+@pytest.mark.parametrize("name", ["3holes", "camelhead", "3holes-no-warts", "3holes-bits-k16",
+                                  "camelhead-bits-auto"])
+def test_construction_check_decodes_as_the_operators(name):
+    """The linear numba check decodes the packed arrays as the jitted ``c.v`` / ``c.o`` do
+    (Sec. 4.7): equal on every corner id, redundant T2 copies and T0 corners included (same
+    call as ``check_corner_operators``: its compilation is shared)."""
+    from jaxcds.construct import lr_pack
+
+    s = _built(name)
+    ids = np.arange(s.num_darts, dtype=np.int32)
+    ids = ids[(ids & 3) != 3]
+    nvert = s.num_vertices if s.has_border else s.num_closed_vertices
+    t_all = ids[(ids & 3) == 0] >> 2
+    res = _corner_ops(s, jnp.asarray(ids), jnp.arange(nvert, dtype=jnp.int32), jnp.asarray(t_all))
+    E, X, VOs = _decoded(s)
+    gv, go = lr_pack.corner_vo(ids.astype(np.int64), np.int64(s.num_ring), np.int64(s.num_t0),
+                               E, X, VOs, np.asarray(s.V0), np.asarray(s.O0))
+    np.testing.assert_array_equal(gv, np.asarray(res["v"]), err_msg="c.v")
+    np.testing.assert_array_equal(go, np.asarray(res["o"]), err_msg="c.o")
+
+
+def _corrupt(s, rng):
+    """A copy of ``s`` with one packed entry changed (an apex, an offset, a VO* or T0 entry)."""
+    from jaxcds._dataclass import replace
+
+    m = s.num_ring
+    E, _, _ = _decoded(s)
+    # a slot that holds a triangle of its own (not the redundant copy of a T2, Sec. 4.4)
+    own = np.nonzero((E[:, 0] & ((1 << 29) - 1)) != (np.arange(m) + 2) % m)[0]
+    if isinstance(s, LR):
+        L = np.asarray(s.L).copy()
+        v = int(own[rng.integers(own.size)])
+        if (L[v] >> 30) & 1:  # irregular: the value indexes VO*; change a stored opposite
+            vos = np.asarray(s.VOs).copy()
+            vos[3 * (L[v] & ((1 << 29) - 1)) + 1] += 8
+            return replace(s, VOs=jnp.asarray(vos))
+        L[v] = (L[v] & ~((1 << 29) - 1)) | (((L[v] & ((1 << 29) - 1)) + 1) % m)
+        return replace(s, L=jnp.asarray(L))
+    lr16 = np.asarray(s.LR16).copy()
+    short = np.intersect1d(np.nonzero((lr16[0::2] & lr16[1::2] & 1) == 0)[0], own)
+    v = int(short[rng.integers(short.size)])
+    lr16[2 * v] ^= 2  # the offset's lowest bit: another apex
+    return replace(s, LR16=jnp.asarray(lr16))
+
+
+@pytest.mark.parametrize("bits", [False, True])
+def test_construction_check_refuses_corrupted_tables(bits):
+    """``check=True`` is a real check: one changed entry of the packed arrays (or of the T0
+    table) is reported as a typed error naming the corner."""
+    from jaxcds.structures import lr as lrmod
+
+    mesh = _mesh("3holes.off")
+    s = (LRBits.from_mesh(mesh, k=16) if bits else LR.from_mesh(mesh))  # check=True passes
+    st_ = s._stats
+    ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices)
+    V, O = np.asarray(ct.V), np.asarray(ct.O)
+    lrmod._check(s, V, O, st_["_lrc"], st_["_new_of_old"])
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        with pytest.raises(errors.StructureError, match="corners wrong"):
+            lrmod._check(_corrupt(s, rng), V, O, st_["_lrc"], st_["_new_of_old"])
+    if s.num_t0:
+        from jaxcds._dataclass import replace
+
+        o0 = np.asarray(s.O0).copy()
+        o0[0] = (o0[0] + 1) % s.num_darts
+        with pytest.raises(errors.StructureError, match="corners wrong"):
+            lrmod._check(replace(s, O0=jnp.asarray(o0)), V, O, st_["_lrc"], st_["_new_of_old"])
