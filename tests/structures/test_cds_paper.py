@@ -21,7 +21,7 @@ import pytest
 from jaxcds import errors
 from jaxcds.algorithms import adjacent, vertex_degrees, vertex_normals
 from jaxcds.algorithms.normals import face_list_vertex_normals
-from jaxcds.construct.schnyder import BLACK, BLUE, RED, schnyder_wood
+from jaxcds.construct.schnyder import BLACK, BLUE, RED, check_schnyder_wood, schnyder_wood
 from jaxcds.generators import icosphere, random_planar_triangulation
 from jaxcds.mesh import close_boundaries
 from jaxcds.structures import cds, registry
@@ -218,6 +218,85 @@ def test_octahedron_by_hand():
         np.testing.assert_array_equal(got, want[order], err_msg=name)
         np.testing.assert_array_equal(np.asarray(vertex_degrees(s)), 4)
         assert {tuple(np.roll(r, -np.argmin(r))) for r in order[np.asarray(s.face_vertices())]} == faces
+
+
+# Sec. 3.1 prints the words of Fig. 9, "the same triangulation of the example in Figure 3, where
+# vertices are re-ordered according to the ccw-depth-first traversal of T_red", decorated with the
+# vertex indices (the undecorated red word there has a typo, 22 symbols). n = 10, 4n - 3 = 37 bits.
+PAPER_RED = "(0 (1)1 (2)2 (3)3 (4)4 (5 (6 (7)7 (8)8)6)5 (9)9)0"
+PAPER_BLACK = "00000011010101110"
+# The wood, read off the words by hand (rows: out red, blue, black; 10 = absent): red parents from
+# the parentheses (1..5 and 9 under V_red = 0, 6 under 5, 7 and 8 under 6), black in-degrees
+# 0,0,0,0,0,0,2,1,1,3 from the unary blocks (6 <- 3, 4; 7 <- 2; 8 <- 7; 9 <- 5, 6, 8), blue
+# edges by the local rule; V_red = 0, V_blue = 1, V_black = 9 (Sec. 3.2).
+PAPER_WOOD = [[10, 10, 10], [0, 10, 10], [0, 1, 7], [0, 2, 6], [0, 3, 6], [0, 4, 9], [5, 2, 9],
+              [6, 1, 8], [6, 1, 9], [0, 1, 10]]
+
+
+def test_paper_example_fig3_fig5_fig9():
+    """The paper's 10-vertex example, from the words of Sec. 3.1 (the only form in which the text
+    pins the triangulation down; Fig. 1/3/5 are images). Our maximal wood *is* the paper's wood,
+    our cwBFS labels give Fig. 5's ccw triangle (2, 3, 7) and no cw triangle, and every table our
+    builder writes equals the one the paper's decoder (Fig. 10-13, jaxcds.codec) fills."""
+    from jaxcds.codec import decode
+    from jaxcds.codec.decode import decode_faces
+    from jaxcds.codec.words import from_strings
+
+    words = from_strings("".join(c for c in PAPER_RED if c in "()"), PAPER_BLACK)
+    n = words.num_vertices
+    assert n == 10 and words.num_bits == 37
+    faces, table = decode_faces(words)
+    assert faces.shape == (16, 3)
+    want = np.array(PAPER_WOOD)
+    np.testing.assert_array_equal(table.T.T, want)  # the decoder reads the words as we did
+    # our construction (Appendix A) on the decoded triangle soup, rooted at (V_red, V_black, V_blue)
+    f = faces.copy()
+    root = next(i for i, r in enumerate(f.tolist()) if sorted(r) == [0, 1, 9])
+    f[root] = (0, 9, 1)  # the same triangle, read from V_red
+    assert tuple(np.roll(faces[root], -int(np.argmin(faces[root])))) == (0, 9, 1)  # orientation kept
+    wood = schnyder_wood(f, n, root_face=root)
+    assert (wood.v_red, wood.v_blue, wood.v_black) == (0, 1, 9)
+    np.testing.assert_array_equal(wood.out, want)
+    assert check_schnyder_wood(wood, f) == []  # Definition 1 and no cw facial triangle
+
+    def oriented(out, labels):  # facial triangles oriented (ccw list, cw list), in ``labels``
+        fwd = lambda a, b: b in out[a]  # noqa: E731
+        ccw = [r for r in f.tolist() if fwd(r[0], r[1]) and fwd(r[1], r[2]) and fwd(r[2], r[0])]
+        cw = [r for r in f.tolist() if fwd(r[1], r[0]) and fwd(r[2], r[1]) and fwd(r[0], r[2])]
+        canon = lambda r: tuple(np.roll(labels[r], -int(np.argmin(labels[r]))))  # noqa: E731
+        return {canon(np.array(r)) for r in ccw}, {canon(np.array(r)) for r in cw}
+
+    ccw, cw = oriented(want.tolist(), np.arange(n))
+    assert cw == set() and ccw == {(2, 7, 6), (4, 6, 5)}
+    # Fig. 5 (Sec. 2.2): "the Schnyder wood is maximal because there is no cw oriented triangle
+    # (but there is a ccw oriented triangle (2,3,7))", vertices labelled by cwBFS (Sec. 2.3)
+    s4 = CLASSES["cds4n"].from_wood(wood)
+    label = np.empty(n, np.int64)
+    label[s4.vertex_order] = np.arange(n)
+    ccw5, cw5 = oriented(want.tolist(), label)
+    assert cw5 == set() and (2, 3, 7) in ccw5
+
+    # hand-checked CDS6n entries (Sec. 2.1 definitions on the faces above):
+    s6 = CLASSES["cds6n"].from_wood(wood)
+    refs = np.asarray(s6.refs).view(np.uint32)
+    # 7_red = (7, 6), left face (7, 6, 2): LeftFront {6, 2} = 6_blue, colour next(red): S = 6,
+    # C = false; no red edge enters 7: I_red[7] = false
+    assert refs[7, 0] == 6
+    # right face (6, 7, 8): RightFront {6, 8} = 8_red, same colour: S = 8, C = true
+    assert refs[7, 1] == 8 | 1 << 30
+    # 8_red = (8, 6), left face (8, 6, 7): LeftFront = 7_red, its red sibling cw around 6 (the
+    # pattern of Fig. 3's caption for its vertices 8, 9, 5): S = 7, C = true, I_red[8] = false
+    assert refs[8, 0] == 7 | 1 << 30
+    # 6 has red children 7, 8: I_red[6] true (bit 31 of column 0); 6_red = (6, 5)
+    assert refs[6, 0] >> 31 == 1
+
+    # every table our builder writes == the paper's decoder filling it from the words
+    for name in ("cds6n", "cds5n", "cds4n"):
+        ours, dec = CLASSES[name].from_wood(wood), decode(words, structure=name)
+        for x, y in zip(jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(dec)):
+            np.testing.assert_array_equal(np.asarray(x), np.asarray(y), err_msg=name)
+        assert (ours.v_red, ours.v_blue, ours.v_black, ours.unused_slots) == \
+            (dec.v_red, dec.v_blue, dec.v_black, dec.unused_slots), name
 
 
 def test_cube_by_hand():
