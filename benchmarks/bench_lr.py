@@ -10,10 +10,12 @@ table) and the Fig. 10 timings, for the CornerTable, ``lr`` and ``lr-bits``.
   % T^i, % long entries T^l, bits per triangle ``32 (m_r + 6 n0 + |VO*| + m_i) / n``). Median
   rpt / bpt over the closed (no dummy) meshes and over all of them.
 * **Construction** on a random planar triangulation (Poulalhon--Schaeffer) of ``>= 1M``
-  triangles: RING-EXPANDER alone, ring + tables + packed ``LR`` from a ``CornerTable``
-  (one seed, the paper's input), and end to end from the ``(F, 3)`` face array (validation,
-  corner table, ring, tables, packing); millions of triangles per second, median of repeats
-  after a warm-up (numba compiled and cached before).
+  triangles or a subdivided shared mesh (``--construction-mesh subdiv:NAME:K``): RING-EXPANDER
+  alone, ring + tables + packed ``LR`` / ``lr-bits`` from a ``CornerTable`` (one seed, the
+  paper's input; with and without the construction check; and the defaults, 4 seeds), and end
+  to end from the ``(F, 3)`` face array (validation, corner table, ring, tables, packing),
+  validation timed apart; millions of triangles per second, median of repeats after a warm-up
+  (numba compiled and cached before).
 * **Fig. 10**: ``c.v`` and ``c.o`` over every corner, vertex valence and area-weighted vertex
   normal by swinging around ``v.c`` (every vertex at once, a ``while_loop`` of max-degree
   steps), and the plane-contour walk (``B`` contours walked ``S`` steps each, one ``c.o`` per
@@ -26,6 +28,8 @@ Usage::
     .venv/bin/python -m benchmarks.bench_lr            # full (minutes)
     .venv/bin/python -m benchmarks.bench_lr --quick    # seconds, smoke test
     .venv/bin/python -m benchmarks.bench_lr --json out.json
+    .venv/bin/python -m benchmarks.bench_lr --no-table1 --no-fig10 --construction-faces 2000000
+    .venv/bin/python -m benchmarks.bench_lr --no-table1 --no-fig10 --construction-mesh subdiv:armadillo.obj:2
 
 Writes markdown tables to stdout. Timings on a shared machine are noisy: the JSON records the
 load average before and after each part.
@@ -151,32 +155,83 @@ def _summary(rows: list) -> dict:
 
 
 # ------------------------------------------------------------------------------ construction
-def construction(num_faces: int, repeats: int) -> dict:
-    from jaxcds.construct.ring_expander import ring_expander
-    from jaxcds.generators import random_planar_triangulation
+def construction(num_faces: int, repeats: int, mesh_spec: Optional[str] = None,
+                 bits_k: int = 64) -> dict:
+    """Construction times (median of ``repeats`` after a warm-up) on a random triangulation of
+    ``num_faces`` triangles or a ``subdiv:NAME:K`` mesh, one seed corner. The seed is chosen
+    once, untimed, as the best of 4 random seeds (``best_ring``): RING-EXPANDER from an unlucky
+    seed can stay inside a separating triangle of a random triangulation (a few dozen
+    triangles invaded, almost every triangle a T0), which would time a different structure.
+    ``seeds=4`` (the default of ``LR.from_corner_table``) is timed too."""
+    from jaxcds.construct.ring_expander import best_ring, ring_expander
+    from jaxcds.structures import lr as lrmod
     from jaxcds.structures.corner_table import CornerTable
-    from jaxcds.structures.lr import LR
+    from jaxcds.structures.lr import LR, LRBits, build_lr, stats
 
-    n = num_faces // 2 + 2
-    mesh = random_planar_triangulation(n, seed=1)
+    mesh = fig10_mesh(mesh_spec, num_faces)
     nf = mesh.num_faces
-    # warm up the numba kernels (cached on disk) and the packing on a small mesh
-    small = random_planar_triangulation(1000, seed=2)
-    LR.from_mesh(small, seeds=1, check=False)
+    # warm up the numba kernels (cached on disk), for both variants, checks included
+    small = fig10_mesh(None, 2000)
+    LR.from_mesh(small, seeds=1)
+    LRBits.from_mesh(small, k=bits_k)
     ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices)
     V, O = np.asarray(ct.V), np.asarray(ct.O)
+    seed = best_ring(V, O, mesh.num_vertices, seeds=4).seed
+    seeds = [seed]
     load0 = _load()
-    ring_s = _median_time(lambda: ring_expander(V, O, mesh.num_vertices, 0), repeats)
-    tables_s = _median_time(lambda: LR.from_corner_table(ct, seeds=1, check=False), repeats)
-    e2e_s = _median_time(lambda: LR.from_mesh(mesh, seeds=1, check=False), repeats)
-    ct_s = _median_time(lambda: CornerTable.from_faces(mesh.faces, mesh.num_vertices), repeats)
-    return {"mesh": f"random:{n}", "triangles": nf, "repeats": repeats,
-            "ring_expander_s": ring_s, "ring_expander_Mtps": nf / ring_s / 1e6,
-            "lr_from_corner_table_s": tables_s, "lr_from_corner_table_Mtps": nf / tables_s / 1e6,
-            "corner_table_from_faces_s": ct_s,
-            "lr_end_to_end_s": e2e_s, "lr_end_to_end_Mtps": nf / e2e_s / 1e6,
-            "targets_Mtps": {"from_corner_table": 5.0, "end_to_end": 2.0},
-            "load_before": load0, "load_after": _load()}
+    t = {}
+    t["ring_expander_s"] = _median_time(lambda: ring_expander(V, O, mesh.num_vertices, seed), repeats)
+    t["lr_from_corner_table_s"] = _median_time(
+        lambda: LR.from_corner_table(ct, seeds=seeds, check=False), repeats)
+    t["lr_from_corner_table_checked_s"] = _median_time(
+        lambda: LR.from_corner_table(ct, seeds=seeds, check=True), repeats)
+    t["lr_from_corner_table_defaults_s"] = _median_time(  # seeds=4, check=True
+        lambda: LR.from_corner_table(ct), repeats)
+    t["lr_bits_from_corner_table_s"] = _median_time(
+        lambda: LRBits.from_corner_table(ct, k=bits_k, seeds=seeds, check=False), repeats)
+    t["lr_bits_from_corner_table_checked_s"] = _median_time(
+        lambda: LRBits.from_corner_table(ct, k=bits_k, seeds=seeds, check=True), repeats)
+    t["validation_s"] = _median_time(lambda: lrmod._prepare(mesh), repeats)
+    t["corner_table_from_faces_s"] = _median_time(
+        lambda: CornerTable.from_faces(mesh.faces, mesh.num_vertices), repeats)
+    t["lr_end_to_end_s"] = _median_time(lambda: build_lr(mesh, seeds=seeds, check=False), repeats)
+    t["lr_end_to_end_checked_s"] = _median_time(
+        lambda: build_lr(mesh, seeds=seeds, check=True), repeats)
+    t["lr_bits_end_to_end_checked_s"] = _median_time(
+        lambda: build_lr(mesh, bits=True, k=bits_k, seeds=seeds, check=True), repeats)
+    s = LR.from_corner_table(ct, seeds=seeds, check=False)
+    st = stats(s)
+    out = {"mesh": mesh_spec or f"random:{mesh.num_vertices}", "triangles": nf,
+           "repeats": repeats, "seed_corner": seed, "bits_k": bits_k,
+           "m_i_pct": 100.0 * st["m_i"] / mesh.num_vertices, "rpt": s.references / nf}
+    for key, sec in t.items():
+        out[key] = sec
+        if key != "validation_s" and key != "corner_table_from_faces_s":
+            out[key[:-2] + "_Mtps"] = nf / sec / 1e6
+    out["targets_Mtps"] = {"from_corner_table": 5.0, "end_to_end": 2.0}
+    out["load_before"], out["load_after"] = load0, _load()
+    return out
+
+
+def _construction_md(c: dict) -> str:
+    rows = [("RING-EXPANDER (one seed)", "ring_expander"),
+            ("LR from CornerTable, check=False", "lr_from_corner_table"),
+            ("LR from CornerTable, check=True", "lr_from_corner_table_checked"),
+            ("LR from CornerTable, defaults (4 seeds, check)", "lr_from_corner_table_defaults"),
+            (f"lr-bits (k={c['bits_k']}) from CornerTable, check=False", "lr_bits_from_corner_table"),
+            (f"lr-bits (k={c['bits_k']}) from CornerTable, check=True",
+             "lr_bits_from_corner_table_checked"),
+            ("LR end to end (faces), check=False", "lr_end_to_end"),
+            ("LR end to end (faces), check=True", "lr_end_to_end_checked"),
+            (f"lr-bits (k={c['bits_k']}) end to end, check=True", "lr_bits_end_to_end_checked")]
+    out = [f"{c['mesh']}: {c['triangles']:,} triangles, m_i {c['m_i_pct']:.1f}% of the vertices, "
+           f"{c['rpt']:.3f} rpt; validation (validate + boundary check) {c['validation_s']:.3f} s, "
+           f"CornerTable from faces {c['corner_table_from_faces_s']:.3f} s; load "
+           f"{c['load_before']} -> {c['load_after']}\n",
+           "| step | s | M triangles/s |", "|---|---|---|"]
+    for label, key in rows:
+        out.append(f"| {label} | {c[key + '_s']:.3f} | {c[key + '_Mtps']:.2f} |")
+    return "\n".join(out)
 
 
 # ------------------------------------------------------------------------------ Fig. 10
@@ -359,6 +414,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--json", help="write the results as JSON here")
     ap.add_argument("--meshes", nargs="+", help="Table 1 meshes (shared file names)")
     ap.add_argument("--construction-faces", type=int, default=1_000_000)
+    ap.add_argument("--construction-mesh", help="subdiv:NAME:K (a subdivided shared mesh) "
+                    "instead of the random triangulation for the construction timings")
     ap.add_argument("--fig10-faces", type=int, default=2_000_000)
     ap.add_argument("--fig10-mesh", help="subdiv:NAME:K (a subdivided shared mesh) instead of "
                     "the random triangulation")
@@ -386,14 +443,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(_table1_md(rows))
         print("\n```\n" + json.dumps(res["table1_summary"], indent=1) + "\n```\n")
     if not args.no_construction:
-        c = construction(cf, rep)
+        c = construction(cf, rep, args.construction_mesh)
         res["construction"] = c
         print("## LR construction\n")
-        print("| triangles | RING-EXPANDER M tri/s | LR from CornerTable M tri/s | "
-              "LR end to end M tri/s | CornerTable from faces s |\n|---|---|---|---|---|")
-        print(f"| {c['triangles']:,} | {c['ring_expander_Mtps']:.2f} | "
-              f"{c['lr_from_corner_table_Mtps']:.2f} | {c['lr_end_to_end_Mtps']:.2f} | "
-              f"{c['corner_table_from_faces_s']:.3f} |\n")
+        print(_construction_md(c) + "\n")
     if not args.no_fig10:
         rows = fig10(ff, rep, contours, steps, args.fig10_mesh)
         res["fig10"] = rows

@@ -172,7 +172,7 @@ def _opposite(c, m, E):
 # ------------------------------------------------------------------------------ packing
 @numba.njit(cache=True)
 def _pack_common(V, O, vertex_corner, ring, cL, cR, redl, redr, skl, skr, irl_in, irr_in,
-                 t0_in, lrc_in, dmask):
+                 t0_in, lrc_in, dmask, quad_check):
     nc = V.shape[0]
     nf = nc // 3
     nv = dmask.shape[0]
@@ -199,28 +199,32 @@ def _pack_common(V, O, vertex_corner, ring, cL, cR, redl, redr, skl, skr, irl_in
     # T0 triangles: real ones first (dense face ids), dummy ones after them, each group in the
     # tables' order; corner 3t + q of the j-th T0 becomes 8 m_r + 4j + q (Sec. 4.7)
     n0 = t0_in.shape[0]
-    t0 = np.empty(n0, np.int32)
-    j = 0
-    for jj in range(n0):
-        t = t0_in[jj]
-        if not (dmask[V[3 * t]] or dmask[V[3 * t + 1]] or dmask[V[3 * t + 2]]):
-            t0[j] = t
-            j += 1
-    for jj in range(n0):
-        t = t0_in[jj]
-        if dmask[V[3 * t]] or dmask[V[3 * t + 1]] or dmask[V[3 * t + 2]]:
-            t0[j] = t
-            j += 1
+    has_dummy = nv_real < nv
     nf_real = nf
-    if nv_real < nv:
+    if has_dummy:
+        t0 = np.empty(n0, np.int32)
+        j = 0
+        for jj in range(n0):
+            t = t0_in[jj]
+            if not (dmask[V[3 * t]] or dmask[V[3 * t + 1]] or dmask[V[3 * t + 2]]):
+                t0[j] = t
+                j += 1
+        for jj in range(n0):
+            t = t0_in[jj]
+            if dmask[V[3 * t]] or dmask[V[3 * t + 1]] or dmask[V[3 * t + 2]]:
+                t0[j] = t
+                j += 1
         for t in range(nf):
             if dmask[V[3 * t]] or dmask[V[3 * t + 1]] or dmask[V[3 * t + 2]]:
                 nf_real -= 1
-    lrc = lrc_in.copy()
-    base = 8 * m
-    for jj in range(n0):
-        for q in range(3):
-            lrc[3 * t0[jj] + q] = base + 4 * jj + q
+        lrc = lrc_in.copy()
+        base = 8 * m
+        for jj in range(n0):
+            for q in range(3):
+                lrc[3 * t0[jj] + q] = base + 4 * jj + q
+    else:  # no dummy triangle: the tables' T0 order and corner ids stand as they are
+        t0 = t0_in
+        lrc = lrc_in
     V0 = np.zeros(max(3 * n0, 1), np.int32)
     O0 = np.zeros(max(3 * n0, 1), np.int32)
     for jj in range(n0):
@@ -247,13 +251,19 @@ def _pack_common(V, O, vertex_corner, ring, cL, cR, redl, redr, skl, skr, irl_in
         truth[v, 1] = lrc[O[_ctn(a)]]
         truth[v, 2] = lrc[O[_ctp(b)]]
         truth[v, 3] = lrc[O[_ctn(b)]]
-        ta = 3 * (a // 3)
-        tb = 3 * (b // 3)
-        hidden[2 * v] = 1 if (redl[v] or dmask[V[ta]] or dmask[V[ta + 1]] or dmask[V[ta + 2]]) else 0
-        hidden[2 * v + 1] = 1 if (redr[v] or dmask[V[tb]] or dmask[V[tb + 1]] or dmask[V[tb + 2]]) else 0
+        hl = redl[v]
+        hr = redr[v]
+        if has_dummy:
+            ta = 3 * (a // 3)
+            tb = 3 * (b // 3)
+            hl = hl or dmask[V[ta]] or dmask[V[ta + 1]] or dmask[V[ta + 2]]
+            hr = hr or dmask[V[tb]] or dmask[V[tb + 1]] or dmask[V[tb + 2]]
+        hidden[2 * v] = 1 if hl else 0
+        hidden[2 * v + 1] = 1 if hr else 0
     # construction-time check of the ring case analysis (Sec. 4.5, Fig. 6) on every regular
     # corner; a transversal corner it cannot resolve makes its slot irregular (stored in VO*).
-    # The quad opposites (offsets 1, 5) never need VO*: a wrong one is a bug (bad1/bad5).
+    # The quad opposites (offsets 1, 5) never need VO*: a wrong one is a bug (bad1/bad5; only
+    # looked for with ``quad_check``: the full check covers them too).
     irl = np.empty(m, np.uint8)
     irr = np.empty(m, np.uint8)
     unexpected = 0
@@ -263,14 +273,14 @@ def _pack_common(V, O, vertex_corner, ring, cL, cR, redl, redr, skl, skr, irl_in
         il = irl_in[v]
         ir = irr_in[v]
         if redl[v] == 0:
-            if bad1 < 0 and _opposite(8 * v + 1, m, E) != lrc[O[cL[v]]]:
+            if quad_check and bad1 < 0 and _opposite(8 * v + 1, m, E) != lrc[O[cL[v]]]:
                 bad1 = v
             if il == 0 and (_opposite(8 * v, m, E) != truth[v, 0]
                             or _opposite(8 * v + 2, m, E) != truth[v, 1]):
                 unexpected += 1
                 il = 1
         if redr[v] == 0:
-            if bad5 < 0 and _opposite(8 * v + 5, m, E) != lrc[O[cR[v]]]:
+            if quad_check and bad5 < 0 and _opposite(8 * v + 5, m, E) != lrc[O[cR[v]]]:
                 bad5 = v
             if ir == 0 and (_opposite(8 * v + 4, m, E) != truth[v, 2]
                             or _opposite(8 * v + 6, m, E) != truth[v, 3]):
@@ -282,16 +292,16 @@ def _pack_common(V, O, vertex_corner, ring, cL, cR, redl, redr, skl, skr, irl_in
             nv_real, nf_real, unexpected, bad1, bad5)
 
 
-def pack_common(V, O, vertex_corner, tb, dmask):
+def pack_common(V, O, vertex_corner, tb, dmask, quad_check: bool = True):
     """Everything both LR variants share, from the :class:`~jaxcds.construct.ring_expander.LRTables`
     ``tb`` of corner table ``V, O`` (``dmask``: dummy vertices). Returns a dict of arrays and
     counts (see :func:`_pack_common`); ``bad_quad`` is ``(offset, ring vertex)`` of a wrong quad
-    opposite (a construction bug) or None."""
+    opposite (a construction bug; looked for with ``quad_check``) or None."""
     out = _pack_common(_i32(V), _i32(O), _i32(vertex_corner), _i32(tb.order),
                        _i32(tb.left_corner), _i32(tb.right_corner),
                        _u8(tb.red_left), _u8(tb.red_right), _u8(tb.skip_left), _u8(tb.skip_right),
                        _u8(tb.irr_left), _u8(tb.irr_right), _i32(tb.t0), _i32(tb.lr_corner),
-                       _u8(dmask))
+                       _u8(dmask), bool(quad_check))
     keys = ("new_of_old", "order", "lrc", "t0", "V0", "O0", "C", "E", "truth", "irl", "irr",
             "hidden", "nv_real", "nf_real", "unexpected")
     d = dict(zip(keys, out[:15]))

@@ -36,7 +36,7 @@ from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, lr_tables
-from jaxcds.mesh import TriMesh, boundary_loops, close_boundaries, load_mesh, validate
+from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
 from jaxcds.structures.base import Int, MeshStructure
 from jaxcds.structures.corner_table import CornerTable
 
@@ -589,10 +589,9 @@ def _prepare(mesh) -> TriMesh:
     if mesh.dummy_vertices is not None and np.any(mesh.dummy_vertices):
         validate(mesh, closed=True, connected=True, structure="lr")
         return mesh  # already closed by close_boundaries: keep its dummy flags
-    validate(mesh, connected=True, structure="lr")
-    if not boundary_loops(mesh):
-        return mesh  # closed: close_boundaries would only validate it a second time
-    return close_boundaries(mesh)
+    # validation and hole closing (Sec. 4.6: one dummy vertex per hole) from one edge table;
+    # a closed mesh comes back unchanged
+    return validate_and_close(mesh, connected=True, structure="lr")
 
 
 def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
@@ -672,7 +671,7 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
     if nv >= 1 << _VALUE_BITS:
         raise errors.UnsupportedTopologyError(f"{nv} vertices: LR entries hold 29-bit vertex ids")
     dmask = np.zeros(nv, bool) if dummy is None else np.asarray(dummy, bool)
-    p = lr_pack.pack_common(V, O, vertex_corner, tb, dmask)
+    p = lr_pack.pack_common(V, O, vertex_corner, tb, dmask, quad_check=check)
     if p["bad_quad"] is not None:
         i, w = p["bad_quad"]
         raise errors.StructureError(
