@@ -263,22 +263,26 @@ def _pk(s, b30, b31):
 
 @numba.njit(cache=True)
 def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, label):
-    """Every table row of a CDS in one pass over the vertices (linear time).
+    """Every table row of a CDS in three linear passes, no search and no sort.
 
-    Row ``i`` is vertex ``u = order[i]`` of the wood (``order`` empty: no renumbering, ``u = i``),
-    and every stored vertex index ``x`` is written as ``label[x]`` -- the cwBFS relabelling of
-    Sec. 2.3 applied on the fly, without building a relabelled wood. The fronts of ``u_c`` are
-    read in the rotation of its target ``v``, around ``u``'s entry (``LeftFront`` = cw neighbour,
-    ``RightFront`` = ccw neighbour, Sec. 2.2's ``q`` = two steps cw); ``I_c`` is a scatter of
-    ``out``; the Thm 7 face map pairs, in row order, each blue triangle whose own slot is taken
-    with the next free black slot. Absent edges store 0 with clear service bits.
+    Row ``i = label[u]`` holds vertex ``u`` of the wood (``label`` empty: no renumbering,
+    ``i = u``) and every stored vertex index ``x`` is written as ``label[x]``: the cwBFS
+    relabelling of Sec. 2.3 applied on the fly, without building a relabelled wood. Pass 1 scatters
+    ``out`` into ``I_c``; pass 2 walks every rotation once and, at each edge ``x_c`` entering ``v``,
+    reads its fronts around ``x``'s entry (``LeftFront`` = cw neighbour, ``RightFront`` = ccw
+    neighbour, Sec. 2.2's ``q`` = two steps cw) into one packed word per edge -- sequential
+    reads, scattered writes, which is faster at 1M+ vertices than searching ``u`` in the rotation
+    of ``out[u, c]`` row by row; pass 3 writes the rows. The Thm 7 face map then pairs, in row
+    order, each blue triangle whose own slot is taken with the next free black slot. Absent
+    edges store 0 with clear service bits. ``order`` (the cwBFS order, for CDS5n-O(1)'s depth
+    parity ``D``) may be empty otherwise.
 
     Returns ``(refs uint32 (n, k), F_blue int32 (n,), free int64 (n,), n_need, n_free, bad)``:
-    ``free[n_need:n_free]`` are the unused black slots (rows), ``bad`` a vertex whose edge was not
-    found in its target's rotation (-1: none).
+    ``free[n_need:n_free]`` are the unused black slots (rows), ``bad`` a vertex one of whose
+    edges is missing from its target's rotation (-1: none).
     """
     width = 6 if kind == _KIND_6N else (4 if kind == _KIND_4N else 5)
-    relab = order.shape[0] == n
+    relab = label.shape[0] == n
     refs = np.zeros((n, width), dtype=np.uint32)
     fblue = np.zeros(n, dtype=np.int32)
     need = np.empty(n, dtype=np.int64)
@@ -298,6 +302,34 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
         for i in range(n):
             u = order[i]
             even[u] = True if u == v_red else not even[out[u, RED]]
+    # fronts of every edge, read once in its target's rotation (sequential over v, no search):
+    # F[x, c] = Source(LeftFront) | Source(RightFront) << 30 | C^left << 60 | C^right << 61 |
+    # Color(LeftFront) << 62; Q[x] = q | ({v, q} black toward v) << 62 for red edges
+    F = np.full((n, 3), _IDX, dtype=np.int64)  # _IDX: not written (indices are < 2^30 - 1)
+    Q = np.zeros(n, dtype=np.int64)
+    for v in range(n):
+        a = offsets[v]
+        d = offsets[v + 1] - a
+        for k in range(d):
+            j = a + k
+            if outg[j]:
+                continue
+            x = nbr[j]
+            c = col[j]
+            # a dart (v, y) of v's rotation: source v if the edge leaves v, else y (reversed)
+            jl = a + (k - 1) % d
+            jr = a + (k + 1) % d
+            y = v if outg[jl] else nbr[jl]
+            ls = label[y] if relab else y
+            y = v if outg[jr] else nbr[jr]
+            rs = label[y] if relab else y
+            F[x, c] = (ls | (rs << 30) | (np.int64(not outg[jl]) << 60)
+                       | (np.int64(not outg[jr]) << 61) | (np.int64(col[jl]) << 62))
+            if c == RED:
+                j2 = a + (k - 2) % d
+                y = v if outg[j2] else nbr[j2]
+                qs = label[y] if relab else y
+                Q[x] = qs | (np.int64(col[j2] == BLACK and not outg[j2]) << 62)
     has = np.zeros(3, dtype=np.bool_)
     lsrc = np.zeros(3, dtype=np.int64)   # Source(LeftFront(u_c))
     lsame = np.zeros(3, dtype=np.bool_)  # C^left: LeftFront has colour c
@@ -305,10 +337,9 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
     rsrc = np.zeros(3, dtype=np.int64)   # Source(RightFront(u_c))
     rsame = np.zeros(3, dtype=np.bool_)  # C^right: RightFront has colour c
     tgt = np.zeros(3, dtype=np.int64)    # Target(u_c), 0 if absent
-    for i in range(n):
-        u = order[i] if relab else i
-        q_src = 0
-        q_black_in = False
+    status = np.zeros(n, dtype=np.int8)  # Thm 7 slot status of row i: 1 own, 2 need, 3 free
+    for u in range(n):
+        i = label[u] if relab else u
         for c in range(3):
             v = out[u, c]
             if v >= n:
@@ -320,33 +351,18 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
                 rsame[c] = False
                 tgt[c] = 0
                 continue
-            a = offsets[v]
-            d = offsets[v + 1] - a
-            j = -1
-            for k in range(d):
-                if nbr[a + k] == u:
-                    j = k
-                    break
-            if j < 0:
+            e = F[u, c]
+            if (e & _IDX) == _IDX:
                 return refs, fblue, free, n_need, n_free, u
-            jl = a + (j - 1) % d
-            jr = a + (j + 1) % d
             has[c] = True
-            # a dart (v, y) of v's rotation: source v if the edge leaves v, else y (reversed)
-            x = v if outg[jl] else nbr[jl]
-            lsrc[c] = label[x] if relab else x
-            lsame[c] = not outg[jl]
-            lcol[c] = col[jl]
-            x = v if outg[jr] else nbr[jr]
-            rsrc[c] = label[x] if relab else x
-            rsame[c] = not outg[jr]
+            lsrc[c] = e & _IDX
+            rsrc[c] = (e >> 30) & _IDX
+            lsame[c] = (e >> 60) & 1
+            rsame[c] = (e >> 61) & 1
+            lcol[c] = (e >> 62) & 3
             tgt[c] = label[v] if relab else v
-            if c == RED:
-                # Sec. 2.2: q, one more step cw around v; {v, q} black toward v
-                j2 = a + (j - 2) % d
-                x = v if outg[j2] else nbr[j2]
-                q_src = label[x] if relab else x
-                q_black_in = col[j2] == BLACK and not outg[j2]
+        q_src = Q[u] & _IDX
+        q_black_in = (Q[u] >> 62) & 1 == 1
         if kind == _KIND_6N:
             for c in range(3):
                 refs[i, 2 * c] = _pk(lsrc[c], lsame[c], inc[u, c])
@@ -400,12 +416,17 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
         black_matched = has[BLACK] and lcol[BLACK] == BLACK
         blue_matched = has[BLUE] and not inc[u, RED] and lcol[BLUE] == BLUE and u != v_black
         if blue_matched:
-            if not black_matched:
-                fblue[i] = i
-            else:
-                need[n_need] = i
-                n_need += 1
+            status[i] = 1 if not black_matched else 2
         elif not black_matched:
+            status[i] = 3
+    for i in range(n):
+        st = status[i]
+        if st == 1:
+            fblue[i] = i
+        elif st == 2:
+            need[n_need] = i
+            n_need += 1
+        elif st == 3:
             free[n_free] = i
             n_free += 1
     for k in range(min(n_need, n_free)):
