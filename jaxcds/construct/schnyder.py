@@ -763,28 +763,6 @@ def schnyder_wood_reference(faces, num_vertices: int, root_face: int = 0) -> np.
     return out
 
 
-@numba.njit(cache=True)
-def _open_fan_vertex(faces, n):
-    """First vertex on a border of a mesh whose vertices each have one fan of faces (-1: none).
-
-    The corner of face ``(a, b, c)`` at ``a`` goes from ``b`` to ``c`` ccw; around a closed fan
-    every neighbour is once a ``b`` and once a ``c``, so the sum of ``b - c`` over the corners of
-    the vertex is 0, while an open fan telescopes to ``first b - last c``, two distinct vertices.
-    One pass over the faces (no edge table)."""
-    acc = np.zeros(n, dtype=np.int64)
-    for f in range(faces.shape[0]):
-        a = faces[f, 0]
-        b = faces[f, 1]
-        c = faces[f, 2]
-        acc[a] += b - c
-        acc[b] += c - a
-        acc[c] += a - b
-    for v in range(n):
-        if acc[v] != 0:
-            return v
-    return -1
-
-
 def prepare_mesh(mesh, structure: str = "Schnyder woods"):
     """Validate a mesh for Schnyder woods: manifold, consistently oriented, connected, closed
     (holes are closed with :func:`jaxcds.mesh.close_boundaries`, CDS paper Sec. 4.5), genus 0.
@@ -799,16 +777,11 @@ def prepare_mesh(mesh, structure: str = "Schnyder woods"):
     """
     from jaxcds import mesh as _mesh
 
-    m = _mesh.load_mesh(mesh)
-    _mesh.validate(m, connected=True, structure=structure)
-    closed = False
-    # boundary loops only when some fan is open (validate made every vertex a single fan)
-    loops = 0
-    if _open_fan_vertex(np.ascontiguousarray(m.faces), m.num_vertices) >= 0:
-        loops = len(_mesh.boundary_loops(m))
-    if loops:
-        m = _mesh.close_boundaries(m)
-        closed = True
+    m0 = _mesh.load_mesh(mesh)
+    # defects, components and holes from one edge table (the cost of this step at 1M+ vertices)
+    m = _mesh.validate_and_close(m0, connected=True, structure=structure)
+    closed = m is not m0
+    loops = m.num_vertices - m0.num_vertices  # one dummy vertex per closed loop
     # No full topology report (it rebuilds the edge table and reruns the defect checks): the mesh
     # is now a connected, consistently oriented (so orientable), closed manifold, every edge has
     # two faces, E = 3F/2 and the Euler characteristic is V - E + F = V - F/2 = 2 - 2 genus.

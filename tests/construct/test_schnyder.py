@@ -212,19 +212,3 @@ def test_prepare_mesh_closes_holes():
     w = schnyder_wood(m.faces, m.num_vertices)
     assert check_schnyder_wood(w, m.faces) == []
 
-
-@pytest.mark.parametrize("name", ["2triangles.off", "grid.off", "cube.off", "bunny.off", "camelhead.off"])
-def test_open_fan_vertex_agrees_with_boundary_loops(name):
-    """prepare_mesh's one-pass border test (sum of b - c over a vertex's corners) finds a vertex
-    exactly when jaxcds.mesh.boundary_loops finds loops, and the vertex is on one of them."""
-    from jaxcds.construct.schnyder import _open_fan_vertex
-    from jaxcds.mesh import boundary_loops, close_boundaries
-
-    m = load_shared(name)
-    loops = boundary_loops(m)
-    v = _open_fan_vertex(np.ascontiguousarray(m.faces), m.num_vertices)
-    assert (v >= 0) == bool(loops)
-    if loops:
-        assert v in set(np.concatenate(loops).tolist())
-        closed = close_boundaries(m)
-        assert _open_fan_vertex(np.ascontiguousarray(closed.faces), closed.num_vertices) == -1
