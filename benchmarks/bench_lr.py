@@ -168,6 +168,11 @@ def construction(num_faces: int, repeats: int, mesh_spec: Optional[str] = None,
     from jaxcds.structures.corner_table import CornerTable
     from jaxcds.structures.lr import LR, LRBits, build_lr, stats
 
+    bits_from_ct = getattr(LRBits, "from_corner_table", None)
+    if bits_from_ct is None:  # versions before LRBits.from_corner_table (before/after runs)
+        def bits_from_ct(ct, **kw):
+            return lrmod._from_corner_table(LRBits, ct, **kw)
+
     mesh = fig10_mesh(mesh_spec, num_faces)
     nf = mesh.num_faces
     # warm up the numba kernels (cached on disk), for both variants, checks included
@@ -188,9 +193,9 @@ def construction(num_faces: int, repeats: int, mesh_spec: Optional[str] = None,
     t["lr_from_corner_table_defaults_s"] = _median_time(  # seeds=4, check=True
         lambda: LR.from_corner_table(ct), repeats)
     t["lr_bits_from_corner_table_s"] = _median_time(
-        lambda: LRBits.from_corner_table(ct, k=bits_k, seeds=seeds, check=False), repeats)
+        lambda: bits_from_ct(ct, k=bits_k, seeds=seeds, check=False), repeats)
     t["lr_bits_from_corner_table_checked_s"] = _median_time(
-        lambda: LRBits.from_corner_table(ct, k=bits_k, seeds=seeds, check=True), repeats)
+        lambda: bits_from_ct(ct, k=bits_k, seeds=seeds, check=True), repeats)
     t["validation_s"] = _median_time(lambda: lrmod._prepare(mesh), repeats)
     t["corner_table_from_faces_s"] = _median_time(
         lambda: CornerTable.from_faces(mesh.faces, mesh.num_vertices), repeats)

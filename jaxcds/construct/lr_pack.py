@@ -40,7 +40,7 @@ FAIL = 2**31 - 1  # "no cheap opposite" (lr._FAIL)
 
 # ------------------------------------------------------------------------------ case analysis
 # The ring case analysis reads, for a few ring vertices around the corner, the apex and the
-# wart-skip bit of a slot. They live in one int32 pair per ring vertex, ``E[v, 0] = v.l | skl << 29``
+# wart-skip bit of a slot (helpers inlined at numba IR level: they run once per corner). They live in one int32 pair per ring vertex, ``E[v, 0] = v.l | skl << 29``
 # and ``E[v, 1] = v.r | skr << 29`` (the LR entry layout without the irregular bit), so each
 # (random) ring vertex touched costs one cache line.
 @numba.njit(cache=True, inline="always")
@@ -77,7 +77,7 @@ def _sk(E, v, side):
     return (np.int64(E[v, side]) >> _SKIP_BIT) & 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _ring_vertex(c, m, E):
     """``c.v`` of a ring corner (Sec. 4.7, Fig. 5): twin of ``lr._ring_vertex``."""
     v = c >> 3
@@ -94,7 +94,7 @@ def _ring_vertex(c, m, E):
     return v
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _canonical(c, m, E):
     """Redundant T2 corner -> its canonical copy (Sec. 4.4): twin of ``lr._canonical``."""
     if c < 0 or c >= 8 * m:
@@ -108,7 +108,7 @@ def _canonical(c, m, E):
     return c
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _find(m, side, x, y, E):
     """Transversal opposite from the ring alone (Sec. 4.5, Fig. 6, Sec. 5): twin of ``lr._find``
     (``side`` 1 = right)."""
@@ -128,7 +128,7 @@ def _find(m, side, x, y, E):
     return FAIL
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _cheap_opposite(c, m, E):
     """``c.o`` of a ring corner of a regular triangle before canonicalisation (Sec. 4.5, Fig. 6,
     Sec. 5): twin of ``lr._cheap_opposite`` (same cases, evaluated lazily)."""
@@ -164,7 +164,7 @@ def _cheap_opposite(c, m, E):
     return _find(m, 1, _nx(vn, m) if skr else vn, _ap(E, v, 1), E)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _opposite(c, m, E):
     return _canonical(_cheap_opposite(c, m, E), m, E)
 
@@ -513,7 +513,7 @@ def decode_lr_bits(LR16, VOs, m):
     return E, X
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _corner_vo(c, m, n0, E, X, VOs, V0, O0):
     """``(c.v, c.o)`` of LR corner ``c`` from the decoded slots (Sec. 4.7), as the jitted ``v`` /
     ``o`` compute them (same index clipping)."""
