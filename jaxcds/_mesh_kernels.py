@@ -29,9 +29,10 @@ def _dart_ends(faces, d):
 def edge_groups(faces, num_vertices):
     """Darts grouped by undirected edge, edges in lexicographic ``(lo, hi)`` order.
 
-    Returns ``(order, starts, dart_edge, forward)``: ``order[starts[e]:starts[e+1]]`` are the
-    darts on edge ``e`` in increasing id; ``dart_edge[d]`` is ``e``; ``forward[e]`` counts the
-    darts of ``e`` that run low -> high.
+    Returns ``(order, starts, dart_edge, forward, edges)``: ``order[starts[e]:starts[e+1]]`` are
+    the darts on edge ``e`` in increasing id; ``dart_edge[d]`` is ``e``; ``forward[e]`` counts
+    the darts of ``e`` that run low -> high; ``edges[e]`` is ``(lo, hi)``. Needs fewer than 2^31
+    darts (the intermediate order is int32 to halve its memory traffic).
     """
     nd = faces.shape[0] * 3
     count = np.zeros(num_vertices + 1, dtype=np.int64)
@@ -40,7 +41,7 @@ def edge_groups(faces, num_vertices):
         count[max(a, b) + 1] += 1
     for v in range(num_vertices):
         count[v + 1] += count[v]
-    by_hi = np.empty(nd, dtype=np.int64)
+    by_hi = np.empty(nd, dtype=np.int32)
     for d in range(nd):
         a, b = _dart_ends(faces, d)
         h = max(a, b)
@@ -59,8 +60,12 @@ def edge_groups(faces, num_vertices):
         lo = min(a, b)
         order[count[lo]] = d
         count[lo] += 1
+    # one sequential pass over the grouped darts: edge ids, starts, endpoints, forward counts
     dart_edge = np.empty(nd, dtype=np.int64)
     starts = np.empty(nd + 1, dtype=np.int64)
+    ends = by_hi  # reuse: by_hi is dead from here on; holds lo of each edge, hi goes to fwd
+    his = np.empty(nd, dtype=np.int32)
+    fwd = np.zeros(nd, dtype=np.int32)
     ne = 0
     plo, phi = -1, -1
     for i in range(nd):
@@ -69,27 +74,18 @@ def edge_groups(faces, num_vertices):
         lo, hi = min(a, b), max(a, b)
         if lo != plo or hi != phi:
             starts[ne] = i
+            ends[ne] = lo
+            his[ne] = hi
             ne += 1
             plo, phi = lo, hi
         dart_edge[d] = ne - 1
-    starts[ne] = nd
-    forward = np.zeros(ne, dtype=np.int64)
-    for d in range(nd):
-        a, b = _dart_ends(faces, d)
         if a < b:
-            forward[dart_edge[d]] += 1
-    return order, starts[: ne + 1].copy(), dart_edge, forward
-
-
-@numba.njit(cache=True)
-def edge_endpoints(faces, order, starts):
-    ne = starts.size - 1
+            fwd[ne - 1] += 1
+    starts[ne] = nd
     edges = np.empty((ne, 2), dtype=np.int64)
-    for e in range(ne):
-        a, b = _dart_ends(faces, order[starts[e]])
-        edges[e, 0] = min(a, b)
-        edges[e, 1] = max(a, b)
-    return edges
+    edges[:, 0] = ends[:ne]
+    edges[:, 1] = his[:ne]
+    return order, starts[: ne + 1].copy(), dart_edge, fwd[:ne].astype(np.int64), edges
 
 
 @numba.njit(cache=True)

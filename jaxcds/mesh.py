@@ -212,8 +212,9 @@ def edge_table(faces: np.ndarray) -> EdgeTable:
     :mod:`jaxcds._mesh_kernels`)."""
     f = np.ascontiguousarray(faces)
     n = int(f.max(initial=-1)) + 1
-    order, starts, dart_edge, forward = kernels.edge_groups(f, n)
-    edges = kernels.edge_endpoints(f, order, starts)
+    if 3 * f.shape[0] >= 2**31:
+        raise errors.MeshError(f"{3 * f.shape[0]} face sides: more than 2^31 - 1 are not supported")
+    order, starts, dart_edge, forward, edges = kernels.edge_groups(f, n)
     return EdgeTable(edges=edges, dart_edge=dart_edge, count=np.diff(starts), forward=forward,
                      order=order, starts=starts)
 
