@@ -34,6 +34,56 @@ def _opposites(opp, nf):
     return O
 
 
+@numba.njit(cache=True)
+def _closed_corner_table(faces, num_vertices):
+    """``(O, vertex_corner, closed)`` of a face list in O(F + V): darts bucketed by their smaller
+    endpoint (a counting sort), each paired with the first unpaired dart of its bucket with the
+    same other endpoint -- the twin matching of :func:`jaxcds.structures.halfedge.halfedge_arrays`
+    without the border half-edges a corner table has no use for (same pairs, same
+    ``vertex_corner``: the first corner of each vertex). ``closed`` is False when a dart has no
+    twin (the caller falls back to the half-edge route)."""
+    nf = faces.shape[0]
+    n3 = 3 * nf
+    start = np.zeros(num_vertices + 1, dtype=np.int32)
+    for d in range(n3):
+        a = faces[d // 3, d % 3]
+        b = faces[d // 3, (d % 3 + 1) % 3]
+        start[min(a, b) + 1] += 1
+    for v in range(num_vertices):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    bucket = np.empty(n3, dtype=np.int32)
+    other = np.empty(n3, dtype=np.int32)
+    vertex_corner = np.full(num_vertices, -1, dtype=np.int32)
+    for d in range(n3):
+        a = faces[d // 3, d % 3]
+        b = faces[d // 3, (d % 3 + 1) % 3]
+        if vertex_corner[a] < 0:
+            vertex_corner[a] = d
+        lo = min(a, b)
+        bucket[fill[lo]] = d
+        other[fill[lo]] = max(a, b)
+        fill[lo] += 1
+    opp = np.full(n3, -1, dtype=np.int32)
+    for v in range(num_vertices):
+        for i in range(start[v], start[v + 1]):
+            if opp[bucket[i]] >= 0:
+                continue
+            for j in range(i + 1, start[v + 1]):
+                if other[j] == other[i] and opp[bucket[j]] < 0:
+                    opp[bucket[i]] = bucket[j]
+                    opp[bucket[j]] = bucket[i]
+                    break
+    # dart d = 3f + k runs faces[f, k] -> faces[f, k+1] and faces corner 3f + (k+2) % 3
+    O = np.empty(n3, dtype=np.int32)
+    for d in range(n3):
+        t = opp[d]
+        if t < 0:
+            return O, vertex_corner, False
+        O[3 * (d // 3) + (d + 2) % 3] = 3 * (t // 3) + (t + 2) % 3
+    return O, vertex_corner, True
+
+
 @pytree_dataclass
 class CornerTable(MeshStructure):
     """Corner table (13n references).
@@ -63,8 +113,12 @@ class CornerTable(MeshStructure):
     def from_faces(cls, faces, num_vertices: int) -> "CornerTable":
         f = np.ascontiguousarray(faces, dtype=np.int32)
         nf = f.shape[0]
-        _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices))
-        O = _opposites(opp, nf)
+        O, vedge, closed = _closed_corner_table(f, int(num_vertices))
+        if closed:
+            vert = f.reshape(-1)
+        else:  # a dart without twin: the half-edge route (border half-edges), as it always did
+            _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices))
+            O = _opposites(opp, nf)
         # jax.device_put: a plain copy (jnp.asarray compiles a conversion per new array shape)
         return cls(V=jax.device_put(vert[: 3 * nf]), O=jax.device_put(O),
                    vertex_corner=jax.device_put(vedge), num_vertices=int(num_vertices), num_faces=nf)

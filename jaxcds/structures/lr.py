@@ -648,9 +648,12 @@ def _best_tables(V, O, nv, *, seeds, k, dummy, wart_skipping) -> LRTables:
         if cand.size == 0:
             raise errors.UnsupportedTopologyError("no triangle without a dummy vertex to seed the ring")
         seeds = [int(3 * t) for t in rng.choice(cand, size=min(int(seeds), cand.size), replace=False)]
+    rings = [best_ring(V, O, nv, seeds=[sd], k=k, dummy=dummy) for sd in seeds]
+    fewest = min(r.num_isolated for r in rings)
     best, key = None, None
-    for sd in seeds:
-        ring = best_ring(V, O, nv, seeds=[sd], k=k, dummy=dummy)
+    for ring in rings:
+        if ring.num_isolated > fewest:
+            continue  # cannot win: classify only the rings tied for the fewest m_i
         tb = lr_tables(V, O, ring, nv, wart_skipping=wart_skipping)
         st = tb.stats(V.shape[0] // 3)
         kk = (st["m_i"], 2 * st["m_r"] + 6 * st["T0"] + 3 * st["Ti"] + st["m_i"])
