@@ -151,10 +151,14 @@ def _pack(s, b30=None, b31=None) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _cwbfs(offsets, nbr, col, outg, n, v_red):
-    label = np.full(n, -1, dtype=np.int64)
-    order = np.empty(n, dtype=np.int64)
+    """``(order, label, count, even)``: the cwBFS of the red tree (int32 ids: the wood's ids are
+    int32) and, for free, the depth parity ``D`` of Thm 6 (``even[u]``: depth of ``u`` even)."""
+    label = np.full(n, -1, dtype=np.int32)
+    order = np.empty(n, dtype=np.int32)
+    even = np.zeros(n, dtype=np.bool_)
     label[v_red] = 0
     order[0] = v_red
+    even[v_red] = True
     head = 0
     tail = 1
     while head < tail:
@@ -166,16 +170,17 @@ def _cwbfs(offsets, nbr, col, outg, n, v_red):
                 x = nbr[j]
                 label[x] = tail
                 order[tail] = x
+                even[x] = not even[v]
                 tail += 1
-    return order, label, tail
+    return order, label, tail, even
 
 
 def cw_bfs_order(wood: SchnyderWood) -> np.ndarray:
     """cwBFS of the red tree (Sec. 2.3): ``order[i]`` = vertex with label ``i``. The children of a
     vertex get consecutive labels, cw around it starting after its outgoing black edge (at
     ``V_red``: ``V_black`` first, ``V_blue`` last)."""
-    order, _, count = _cwbfs(wood.offsets, wood.neighbors, wood.colour, wood.outgoing,
-                             wood.num_vertices, wood.v_red)
+    order, _, count, _ = _cwbfs(wood.offsets, wood.neighbors, wood.colour, wood.outgoing,
+                                wood.num_vertices, wood.v_red)
     if count != wood.num_vertices:
         raise errors.StructureError(f"cwBFS reached {count} of {wood.num_vertices} vertices: the red "
                                     "tree does not span the mesh")
@@ -262,7 +267,7 @@ def _pk(s, b30, b31):
 
 
 @numba.njit(cache=True)
-def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, label):
+def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, label, even):
     """Every table row of a CDS in three linear passes, no search and no sort.
 
     Row ``i = label[u]`` holds vertex ``u`` of the wood (``label`` empty: no renumbering,
@@ -274,8 +279,8 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
     reads, scattered writes, which is faster at 1M+ vertices than searching ``u`` in the rotation
     of ``out[u, c]`` row by row; pass 3 writes the rows. The Thm 7 face map then pairs, in row
     order, each blue triangle whose own slot is taken with the next free black slot. Absent
-    edges store 0 with clear service bits. ``order`` (the cwBFS order, for CDS5n-O(1)'s depth
-    parity ``D``) may be empty otherwise.
+    edges store 0 with clear service bits. ``even`` (CDS5n-O(1)'s depth parity ``D``, from
+    :func:`_cwbfs`) may be empty for the other kinds.
 
     Returns ``(refs uint32 (n, k), F_blue int32 (n,), free int64 (n,), n_need, n_free, bad)``:
     ``free[n_need:n_free]`` are the unused black slots (rows), ``bad`` a vertex one of whose
@@ -296,12 +301,6 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
             t = out[x, c]
             if t < n:
                 inc[t, c] = True
-    # D (Thm 6): depth parity in the red tree; in cwBFS order every parent precedes its children
-    even = np.zeros(n, dtype=np.bool_)
-    if kind == _KIND_5N_O1:
-        for i in range(n):
-            u = order[i]
-            even[u] = True if u == v_red else not even[out[u, RED]]
     # fronts of every edge, read once in its target's rotation (sequential over v, no search):
     # F[x, c] = Source(LeftFront) | Source(RightFront) << 30 | C^left << 60 | C^right << 61 |
     # Color(LeftFront) << 62; Q[x] = q | ({v, q} black toward v) << 62 for red edges
@@ -323,13 +322,13 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
             ls = label[y] if relab else y
             y = v if outg[jr] else nbr[jr]
             rs = label[y] if relab else y
-            F[x, c] = (ls | (rs << 30) | (np.int64(not outg[jl]) << 60)
+            F[x, c] = (np.int64(ls) | (np.int64(rs) << 30) | (np.int64(not outg[jl]) << 60)
                        | (np.int64(not outg[jr]) << 61) | (np.int64(col[jl]) << 62))
             if c == RED:
                 j2 = a + (k - 2) % d
                 y = v if outg[j2] else nbr[j2]
                 qs = label[y] if relab else y
-                Q[x] = qs | (np.int64(col[j2] == BLACK and not outg[j2]) << 62)
+                Q[x] = np.int64(qs) | (np.int64(col[j2] == BLACK and not outg[j2]) << 62)
     has = np.zeros(3, dtype=np.bool_)
     lsrc = np.zeros(3, dtype=np.int64)   # Source(LeftFront(u_c))
     lsame = np.zeros(3, dtype=np.bool_)  # C^left: LeftFront has colour c
@@ -435,17 +434,20 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, order, labe
     return refs, fblue, free, n_need, n_free, -1
 
 
-def _build_rows(wood: SchnyderWood, kind: int, order=None, label=None):
-    """``(refs int32 (n, k), F_blue, unused_slots, static fields)`` of a CDS from ``wood``, by
-    :func:`_cds_rows`; ``order``/``label``: the cwBFS renumbering (Sec. 2.3), or ``None``."""
+def _build_rows(wood: SchnyderWood, kind: int, label=None, even=None):
+    """``(refs int32 (n, k), F_blue, static fields)`` of a CDS from ``wood``, by
+    :func:`_cds_rows`; ``label``: the cwBFS renumbering (Sec. 2.3), or ``None``; ``even``: the
+    depth parity (CDS5n-O(1))."""
     n = wood.num_vertices
     if n >= _MAX_VERTICES:
         raise errors.UnsupportedTopologyError(f"{n} vertices: the packed references hold at most 2^30")
-    if order is None:
-        order = label = np.empty(0, dtype=np.int64)
+    if label is None:
+        label = np.empty(0, dtype=np.int32)
+    if even is None:
+        even = np.empty(0, dtype=np.bool_)
     refs, fblue, free, n_need, n_free, bad = _cds_rows(
         wood.offsets, wood.neighbors, wood.colour, wood.outgoing, wood.out, n, wood.v_red,
-        wood.v_black, kind, order, label)
+        wood.v_black, kind, label, even)
     if bad >= 0:
         raise errors.StructureError(f"Schnyder wood: an edge of vertex {bad} is missing from its "
                                     "target's rotation")
@@ -465,13 +467,13 @@ def _put(x: np.ndarray):
 
 
 def _cwbfs_checked(wood: SchnyderWood):
-    """``(order, label)`` of the cwBFS of the red tree (Sec. 2.3), int64."""
-    order, label, count = _cwbfs(wood.offsets, wood.neighbors, wood.colour, wood.outgoing,
-                                 wood.num_vertices, wood.v_red)
+    """``(order, label, even)`` of the cwBFS of the red tree (Sec. 2.3), see :func:`_cwbfs`."""
+    order, label, count, even = _cwbfs(wood.offsets, wood.neighbors, wood.colour, wood.outgoing,
+                                       wood.num_vertices, wood.v_red)
     if count != wood.num_vertices:
         raise errors.StructureError(f"cwBFS reached {count} of {wood.num_vertices} vertices: the red "
                                     "tree does not span the mesh")
-    return order, label
+    return order, label, even
 
 
 # ====================================================================================== base
@@ -1290,10 +1292,10 @@ class CDS4n(CDS5n):
         while the rows are written (:func:`_cds_rows`), no relabelled wood is built."""
         if not wood.maximal:
             raise errors.StructureError("CDS4n needs the maximal Schnyder wood (Thm 5)")
-        order, label = _cwbfs_checked(wood)
-        refs, fblue, static = _build_rows(wood, _KIND_4N, order, label)
+        order, label, _ = _cwbfs_checked(wood)
+        refs, fblue, static = _build_rows(wood, _KIND_4N, label)
         return cls(refs=_put(refs), F_blue=_put(fblue),
-                   order=_put(order.astype(np.int32)),
+                   order=_put(order),
                    boundaries_closed=bool(boundaries_closed), **static)
 
     @property
@@ -1421,12 +1423,12 @@ class CDS5nO1(CDS4n):
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5nO1":
         if not wood.maximal:
             raise errors.StructureError("CDS5n-O(1) needs the maximal Schnyder wood (Thm 6)")
-        # cwBFS labels applied while the rows are written; D from the cwBFS order (parents
-        # first), W from the targets (:func:`_cds_rows`)
-        order, label = _cwbfs_checked(wood)
-        refs, fblue, static = _build_rows(wood, _KIND_5N_O1, order, label)
+        # cwBFS labels applied while the rows are written, D from the cwBFS itself, W from the
+        # targets (:func:`_cds_rows`)
+        order, label, even = _cwbfs_checked(wood)
+        refs, fblue, static = _build_rows(wood, _KIND_5N_O1, label, even)
         return cls(refs=_put(refs), F_blue=_put(fblue),
-                   order=_put(order.astype(np.int32)),
+                   order=_put(order),
                    boundaries_closed=bool(boundaries_closed), **static)
 
 
