@@ -202,6 +202,21 @@ def test_fused_builder_equals_numpy_route(mesh, rnd):
             assert {k: getattr(s, k) for k in static} == static, (name, root)
 
 
+@pytest.mark.slow
+def test_fused_builder_equals_numpy_route_200k():
+    """As above on a 200K-vertex random triangulation (high-degree vertices, deep red tree)."""
+    m = random_planar_triangulation(200_000, seed=9)
+    wood = schnyder_wood(m.faces, m.num_vertices)
+    for name in CDS:
+        s = CLASSES[name].from_wood(wood)
+        refs, fblue, order, static = cds.tables_reference(name, wood)
+        np.testing.assert_array_equal(np.asarray(s.refs), refs, err_msg=name)
+        np.testing.assert_array_equal(np.asarray(s.F_blue), fblue, err_msg=name)
+        if order is not None:
+            np.testing.assert_array_equal(s.vertex_order, order)
+        assert {k: getattr(s, k) for k in static} == static, name
+
+
 # ---------------------------------------------------------------- hand-checked fixtures
 def test_octahedron_by_hand():
     """The octahedron wood worked by hand in tests/construct/test_schnyder.py (root face
