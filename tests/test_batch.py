@@ -243,3 +243,154 @@ def test_registry_structures_pack(name):
         pytest.xfail(f"{name}: {exc}")
     rep = verify(b, B._union(ms))
     assert rep.ok, str(rep)
+
+
+# ---------------------------------------------------------------------------------- compact kinds
+# CDS family: ids shifted (30-bit vertex fields, service bits kept), roots per mesh;
+# LR / lr-bits: ids kept local, every operator evaluated on each element's mesh.
+PACKABLE = ["cds6n", "cds5n", "cds4n", "cds5n-o1", "lr", "lr-bits"]
+QUICK_OPS = ("target", "twin", "next", "prev", "face_left", "face_right", "ccw_vertex_edge",
+             "corner_opposite", "edge_of_vertex", "edge_of_face", "dart_valid")
+
+
+def compact_meshes():
+    """Four small closed genus-0 meshes of different sizes (CDS and pemb need connected genus 0)."""
+    return [icosphere(1), random_planar_triangulation(30, seed=3), load_mesh(*octahedron()),
+            random_planar_triangulation(9, seed=1)]
+
+
+def _local_ids(part, arg):
+    if arg == "dart":  # valid darts only: on the holes of the id space (LR's i = 3, 7, redundant
+        return part.all_darts()  # T2 slots) a single structure answers garbage, not a dart
+    return np.arange(part.num_vertices if arg == "vertex" else part.num_faces, dtype=np.int32)
+
+
+def _check_ops(b, parts, ops, jit=True):
+    for op in ops:
+        arg = B.OPERATOR_KINDS[op][0]
+        locs = [_local_ids(p, arg) for p in parts]
+        mesh = np.concatenate([np.full(x.size, i, np.int32) for i, x in enumerate(locs)])
+        q = jax.jit(lambda s, m, e: s.query(op, m, e)) if jit else (lambda s, m, e: s.query(op, m, e))
+        got = np.asarray(q(b, jnp.asarray(mesh), jnp.asarray(np.concatenate(locs))))
+        want = np.concatenate([np.asarray(getattr(p, op)(jnp.asarray(x))) for p, x in zip(parts, locs)])
+        np.testing.assert_array_equal(got, want, err_msg=f"{type(parts[0]).__name__}.{op}")
+
+
+def _probe(s, ids):
+    """Main operators on every valid id, degrees and faces: ONE program per structure (compile
+    time dominates these tests)."""
+    d, v, f = ids
+    return (s.target(d), s.next(d), s.face_left(d), s.edge_of_vertex(v), s.edge_of_face(f),
+            vertex_degrees(s), s.face_vertices())
+
+
+@pytest.mark.parametrize("name", ["cds5n", "lr"])
+def test_compact_batch_quick(name):
+    """Quick check of both routes (CDS shift, LR local evaluation) on two small meshes: global
+    answers of the batch == per-mesh answers shifted by the offsets (the slow tests below run
+    every kind and every operator)."""
+    ms = compact_meshes()[2:]
+    b = B.pack(ms, name)
+    parts = [registry.build(name, m) for m in ms]
+    vo, fo, do = (np.asarray(x) for x in (b.vertex_offsets, b.face_offsets, b.dart_offsets))
+    ids = [(p.all_darts(), np.arange(p.num_vertices, dtype=np.int32), np.arange(p.num_faces, dtype=np.int32))
+           for p in parts]
+    gids = tuple(jnp.asarray(np.concatenate([x[k] + o[i] for i, x in enumerate(ids)]))
+                 for k, o in enumerate((do, vo, fo)))
+    got = jax.jit(_probe)(b, gids)
+    want = [jax.jit(_probe)(p, tuple(jnp.asarray(a) for a in x)) for p, x in zip(parts, ids)]
+    kinds = (vo, do, fo, do, do, None, vo)  # the offset of each answer's kind
+    for k, off in enumerate(kinds):
+        w = np.concatenate([np.asarray(wi[k]) + (0 if off is None else off[i]) for i, wi in enumerate(want)])
+        np.testing.assert_array_equal(np.asarray(got[k]), w, err_msg=f"{name} output {k}")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", PACKABLE)
+def test_compact_batch_equals_per_mesh_structures(name):
+    """One packed batch per kind, against the per-mesh structures mapped through the offsets:
+    the main operators on every valid local id, degrees, normals (in the composed vertex order)
+    and the gradient of one scalar over the whole batch == the per-mesh gradients."""
+    ms = compact_meshes()
+    b = B.pack(ms, name)
+    parts = [registry.build(name, m) for m in ms]
+    assert b.num_meshes == 4 and b.num_vertices == sum(p.num_vertices for p in parts)
+    assert b.num_faces == sum(p.num_faces for p in parts) and b.num_darts == sum(p.num_darts for p in parts)
+    _check_ops(b, parts, QUICK_OPS)
+    np.testing.assert_array_equal(np.asarray(vertex_degrees(b)),
+                                  np.concatenate([np.asarray(vertex_degrees(p)) for p in parts]))
+    # faces: mesh i's face f is face_offsets[i] + f, vertices shifted by vertex_offsets[i]
+    fv = np.asarray(b.face_vertices())
+    want_fv = np.concatenate([np.asarray(p.face_vertices()) + o
+                              for p, o in zip(parts, np.asarray(b.vertex_offsets))])
+    np.testing.assert_array_equal(fv, want_fv)
+    pos = B.pack_positions(b, ms)
+    per = [jnp.asarray(m.vertices if p.vertex_order is None else m.vertices[p.vertex_order], jnp.float32)
+           for p, m in zip(parts, ms)]
+    np.testing.assert_array_equal(np.asarray(pos), np.concatenate([np.asarray(x) for x in per]))
+    got = np.asarray(jax.jit(vertex_normals)(b, pos))
+    np.testing.assert_allclose(got, np.concatenate([np.asarray(vertex_normals(p, x)) for p, x in zip(parts, per)]),
+                               atol=1e-5)
+    w = jnp.asarray(np.random.default_rng(1).normal(size=pos.shape), jnp.float32)
+    g = np.asarray(jax.jit(jax.grad(lambda p: jnp.sum(vertex_normals(b, p) * w)))(pos))
+    wl = b.split(np.asarray(w))
+    for i, (p, x) in enumerate(zip(parts, per)):
+        gi = jax.grad(lambda q: jnp.sum(vertex_normals(p, q) * wl[i]))(x)
+        np.testing.assert_allclose(b.split(g)[i], np.asarray(gi), atol=1e-4)
+    assert all(np.any(gi != 0) for gi in b.split(g))  # every mesh's positions get a gradient
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", PACKABLE)
+def test_compact_batch_every_operator_and_verify(name):
+    """Every protocol operator (valid ids), Adjacent with local ids, the gather normals route,
+    and the union structure against the HalfEdge of the union with jaxcds.verify."""
+    ms = compact_meshes()
+    b = B.pack(ms, name)
+    parts = [registry.build(name, m) for m in ms]
+    _check_ops(b, parts, tuple(B.OPERATOR_KINDS))
+    rng = np.random.default_rng(2)
+    mesh_ids = rng.integers(0, len(ms), 200).astype(np.int32)
+    u = np.array([rng.integers(0, parts[i].num_vertices) for i in mesh_ids], np.int32)
+    v = np.array([rng.integers(0, parts[i].num_vertices) for i in mesh_ids], np.int32)
+    v[::2] = np.asarray(b.query("target", mesh_ids, b.query("edge_of_vertex", mesh_ids, u)))[::2]
+    got = np.asarray(jax.jit(lambda s, m, a, c: s.adjacent_local(m, a, c))(b, mesh_ids, u, v))
+    want = np.zeros(got.shape, bool)
+    for i, p in enumerate(parts):
+        sel = mesh_ids == i
+        want[sel] = np.asarray(adjacent(p, u[sel], v[sel]))
+    np.testing.assert_array_equal(got, want)
+    assert got[::2].all()
+    pos = B.pack_positions(b, ms)
+    np.testing.assert_allclose(np.asarray(vertex_normals(b, pos, method="gather")),
+                               np.asarray(vertex_normals(b, pos)), atol=1e-5)
+    rep = verify(b, B._union(ms))
+    assert rep.ok, str(rep)
+
+
+def test_cds_concatenate_shifts_vertex_fields_and_keeps_service_bits():
+    """The bit-packed references of the union, read independently: low 30 bits = the part's
+    + its vertex offset, bits 30-31 unchanged; F_blue shifted; the cwBFS order composed."""
+    from jaxcds.structures.cds import CDS4n
+
+    ms = compact_meshes()
+    parts = [CDS4n.from_mesh(m) for m in ms]
+    s = CDS4n.concatenate(parts)
+    u = np.asarray(s.refs).view(np.uint32)
+    off = 0
+    for p in parts:
+        x = np.asarray(p.refs).view(np.uint32)
+        y = u[off:off + p.num_vertices]
+        np.testing.assert_array_equal(y & 0x3FFFFFFF, (x & 0x3FFFFFFF) + off)
+        np.testing.assert_array_equal(y >> 30, x >> 30)
+        np.testing.assert_array_equal(np.asarray(s.F_blue)[off:off + p.num_vertices], np.asarray(p.F_blue) + off)
+        np.testing.assert_array_equal(s.vertex_order[off:off + p.num_vertices], p.vertex_order + off)
+        off += p.num_vertices
+    assert sorted(s.vertex_order.tolist()) == list(range(off))
+    with pytest.raises(errors.UnsupportedTopologyError, match="one structure kind"):
+        CDS4n.concatenate([parts[0], registry.build("cds5n", ms[0])])
+
+
+def test_pemb_is_refused_with_the_reason():
+    with pytest.raises(errors.UnsupportedTopologyError, match="pemb.*root"):
+        B.pack(compact_meshes()[:2], "pemb")
