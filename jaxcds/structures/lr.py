@@ -65,8 +65,9 @@ class _Slot(NamedTuple):
 
 
 # --------------------------------------------------------------------------------- operators
-# Written once for numpy (construction-time check) and jax.numpy (the structure): ``xp`` is the
-# array module, ``dec`` decodes ring vertices, ``m`` = m_r.
+# Written for any array module (``xp``: jax.numpy for the structure, numpy works too), ``dec``
+# decodes ring vertices, ``m`` = m_r. Construction runs their scalar numba twins
+# (:mod:`jaxcds.construct.lr_pack`), which the tests compare with these on every corner.
 
 
 def _nx(xp, x, m):
