@@ -22,6 +22,9 @@ vertex count drawn uniformly in ``[--min, --max]`` (500 to 5,000). Timed, per ve
     interleaved with face-list runs).
 * ``build``: ``pack(check=False)`` (one numba pass on the union) against building per mesh;
   the validation ``pack(check=True)`` adds is timed on its own.
+* compact kinds (``--structures cds5n,lr``): built per mesh and joined by ``concatenate`` on the
+  first ``--compact-meshes`` meshes; ``normals`` against the face-list batch of those same
+  meshes (interleaved), a Python loop, and ``target`` on valid local darts.
 
 Prints a JSON line per measurement and a markdown table for benchmarks/RESULTS.md.
 """
@@ -180,7 +183,81 @@ def run(args) -> list[dict]:
              ns_per_query=1e9 * t / args.queries, vs_face_list=t / t_fl, face_list_interleaved_s=t_fl,
              first_call_s=first, equal_to_face_list=same)
         del b, parts
+    if args.structures:
+        run_compact(args, ms, emit)
     return rows
+
+
+def run_compact(args, ms, emit):
+    """Compact kinds (``--structures``: CDS family shifted, LR local evaluation): built per mesh
+    and joined with ``concatenate`` on the first ``--compact-meshes`` meshes (per-mesh builds are
+    sequential numba/numpy: the whole 10,000-mesh batch takes too long to build for LR on a
+    2-core box); normals on the packed batch against the face-list batch of the SAME meshes
+    (interleaved), and against a Python loop; Target on valid local darts."""
+    from jaxcds.structures import registry
+
+    k = len(ms) if args.compact_meshes <= 0 else min(args.compact_meshes, len(ms))
+    sub = ms[:k]
+    u = B._union(sub)
+    nv = u.num_vertices
+    faces = jnp.asarray(u.faces)
+    upos = np.asarray(u.vertices)
+    fl_pos = jnp.asarray(upos, jnp.float32)
+    for name in args.structures.split(","):
+        t0 = time.perf_counter()
+        parts = [registry.build(name, m) for m in sub]
+        t_parts = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        b = B.concatenate(parts)
+        t_cat = time.perf_counter() - t0
+        emit(what="build", impl=f"per-mesh/{name}", meshes=k, vertices=nv, seconds=t_parts)
+        emit(what="build", impl=f"concatenate/{name}", meshes=k, vertices=nv, seconds=t_cat)
+        order = b.vertex_order
+        pos = jnp.asarray(upos if order is None else upos[np.asarray(order)], jnp.float32)
+        f = jax.jit(lambda s, p: vertex_normals(s, p))
+        t0 = time.perf_counter()
+        got = jax.block_until_ready(f(b, pos))
+        first = time.perf_counter() - t0
+        t_fl, t = timepair(lambda: face_list_vertex_normals(fl_pos, faces), lambda: f(b, pos), args.repeat)
+        want = np.asarray(face_list_vertex_normals(fl_pos, faces))
+        want = want if order is None else want[np.asarray(order)]
+        err = float(np.max(np.abs(np.asarray(got) - want)))
+        emit(what="normals", impl=f"packed/{name}", meshes=k, vertices=nv, seconds=t,
+             ns_per_vertex=1e9 * t / nv, vs_face_list=t / t_fl, face_list_interleaved_s=t_fl,
+             first_call_s=first, max_abs_diff_vs_face_list=err)
+        # Python loop over the first --loop-meshes meshes (each mesh's static roots / sizes are
+        # jit-static: one compilation per mesh, timed apart)
+        kl = min(args.loop_meshes, k)
+        lp = [jnp.asarray(m.vertices if p.vertex_order is None else m.vertices[p.vertex_order], jnp.float32)
+              for p, m in zip(parts[:kl], sub[:kl])]
+        t0 = time.perf_counter()
+        jax.block_until_ready([vertex_normals(p, x) for p, x in zip(parts[:kl], lp)])
+        compile_loop = time.perf_counter() - t0
+        ts = []
+        for _ in range(max(1, args.repeat // 2)):
+            t0 = time.perf_counter()
+            jax.block_until_ready([vertex_normals(p, x) for p, x in zip(parts[:kl], lp)])
+            ts.append(time.perf_counter() - t0)
+        tl = statistics.median(ts)
+        nvl = sum(p.num_vertices for p in parts[:kl])
+        emit(what="normals", impl=f"loop/{name}", meshes=kl, vertices=nvl, seconds=tl,
+             ns_per_vertex=1e9 * tl / nvl, vs_face_list=(tl / nvl) / (t_fl / nv),
+             first_pass_with_compiles_s=compile_loop)
+        # Target on valid local darts (edge_of_vertex of random local vertices)
+        qrng = np.random.default_rng(2)
+        qm = qrng.integers(0, k, args.queries).astype(np.int32)
+        nvs = np.array([p.num_vertices for p in parts])
+        qv = (qrng.random(args.queries) * nvs[qm]).astype(np.int32)
+        qm_j = jnp.asarray(qm)
+        qd_j = jax.jit(lambda s, m, v: s.query("edge_of_vertex", m, v))(b, qm_j, jnp.asarray(qv))
+        q = jax.jit(lambda s, m, c: s.query("target", m, c))
+        t0 = time.perf_counter()
+        jax.block_until_ready(q(b, qm_j, qd_j))
+        first = time.perf_counter() - t0
+        _, t = timeit(lambda: q(b, qm_j, qd_j), args.repeat)
+        emit(what="target", impl=f"packed/{name}", meshes=k, queries=args.queries, seconds=t,
+             ns_per_query=1e9 * t / args.queries, first_call_s=first)
+        del b, parts
 
 
 def table(rows, args) -> str:
@@ -213,6 +290,10 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--no-check", action="store_true", help="do not time the validation of the union")
+    p.add_argument("--structures", default="cds5n,lr",
+                   help="compact kinds packed with concatenate (comma list; '' for none)")
+    p.add_argument("--compact-meshes", type=int, default=0,
+                   help="meshes in the compact batches (the first K; 0: all)")
     p.add_argument("--json", help="also write the rows to this file")
     args = p.parse_args(argv)
     rows = run(args)
