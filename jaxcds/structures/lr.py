@@ -403,19 +403,6 @@ class _LRNavigation(MeshStructure):
         return concatenate_lr(cls, parts)
 
 
-def _directory(hidden: np.ndarray):
-    """Popcount rank directory over the ``2 m_r`` ring slots (bit set = a face of its own)."""
-    valid = ~np.asarray(hidden, dtype=bool)
-    nbits = valid.size
-    nw = (nbits + 31) // 32
-    pad = np.zeros(nw * 32, dtype=bool)
-    pad[:nbits] = valid
-    words = np.packbits(pad.reshape(nw, 32), axis=1, bitorder="little").view("<u4").ravel()
-    counts = pad.reshape(nw, 32).sum(axis=1)
-    rank = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int32)
-    return words.view(np.int32), rank, int(valid.sum())
-
-
 def _nonempty(a, dtype=np.int32, size: int = 1):
     """``a`` padded to at least ``size`` entries (gathers on empty arrays do not trace); the
     padding is not counted in :attr:`references`."""
