@@ -65,6 +65,17 @@ normals, and ``vertex_degrees``) read the tables column by column (slices, no ga
 ``3n`` targets at once -- by pointer jumping along the same ``LeftFront`` chains (one gather per
 round, ``ceil(log2(longest fan))`` rounds) or, for CDS5nO1, by Thm 6 in O(1) per edge -- and
 assemble every face from its Thm 7 slot in O(1) (no navigation operator is called).
+
+Construction
+------------
+``build_cds``: mesh checks (:func:`jaxcds.construct.schnyder.prepare_mesh`: one edge table for
+defects, components and holes; genus from the Euler count), the maximal Schnyder wood (Appendix
+A, numba), then ``from_wood``: for CDS4n / CDS5n-O(1) the cwBFS of the red tree (Sec. 2.3, which
+also yields Thm 6's depth parity ``D``), and every table row by one numba kernel
+(:func:`_cds_rows`, three linear passes: ``I_c``; the fronts of every edge read once in its
+target's rotation; the packed rows, cwBFS labels applied as they are written, and the Thm 7
+matching). No sort, no relabelled copy of the wood. :func:`tables_reference` is the previous
+vectorised numpy route, kept as the tests' oracle.
 """
 
 from __future__ import annotations
