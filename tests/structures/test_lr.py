@@ -491,3 +491,25 @@ def test_lr_bits_from_corner_table_equals_from_mesh():
             assert x == y, f.name
         else:
             np.testing.assert_array_equal(np.asarray(x), np.asarray(y), err_msg=f.name)
+
+
+def test_lr_bits_entries_round_trip_with_both_wart_skips():
+    """Sec. 6.2: a short 16-bit pair carries its two wart-skip bits in the flags, and flags
+    (1, 1) mean *long*; a ring vertex whose two slots both skip a wart is therefore stored long
+    (through VO*). Packing then decoding gives back every apex and skip bit."""
+    from jaxcds.construct import lr_pack
+
+    m = 12
+    v = np.arange(m)
+    lv, rv = (v + 3) % m, (v - 2) % m  # near apexes: short offsets
+    skl = np.zeros(m, np.int64)
+    skr = np.zeros(m, np.int64)
+    skl[[4, 6]] = 1
+    skr[[4, 9]] = 1
+    E = np.stack([lv | (skl << 29), rv | (skr << 29)], axis=1).astype(np.int32)
+    zeros = np.zeros(m, np.uint8)
+    lr16, vos, num_vos, nlong = lr_pack.pack_lr_bits(E, zeros, zeros, np.zeros((m, 4), np.int32))
+    assert nlong == 1 and num_vos == 2  # vertex 4 only: [v.l, v.r]
+    E2, X = lr_pack.decode_lr_bits(lr16, vos, np.int64(m))
+    np.testing.assert_array_equal(E2, E)
+    assert not X[:, :2].any()  # no irregular slot
