@@ -123,11 +123,22 @@ class _PackedMixin:
         return v
 
     def _whole_view(self):
-        """View with per-vertex parameters (the whole-mesh routes: no search, one repeat)."""
-        b = self.mesh_vertex_counts.shape[0]
-        m = jnp.repeat(jnp.arange(b, dtype=jnp.int32), self.mesh_vertex_counts,
-                       total_repeat_length=self.num_vertices)
-        return self._view_of(m)
+        """View for the whole-mesh routes (``face_vertices``, degrees, all targets), where element
+        ``u`` is always the row of vertex ``u`` and every root test reads ``u == V_c`` (then the
+        roots of ``u``'s mesh): per-vertex roots are -1 (no vertex) except AT each mesh's three
+        roots, which hold their mesh's three roots. Three scatters of ``3B`` entries, no
+        per-vertex mesh lookup; the face-slot fields are unused there (``None``)."""
+        base = type(self)._base
+        kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(base)}
+        at = self.mesh_roots.reshape(-1)  # (3B,): the roots of mesh 0, mesh 1, ...
+        for c, name in enumerate(("v_red", "v_blue", "v_black")):
+            val = jnp.repeat(self.mesh_roots[:, c], 3)  # mesh i's root c, at each of its 3 roots
+            kw[name] = jnp.full(self.num_vertices, -1, jnp.int32).at[at].set(val)
+        kw["unused_slots"] = ()
+        v = type(self)._view_cls(**kw)
+        for name in ("_voff", "_nv", "_foff", "_un"):
+            object.__setattr__(v, name, None)
+        return v
 
     def _entry(self, kind, x):
         x = jnp.asarray(x, jnp.int32)
