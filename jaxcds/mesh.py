@@ -227,7 +227,7 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
     inconsistent orientation, non-manifold vertices. (Empty meshes and bad indices are already
     refused by :func:`load_mesh`.) ``et``: the mesh's :func:`edge_table`, if already at hand.
     """
-    v, f, src = mesh.vertices, mesh.faces.astype(np.int64), mesh.source
+    v, f, src = mesh.vertices, np.ascontiguousarray(mesh.faces), mesh.source
     found: list[errors.MeshError] = []
     bad = np.nonzero(~np.isfinite(v).all(axis=1))[0]
     if bad.size:
@@ -387,13 +387,14 @@ def _components(mesh: TriMesh) -> tuple[int, np.ndarray]:
 def boundary_loops(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[np.ndarray]:
     """Boundary loops as arrays of vertex ids, each in the order of the border darts (the
     reverse of the face sides on the boundary). Requires manifold vertices on the boundary."""
-    f = mesh.faces.astype(np.int64)
     et = edge_table(mesh.faces) if et is None else et
-    border_side = np.nonzero(et.count[et.dart_edge] == 1)[0]
+    # the face side on each edge with one side, in increasing side id (E-sized, not 3F-sized)
+    border_side = np.sort(et.order[et.starts[:-1][et.count == 1]])
     if border_side.size == 0:
         return []
-    a = f.ravel()[border_side]
-    b = np.roll(f, -1, axis=1).ravel()[border_side]
+    f = mesh.faces
+    a = f.ravel()[border_side].astype(np.int64)
+    b = f[border_side // 3, (border_side % 3 + 1) % 3].astype(np.int64)
     # border dart runs b -> a; chain: the border dart leaving a is the one whose origin b' == a
     origin, dest = b, a
     nxt = _chain(origin, dest, mesh.num_vertices, mesh.source)
