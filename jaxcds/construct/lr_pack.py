@@ -40,7 +40,9 @@ FAIL = 2**31 - 1  # "no cheap opposite" (lr._FAIL)
 
 # ------------------------------------------------------------------------------ case analysis
 # The ring case analysis reads, for a few ring vertices around the corner, the apex and the
-# wart-skip bit of a slot (helpers inlined at numba IR level: they run once per corner). They live in one int32 pair per ring vertex, ``E[v, 0] = v.l | skl << 29``
+# wart-skip bit of a slot. The case-analysis functions are inlined at numba IR level (about 20%
+# faster) and each has ONE call site per kernel: inlined into every call site, the packing
+# kernel took ~40 s to compile with a cold cache. They live in one int32 pair per ring vertex, ``E[v, 0] = v.l | skl << 29``
 # and ``E[v, 1] = v.r | skr << 29`` (the LR entry layout without the irregular bit), so each
 # (random) ring vertex touched costs one cache line.
 @numba.njit(cache=True, inline="always")
@@ -131,7 +133,8 @@ def _find(m, side, x, y, E):
 @numba.njit(cache=True, inline="always")
 def _cheap_opposite(c, m, E):
     """``c.o`` of a ring corner of a regular triangle before canonicalisation (Sec. 4.5, Fig. 6,
-    Sec. 5): twin of ``lr._cheap_opposite`` (same cases, evaluated lazily)."""
+    Sec. 5): twin of ``lr._cheap_opposite`` (same cases, evaluated lazily; one ``_find`` call
+    site so that inlining stays small)."""
     v = c >> 3
     i = c & 7
     vn = _nx(v, m)
@@ -149,19 +152,20 @@ def _cheap_opposite(c, m, E):
     if i == 0:
         if _sk(E, vp, 0) == 1:  # wart tip: v.0.o = v.p.1
             return 8 * vp + 1
-        return _find(m, 0, _nx(vn, m) if skl else vn, _ap(E, v, 0), E)
-    if i == 2:
+        side, x, y = 0, (_nx(vn, m) if skl else vn), _ap(E, v, 0)
+    elif i == 2:
         if skl == 0 and _ap(E, v, 0) == vp:  # canonical T2: v.2 -> v.p.1's quad opposite
             return 8 * v + 4 if _sk(E, vp, 1) else 8 * vp + 5
-        return _find(m, 0, _ap(E, v, 0), v, E)
-    if i == 4:
+        side, x, y = 0, _ap(E, v, 0), v
+    elif i == 4:
         if skr == 0 and _ap(E, v, 1) == vp:
             return 8 * v + 2 if _sk(E, vp, 0) else 8 * vp + 1
-        return _find(m, 1, _ap(E, v, 1), v, E)
-    # i == 6 (and the unused offsets 3, 7, as the jnp version's last branch)
-    if _sk(E, vp, 1) == 1:
-        return 8 * vp + 5
-    return _find(m, 1, _nx(vn, m) if skr else vn, _ap(E, v, 1), E)
+        side, x, y = 1, _ap(E, v, 1), v
+    else:  # i == 6 (and the unused offsets 3, 7, as the jnp version's last branch)
+        if _sk(E, vp, 1) == 1:
+            return 8 * vp + 5
+        side, x, y = 1, (_nx(vn, m) if skr else vn), _ap(E, v, 1)
+    return _find(m, side, x, y, E)
 
 
 @numba.njit(cache=True, inline="always")
@@ -270,24 +274,39 @@ def _pack_common(V, O, vertex_corner, ring, cL, cR, redl, redr, skl, skr, irl_in
     bad1 = -1
     bad5 = -1
     for v in range(m):
-        il = irl_in[v]
-        ir = irr_in[v]
-        if redl[v] == 0:
-            if quad_check and bad1 < 0 and _opposite(8 * v + 1, m, E) != lrc[O[cL[v]]]:
-                bad1 = v
-            if il == 0 and (_opposite(8 * v, m, E) != truth[v, 0]
-                            or _opposite(8 * v + 2, m, E) != truth[v, 1]):
-                unexpected += 1
-                il = 1
-        if redr[v] == 0:
-            if quad_check and bad5 < 0 and _opposite(8 * v + 5, m, E) != lrc[O[cR[v]]]:
-                bad5 = v
-            if ir == 0 and (_opposite(8 * v + 4, m, E) != truth[v, 2]
-                            or _opposite(8 * v + 6, m, E) != truth[v, 3]):
+        for side in range(2):  # L(v): corners 8v + 0..2; R(v): 8v + 4..6
+            if (redr[v] if side else redl[v]) != 0:
+                continue
+            ir = irr_in[v] if side else irl_in[v]
+            quad = quad_check and (bad5 if side else bad1) < 0
+            bad = False
+            for q in range(3):  # one _opposite call site: it is inlined
+                if q == 1:
+                    if not quad:
+                        continue
+                    want = lrc[O[cR[v] if side else cL[v]]]
+                elif ir != 0 or bad:
+                    continue  # irregular already: VO* stores its opposites
+                else:
+                    want = truth[v, 2 * side + q // 2]
+                if _opposite(8 * v + 4 * side + q, m, E) != want:
+                    if q != 1:
+                        bad = True
+                    elif side:
+                        bad5 = v
+                    else:
+                        bad1 = v
+            if bad:
                 unexpected += 1
                 ir = 1
-        irl[v] = il
-        irr[v] = ir
+            if side:
+                irr[v] = ir
+            else:
+                irl[v] = ir
+        if redl[v] != 0:
+            irl[v] = irl_in[v]
+        if redr[v] != 0:
+            irr[v] = irr_in[v]
     return (new_of_old, order, lrc, t0, V0, O0, C, E, truth, irl, irr, hidden,
             nv_real, nf_real, unexpected, bad1, bad5)
 
@@ -513,7 +532,7 @@ def decode_lr_bits(LR16, VOs, m):
     return E, X
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _corner_vo(c, m, n0, E, X, VOs, V0, O0):
     """``(c.v, c.o)`` of LR corner ``c`` from the decoded slots (Sec. 4.7), as the jitted ``v`` /
     ``o`` compute them (same index clipping)."""

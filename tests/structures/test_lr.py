@@ -513,3 +513,26 @@ def test_lr_bits_entries_round_trip_with_both_wart_skips():
     E2, X = lr_pack.decode_lr_bits(lr16, vos, np.int64(m))
     np.testing.assert_array_equal(E2, E)
     assert not X[:, :2].any()  # no irregular slot
+
+
+def test_packing_finds_a_wrong_quad_opposite():
+    """The quad opposites ``v.1.o = v.5`` (Sec. 4.5) never go to VO*: with ``check=True`` the
+    packing pass reports a wrong one (here a corner table corrupted at one slot's apex corner)
+    as a typed error; without the check it is not looked for."""
+    from jaxcds.construct import lr_pack
+    from jaxcds.structures import lr as lrmod
+
+    mesh = _mesh("3holes.off")
+    ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices)
+    V, O = np.asarray(ct.V), np.asarray(ct.O).copy()
+    ring = best_ring(V, O, mesh.num_vertices, seeds=1)
+    tb = lr_tables(V, O, ring, mesh.num_vertices)
+    dm = np.zeros(mesh.num_vertices, bool)
+    assert lr_pack.pack_common(V, O, ct.vertex_corner, tb, dm)["bad_quad"] is None
+    v = int(np.nonzero(~tb.red_left & ~tb.skip_left & ~tb.skip_right)[0][3])
+    a = int(tb.left_corner[v])
+    O[a] = O[3 * (a // 3) + (a + 1) % 3]  # the apex corner now "faces" another edge
+    assert lr_pack.pack_common(V, O, ct.vertex_corner, tb, dm)["bad_quad"] == (1, v)
+    assert lr_pack.pack_common(V, O, ct.vertex_corner, tb, dm, quad_check=False)["bad_quad"] is None
+    with pytest.raises(errors.StructureError, match="quad opposite"):
+        lrmod._pack(LR, tb, V, O, np.asarray(ct.vertex_corner), mesh.num_vertices, check=True, k=0)
