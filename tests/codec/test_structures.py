@@ -79,9 +79,11 @@ def test_shared_meshes_decode_into_cds(name):
     assert _same(decode(enc.words, structure="cds4n"), ref4)
 
 
-def test_fig9_non_maximal_words_decode_into_cds6n():
-    """Fig. 9's wood is not maximal (Sec. 2.2: (1, 4, 9) is a cw cycle in Fig. 3): the 6n table is
-    still exact (the operators do not need maximality)."""
+def test_fig9_words_decode_into_cds6n():
+    """The words of Fig. 9 / Sec. 3.1 decode into the packed CDS6n references exactly as into the
+    unpacked Thm 2 table. (Fig. 9's wood is the maximal one -- see
+    tests/structures/test_cds_paper.py; Fig. 3 draws another wood of the same triangulation, with
+    the cw cycle (1, 4, 9) of Sec. 2.2.)"""
     w = fig9()
     faces, _ = decode_faces(w)
     refs = __import__("jaxcds.codec.structures", fromlist=["x"]).decode_refs6n(w)
