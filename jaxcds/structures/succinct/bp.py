@@ -15,9 +15,11 @@ and, with the unit steps of ``E``, ``find_close(i) = fwd(i, E(i))``,
 Structure: blocks of 256 bits (those of the :class:`BitVector` rank directory);
 ``M[b] = min { E(k + 1) : k in block b }``; a binary min-tree over ``M`` (one int32 per node,
 the levels stored one after the other, about ``2 * blocks`` ints = 0.25 bit per parenthesis).
-A search scans its own block (16 chunks of 16 bits: a 64K-entry table gives each chunk's minimum
-prefix excess, then the 16 bits of the winning chunk), climbs the tree to the nearest block whose
-minimum reaches the target, descends to it, and scans it. Everything is computed for every
+A search scans its own block (its 8 words one after the other: a 64K-entry table gives the
+minimum prefix excess of each 16-bit half, then the 16 bits of the winning half), climbs the tree
+to the nearest block whose minimum reaches the target, descends to it, and scans it; every loop
+has a static trip count and is unrolled into elementwise code (no ``while`` loop, no
+``(queries, 16)`` intermediate), which XLA fuses into a few passes over the batch. Everything is computed for every
 query (both the near and the far candidate) and selected with ``jnp.where``: no data-dependent
 branch, so ``vmap`` and ``jit`` see a fixed program of ``O(log blocks)`` gathers.
 """
@@ -30,7 +32,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.structures.succinct.bitvector import BLOCK_BITS, BLOCK_WORDS, BitVector, popcount
+from jaxcds.structures.succinct.bitvector import BLOCK_BITS, BLOCK_WORDS, BitVector, _low_mask, popcount
 
 __all__ = ["BalancedParens", "excess_oracle", "CHUNK_MIN"]
 
@@ -54,15 +56,6 @@ def excess_oracle(bits) -> np.ndarray:
     """Host reference: ``E(p)`` for ``p = 0..n`` (length ``n + 1``)."""
     b = np.asarray(bits, dtype=np.int64)
     return np.concatenate([[0], np.cumsum(2 * b - 1)])
-
-
-def _first_or_last(hit, fw):
-    """Index of the first (where ``fw``) or last True along the last axis (0 if none)."""
-    w = hit.shape[-1]
-    idx = jnp.arange(w, dtype=jnp.int32)
-    first = jnp.min(jnp.where(hit, idx, w), axis=-1)
-    last = jnp.max(jnp.where(hit, idx, -1), axis=-1)
-    return jnp.clip(jnp.where(fw, first, last), 0, w - 1).astype(jnp.int32)
 
 
 @pytree_dataclass
@@ -150,47 +143,81 @@ class BalancedParens:
         return self.bits.select1(k)
 
     # ------------------------------------------------------------------ block scan
+    def _scan_words(self, blk, lo, hi, t, fw):
+        """Within block ``blk``, among bits ``k`` in ``[lo, hi)`` (block-relative), the first
+        (where ``fw``) or last *word* holding a bit with ``E(256 blk + k + 1) <= t``.
+
+        Elementwise only (no ``(..., 16)`` intermediates, so XLA fuses it into one loop): the 8
+        words one after the other, each word's minimum prefix excess from two ``CHUNK_MIN``
+        lookups. Returns ``(found, w, s, n, k)``: the word shifted to its first bit in range
+        (``'('`` past its ``n`` bits in range), ``E`` before that bit, and its block offset."""
+        table = jnp.asarray(CHUNK_MIN)
+        e = 2 * self.bits.block_rank[blk] - BLOCK_BITS * blk  # E(256 blk)
+        zero = jnp.zeros(jnp.shape(blk), jnp.int32)
+        found = jnp.zeros(jnp.shape(blk), bool)
+        wJ, sJ, nJ, kJ = jnp.zeros(jnp.shape(blk), jnp.uint32), zero, zero, zero
+        full = jnp.uint32(0xFFFFFFFF)
+        for j in range(BLOCK_WORDS):
+            w = self.bits.words[blk * BLOCK_WORDS + j]
+            valid = jnp.clip(self.size - (blk * BLOCK_BITS + 32 * j), 0, 32)
+            w = w | ~_low_mask(valid)  # padding bits read as '('
+            a = jnp.clip(lo - 32 * j, 0, 32)
+            n = jnp.clip(hi - 32 * j, 0, 32) - a
+            s_a = e + 2 * popcount(w & _low_mask(a)) - a
+            sw = jnp.where(a >= 32, full, w >> jnp.minimum(a, 31).astype(jnp.uint32)) | ~_low_mask(n)
+            lo16 = (sw & jnp.uint32(0xFFFF)).astype(jnp.int32)
+            hi16 = (sw >> jnp.uint32(16)).astype(jnp.int32)
+            m = jnp.minimum(table[lo16].astype(jnp.int32),
+                            2 * popcount(lo16.astype(jnp.uint32)) - 16 + table[hi16].astype(jnp.int32))
+            hit = (n > 0) & (s_a + m <= t)
+            take = hit & (~found | ~fw)  # forward: the first hit word; backward: the last
+            wJ = jnp.where(take, sw, wJ)
+            sJ = jnp.where(take, s_a, sJ)
+            nJ = jnp.where(take, n, nJ)
+            kJ = jnp.where(take, 32 * j + a, kJ)
+            found = found | hit
+            e = e + 2 * popcount(w) - 32
+        return found, wJ, sJ, nJ, kJ
+
+    @staticmethod
+    def _scan_word(w, s, n, t, fw):
+        """Offset in the word ``w`` (from :meth:`_scan_words`: ``n`` bits in range, ``E = s``
+        before them) of the first (``fw``) / last bit whose prefix excess is ``<= t``: its
+        16-bit half, then its byte (``CHUNK_MIN`` of the byte padded with ``'('``), then 8
+        unrolled bit steps. Past the ``n`` bits in range everything reads ``'('``: it never
+        lowers a minimum, but backward it could be a false last hit, so a half or byte is taken
+        backward only if it holds a bit in range."""
+        table = jnp.asarray(CHUNK_MIN)
+        off = jnp.zeros(jnp.shape(s), jnp.int32)
+        for width in (16, 8):
+            mask = jnp.uint32((1 << width) - 1)
+            low = w & mask
+            pad = jnp.uint32(0xFFFF & ~((1 << width) - 1))  # '(' above a byte in the table index
+            m_low = table[(low | pad).astype(jnp.int32)].astype(jnp.int32)
+            s_up = s + 2 * popcount(low) - width
+            up = w >> jnp.uint32(width)
+            m_up = table[((up & mask) | pad).astype(jnp.int32)].astype(jnp.int32)
+            hit_low = s + m_low <= t
+            hit_up = (n > width) & (s_up + m_up <= t)
+            use_up = jnp.where(fw, ~hit_low, hit_up)
+            w = jnp.where(use_up, up, low)
+            s = jnp.where(use_up, s_up, s)
+            n = jnp.where(use_up, n - width, n)
+            off = jnp.where(use_up, off + width, off)
+        fq = jnp.zeros(jnp.shape(s), bool)
+        qq = jnp.zeros(jnp.shape(s), jnp.int32)
+        for q in range(8):
+            s = s + 2 * ((w >> jnp.uint32(q)) & jnp.uint32(1)).astype(jnp.int32) - 1
+            ok = (q < n) & (s <= t)
+            qq = jnp.where(ok & (~fq | ~fw), q, qq)
+            fq = fq | ok
+        return off + qq
+
     def _scan(self, blk, lo, hi, t, fw):
         """Within block ``blk``, among bits ``k`` in ``[lo, hi)`` (block-relative), the first
         (where ``fw``) or last bit with ``E(256 blk + k + 1) <= t``. Returns ``(found, k)``."""
-        words = self.bits._block_words(blk)  # (..., 8)
-        # padding bits (at or past size) read as '('
-        gbit = (blk[..., None] * BLOCK_BITS + 32 * jnp.arange(BLOCK_WORDS, dtype=jnp.int32))
-        valid = jnp.clip(self.size - gbit, 0, 32).astype(jnp.uint32)
-        low = jnp.where(valid >= 32, jnp.uint32(0xFFFFFFFF),
-                        (jnp.uint32(1) << jnp.minimum(valid, 31)) - jnp.uint32(1))
-        words = words | ~low
-        chunks = jnp.stack([words & jnp.uint32(0xFFFF), words >> jnp.uint32(16)], axis=-1)
-        chunks = chunks.reshape(*words.shape[:-1], _CHUNKS)  # chunk j = bits 16j..16j+15
-        tot = 2 * popcount(chunks) - 16
-        base = 2 * self.bits.block_rank[blk] - BLOCK_BITS * blk  # E(256 blk)
-        start = base[..., None] + jnp.cumsum(tot, axis=-1) - tot  # E at each chunk start
-        j16 = 16 * jnp.arange(_CHUNKS, dtype=jnp.int32)
-        a = jnp.clip(lo[..., None] - j16, 0, 16)  # valid bits of chunk j: [a, b)
-        b = jnp.clip(hi[..., None] - j16, 0, 16)
-        au = a.astype(jnp.uint32)
-        # excess before bit a of the chunk; the chunk shifted by a, '(' past its b - a valid
-        # bits ('(' only raises later prefixes, so the table minimum is that of the valid bits)
-        lowa = (jnp.uint32(1) << au) - jnp.uint32(1)
-        base_a = start + 2 * popcount(chunks & lowa) - a
-        width = (b - a).astype(jnp.uint32)
-        keep = (jnp.uint32(1) << width) - jnp.uint32(1)
-        shifted = ((chunks >> au) & keep) | (~keep & jnp.uint32(0xFFFF))
-        cmin = jnp.asarray(CHUNK_MIN)[shifted.astype(jnp.int32)].astype(jnp.int32)
-        hit = (b > a) & (base_a + cmin <= t[..., None])
-        found = jnp.any(hit, axis=-1)
-        J = _first_or_last(hit, fw)
-        sel = jnp.arange(_CHUNKS, dtype=jnp.int32) == J[..., None]  # one-hot pick of chunk J
-        c = jnp.max(jnp.where(sel, chunks, jnp.uint32(0)), axis=-1)
-        s = jnp.sum(jnp.where(sel, start, 0), axis=-1)
-        aJ = jnp.sum(jnp.where(sel, a, 0), axis=-1)[..., None]
-        bJ = jnp.sum(jnp.where(sel, b, 0), axis=-1)[..., None]
-        q = jnp.arange(16, dtype=jnp.int32)
-        step = 2 * ((c[..., None] >> q.astype(jnp.uint32)) & jnp.uint32(1)).astype(jnp.int32) - 1
-        exc = s[..., None] + jnp.cumsum(step, axis=-1)  # E after bit q of the chunk
-        ok = (q >= aJ) & (q < bJ) & (exc <= t[..., None])
-        qq = _first_or_last(ok, fw)
-        return found, (16 * J + qq).astype(jnp.int32)
+        found, w, s, n, k = jax.lax.optimization_barrier(self._scan_words(blk, lo, hi, t, fw))
+        return found, (k + self._scan_word(w, s, n, t, fw)).astype(jnp.int32)
 
     # ------------------------------------------------------------------ tree search
     def _tree_get(self, level, node):
@@ -234,8 +261,8 @@ class BalancedParens:
         ``k >= i`` with ``E(k + 1) <= t``; elsewhere the last bit ``k < i`` with
         ``E(k + 1) <= t``, returned as the prefix position ``k + 1``. ``size`` if none.
 
-        The near block (the query's own) and the far block (from the min-tree) are scanned by
-        one stacked call."""
+        The near block (the query's own) and the far block (from the min-tree) are both scanned
+        (two elementwise word scans, then one bit-level finish on the chosen word)."""
         i = jnp.asarray(i, jnp.int32)
         shape = jnp.broadcast_shapes(i.shape, jnp.shape(t), jnp.shape(fw))
         i = jnp.broadcast_to(i, shape)
@@ -248,13 +275,16 @@ class BalancedParens:
         hi = jnp.where(fw, BLOCK_BITS, (anchor & (BLOCK_BITS - 1)) + 1)
         f2, b2 = self._tree_search(blk, t, fw)
         b2 = jnp.clip(b2, 0, self.level_sizes[0] - 1)
-        two = lambda x, y: jnp.stack([x, y])  # noqa: E731
-        f, k = self._scan(two(blk, b2), two(lo, jnp.zeros_like(i)),
-                          two(hi, jnp.full_like(i, BLOCK_BITS)), two(t, t), two(fw, fw))
+        fa, wa, sa, na, ka = self._scan_words(blk, lo, hi, t, fw)
+        fb, wb, sb, nb, kb = self._scan_words(b2, jnp.zeros_like(i), jnp.full_like(i, BLOCK_BITS),
+                                              t, fw)
         ok = fw | (i >= 1)
-        f1 = f[0] & ok
-        f2 = f2 & f[1] & ok
-        kk = jnp.where(f1, BLOCK_BITS * blk + k[0], BLOCK_BITS * b2 + k[1])
+        f1 = fa & ok
+        f2 = f2 & fb & ok
+        # one bit-level finish, on the word chosen (near block first)
+        k = self._scan_word(jnp.where(f1, wa, wb), jnp.where(f1, sa, sb), jnp.where(f1, na, nb),
+                            t, fw) + jnp.where(f1, ka, kb)
+        kk = jnp.where(f1, BLOCK_BITS * blk, BLOCK_BITS * b2) + k
         res = jnp.where(fw, kk, kk + 1)
         res = jnp.where(f1 | f2, res, self.size)
         return jnp.where(fw & (res >= self.size), self.size, res).astype(jnp.int32)
