@@ -3,12 +3,14 @@
 Layout (in the manner of sdsl's ``rank_support_v`` with one level): bit ``i`` is bit ``i % 32``
 (least significant first) of word ``i // 32``; words are grouped in *blocks* of
 :data:`BLOCK_BITS` = 256 bits (8 words) and ``block_rank[b]`` holds the number of ones before
-block ``b``. So the support costs 32 bits per 256 (0.125 bit per bit).
+block ``b``. So the rank support costs 32 bits per 256 (0.125 bit per bit).
 
 * ``rank1(i)`` = ones in ``[0, i)``: one block counter plus the popcounts of at most 8 words.
-* ``select1(k)`` / ``select0(k)`` = position of the ``k``-th (0-based) one / zero: a branch-free
-  binary search over ``block_rank`` (``ceil(log2(blocks + 1))`` steps, no extra memory), then the
-  word inside the block (prefix popcounts), then the bit inside the word (5 halving steps).
+* ``select1(k)`` / ``select0(k)`` = position of the ``k``-th (0-based) one / zero: the blocks of
+  every 512-th one and zero are sampled (``sel1``, ``sel0``: 32 bits per 512 ones or zeros, 1/16
+  bit per bit), a branch-free binary search over ``block_rank`` between two samples
+  (``select_steps`` halvings, the most any sample gap needs), then the word inside the block
+  (prefix popcounts), then the bit inside the word (5 halving steps).
 
 Every query takes arrays of any shape, is branch-free (``jnp.where``) and jittable; the
 structure is a pytree (``words``, ``block_rank`` leaves; ``size`` static).
@@ -27,6 +29,8 @@ __all__ = ["BitVector", "BLOCK_BITS", "BLOCK_WORDS", "pack_bits", "popcount"]
 
 BLOCK_WORDS = 8
 BLOCK_BITS = 32 * BLOCK_WORDS
+#: select sampling: the block of every SELECT_SAMPLE-th one (and zero) is stored
+SELECT_SAMPLE = 512
 
 
 def popcount(w: jnp.ndarray) -> jnp.ndarray:
@@ -83,7 +87,10 @@ class BitVector:
 
     words: jnp.ndarray
     block_rank: jnp.ndarray
+    sel1: jnp.ndarray
+    sel0: jnp.ndarray
     size: int = static_field()
+    select_steps: int = static_field()
 
     @classmethod
     def from_bits(cls, bits) -> "BitVector":
@@ -99,7 +106,19 @@ class BitVector:
         nblocks = words.size // BLOCK_WORDS
         counts = np.bitwise_count(words).reshape(nblocks, BLOCK_WORDS).sum(axis=1)
         block_rank = np.concatenate([[0], np.cumsum(counts)])[: nblocks].astype(np.int32)
-        return cls(words=jnp.asarray(words), block_rank=jnp.asarray(block_rank), size=int(b.size))
+        # select samples: block of the (j * SELECT_SAMPLE)-th one / zero, then the spare block;
+        # a select searches only between two consecutive samples (select_steps halvings)
+        ones_pos = np.flatnonzero(b)
+        zeros_pos = np.flatnonzero(~b)
+        steps = 1
+        samples = []
+        for pos in (ones_pos, zeros_pos):
+            s = np.concatenate([pos[::SELECT_SAMPLE] // BLOCK_BITS, [nblocks - 1]]).astype(np.int32)
+            samples.append(s)
+            steps = max(steps, int(np.ceil(np.log2(int(np.max(np.diff(s), initial=0)) + 2))))
+        return cls(words=jnp.asarray(words), block_rank=jnp.asarray(block_rank),
+                   sel1=jnp.asarray(samples[0]), sel0=jnp.asarray(samples[1]), size=int(b.size),
+                   select_steps=steps)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -122,8 +141,10 @@ class BitVector:
 
     @property
     def bits_support(self) -> int:
-        """Bits of the rank directory plus the word padding (what a compact count charges)."""
-        return 32 * self.num_blocks + (32 * int(self.words.shape[0]) - self.size)
+        """Bits of the rank directory, the select samples and the word padding (what a compact
+        count charges)."""
+        return (32 * (self.num_blocks + int(self.sel1.shape[0]) + int(self.sel0.shape[0]))
+                + (32 * int(self.words.shape[0]) - self.size))
 
     # ------------------------------------------------------------------ queries
     def access(self, i) -> jnp.ndarray:
@@ -162,8 +183,9 @@ class BitVector:
     def select(self, k, bit) -> jnp.ndarray:
         """Position of the ``k``-th (0-based) ``bit`` (elementwise 0/1). Out of range -> ``size``.
 
-        Binary search for the last block ``b`` with ``count_bit([0, 256 b)) <= k`` (a fixed number
-        of halving steps), then the word and the bit inside it."""
+        Binary search for the last block ``b`` with ``count_bit([0, 256 b)) <= k`` between the
+        blocks of the samples ``k // 512`` and ``k // 512 + 1`` (``select_steps`` halvings, fixed
+        at construction), then the word and the bit inside it."""
         k = jnp.asarray(k, jnp.int32)
         one = jnp.broadcast_to(jnp.asarray(bit) != 0, k.shape)
         total = jnp.where(one, self.ones, self.zeros)
@@ -180,8 +202,13 @@ class BitVector:
             ok = mid < hi
             return jnp.where(ok & go, mid, lo), jnp.where(ok & ~go, mid, hi)
 
-        steps = max(int(np.ceil(np.log2(nb + 1))), 1)
-        lo, _ = jax.lax.fori_loop(0, steps, halve, (jnp.zeros_like(k), jnp.full_like(k, nb)))
+        js = jnp.clip(k, 0, jnp.maximum(total - 1, 0)) // SELECT_SAMPLE
+        n1 = self.sel1.shape[0]
+        n0 = self.sel0.shape[0]
+        lo0 = jnp.where(one, self.sel1[jnp.minimum(js, n1 - 1)], self.sel0[jnp.minimum(js, n0 - 1)])
+        hi0 = jnp.where(one, self.sel1[jnp.minimum(js + 1, n1 - 1)],
+                        self.sel0[jnp.minimum(js + 1, n0 - 1)]) + 1
+        lo, _ = jax.lax.fori_loop(0, self.select_steps, halve, (lo0, jnp.minimum(hi0, nb)))
         r = k - count_before(lo)
         words = self._block_words(lo)
         words = jnp.where(one[..., None], words, ~words)
