@@ -37,6 +37,7 @@ from jaxcds.structures.succinct.bitvector import BLOCK_BITS, BLOCK_WORDS, BitVec
 __all__ = ["BalancedParens", "excess_oracle", "CHUNK_MIN"]
 
 _INF = np.int32(1 << 30)
+UNROLL = 1
 
 
 def _chunk_min_table() -> np.ndarray:
@@ -230,29 +231,31 @@ class BalancedParens:
         """Nearest block after (where ``fw``) / before ``blk`` whose minimum ``M <= t``; found
         flag and block. Two ``fori_loop`` s over the levels (climb, then descend)."""
         nlev = len(self.level_sizes)
-
+        # one int32 of carry per query and loop (a loop's carry is written and read back at every
+        # step): the climb carries ``32 cand + level`` (-1: none yet; the node at step h is
+        # blk >> h), the descent ``32 node + level``
         def climb(h, c):  # the first sibling on the search side whose subtree reaches t
-            node, found, cand, cand_lvl = c
+            node = blk >> h
             sib = jnp.where(fw, node + 1, node - 1)
             side = (node & 1) == jnp.where(fw, 0, 1)
-            ok = ~found & side & (self._tree_get(h, sib) <= t)
-            return (node >> 1, found | ok, jnp.where(ok, sib, cand), jnp.where(ok, h, cand_lvl))
+            ok = (c < 0) & side & (self._tree_get(h, sib) <= t)
+            return jnp.where(ok, 32 * sib + h, c)
 
-        zero = jnp.zeros_like(blk)
-        _, found, node, lvl = jax.lax.fori_loop(
-            0, nlev - 1, climb, (blk, jnp.zeros(jnp.shape(blk), bool), zero, zero))
+        c = jax.lax.fori_loop(0, nlev - 1, climb, jnp.full(jnp.shape(blk), -1, jnp.int32),
+                              unroll=UNROLL)
+        found = c >= 0
 
         def descend(_, c):  # the nearest child that reaches t (else the other one does)
-            node, lvl = c
+            node, lvl = c >> 5, c & 31
             go = lvl > 0
             child_lvl = jnp.maximum(lvl - 1, 0)
             near = jnp.where(fw, 2 * node, 2 * node + 1)
             far = jnp.where(fw, 2 * node + 1, 2 * node)
             take_near = self._tree_get(child_lvl, near) <= t
-            return (jnp.where(go, jnp.where(take_near, near, far), node),
-                    jnp.where(go, child_lvl, lvl))
+            return jnp.where(go, 32 * jnp.where(take_near, near, far) + child_lvl, c)
 
-        node, _ = jax.lax.fori_loop(0, nlev - 1, descend, (node, lvl))
+        c = jax.lax.fori_loop(0, nlev - 1, descend, jnp.where(found, c, 0), unroll=UNROLL)
+        node = c >> 5
         return found, node.astype(jnp.int32)
 
     # ------------------------------------------------------------------ searches
