@@ -225,6 +225,7 @@ class PEMB(MeshStructure):
     num_faces: int = static_field()
     num_edges: int = static_field()
     num_tree_parens: int = static_field()
+    root_border: bool = static_field(default=False)
 
     name = "pemb"
     closed_triangles = False
@@ -315,7 +316,7 @@ class PEMB(MeshStructure):
         P = BalancedParens.from_bits(np.concatenate([b, bs]))
         return cls(A=BitVector.from_bits(a), P=P, holes=jnp.asarray(holes), order=jnp.asarray(order),
                    num_vertices=int(n), num_faces=int(num_faces), num_edges=m2 // 2,
-                   num_tree_parens=int(b.size))
+                   num_tree_parens=int(b.size), root_border=holes.tolist() == [0])
 
     # -------------------------------------------------------------- memory
     @property
@@ -476,6 +477,18 @@ class PEMB(MeshStructure):
 
     def face(self, e: Int) -> Int:
         return self._to_mesh_face(self.get_face(e))
+
+    def is_border(self, e: Int) -> Int:
+        """Left face is a border loop. When the only border loop is the root face 0 (one
+        boundary, the walk starts on it: every Polylla input without holes), that is "depth 0 in
+        ``B*``" after the half-edge's crossing, an excess (one rank) instead of ``get_face``'s
+        ``enclose`` search."""
+        if not self.root_border:
+            return self.face(e) == self.num_faces
+        i = jnp.asarray(e, jnp.int32)
+        x = jnp.where(self.A.access(i) == 1, self.mate(i), i)
+        j = self.num_tree_parens + self.A.rank0(x + 1)
+        return self.P.excess(j) == 0
 
     def ccw_vertex_edge(self, e: Int) -> Int:
         return self.next_p(e)
