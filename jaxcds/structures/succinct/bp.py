@@ -158,7 +158,8 @@ class BalancedParens:
         found = jnp.zeros(jnp.shape(blk), bool)
         wJ, sJ, nJ, kJ = jnp.zeros(jnp.shape(blk), jnp.uint32), zero, zero, zero
         full = jnp.uint32(0xFFFFFFFF)
-        for j in range(BLOCK_WORDS):
+        def word(j, c):
+            e, found, wJ, sJ, nJ, kJ = c
             w = self.bits.words[blk * BLOCK_WORDS + j]
             valid = jnp.clip(self.size - (blk * BLOCK_BITS + 32 * j), 0, 32)
             w = w | ~_low_mask(valid)  # padding bits read as '('
@@ -178,6 +179,10 @@ class BalancedParens:
             kJ = jnp.where(take, 32 * j + a, kJ)
             found = found | hit
             e = e + 2 * popcount(w) - 32
+            return e, found, wJ, sJ, nJ, kJ
+
+        e, found, wJ, sJ, nJ, kJ = jax.lax.fori_loop(0, BLOCK_WORDS, word,
+                                                     (e, found, wJ, sJ, nJ, kJ), unroll=2)
         return found, wJ, sJ, nJ, kJ
 
     @staticmethod
