@@ -19,7 +19,7 @@ import numpy as np
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
-from jaxcds.structures.halfedge import halfedge_arrays
+from jaxcds.structures.halfedge import _match_twins, halfedge_arrays
 
 __all__ = ["CornerTable"]
 
@@ -38,42 +38,17 @@ def _opposites(opp, nf):
 def _closed_corner_table(faces, num_vertices):
     """``(O, vertex_corner, closed)`` of a face list in O(F + V): darts bucketed by their smaller
     endpoint (a counting sort), each paired with the first unpaired dart of its bucket with the
-    same other endpoint -- the twin matching of :func:`jaxcds.structures.halfedge.halfedge_arrays`
-    without the border half-edges a corner table has no use for (same pairs, same
+    same other endpoint -- the half-edge's own twin matching (``_match_twins``), without the
+    border half-edges a corner table has no use for (same pairs, same
     ``vertex_corner``: the first corner of each vertex). ``closed`` is False when a dart has no
     twin (the caller falls back to the half-edge route)."""
-    nf = faces.shape[0]
-    n3 = 3 * nf
-    start = np.zeros(num_vertices + 1, dtype=np.int32)
-    for d in range(n3):
-        a = faces[d // 3, d % 3]
-        b = faces[d // 3, (d % 3 + 1) % 3]
-        start[min(a, b) + 1] += 1
-    for v in range(num_vertices):
-        start[v + 1] += start[v]
-    fill = start[:-1].copy()
-    bucket = np.empty(n3, dtype=np.int32)
-    other = np.empty(n3, dtype=np.int32)
+    n3 = 3 * faces.shape[0]
+    opp = _match_twins(faces, num_vertices)
     vertex_corner = np.full(num_vertices, -1, dtype=np.int32)
     for d in range(n3):
         a = faces[d // 3, d % 3]
-        b = faces[d // 3, (d % 3 + 1) % 3]
         if vertex_corner[a] < 0:
             vertex_corner[a] = d
-        lo = min(a, b)
-        bucket[fill[lo]] = d
-        other[fill[lo]] = max(a, b)
-        fill[lo] += 1
-    opp = np.full(n3, -1, dtype=np.int32)
-    for v in range(num_vertices):
-        for i in range(start[v], start[v + 1]):
-            if opp[bucket[i]] >= 0:
-                continue
-            for j in range(i + 1, start[v + 1]):
-                if other[j] == other[i] and opp[bucket[j]] < 0:
-                    opp[bucket[i]] = bucket[j]
-                    opp[bucket[j]] = bucket[i]
-                    break
     # dart d = 3f + k runs faces[f, k] -> faces[f, k+1] and faces corner 3f + (k+2) % 3
     O = np.empty(n3, dtype=np.int32)
     for d in range(n3):
