@@ -44,6 +44,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxcds import errors
+
 __all__ = ["MeshStructure", "Int", "as_ids"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
@@ -208,3 +210,21 @@ class MeshStructure:
     def __repr__(self) -> str:  # short: printing arrays of millions of ids helps nobody
         return (f"{type(self).__name__}(num_vertices={self.num_vertices}, "
                 f"num_faces={self.num_faces}, references={self.references})")
+
+
+def parts_of_one_class(cls, parts) -> list:
+    """``list(parts)`` for a class's ``concatenate(parts)`` (packed batches, :mod:`jaxcds.batch`),
+    after checking that there is at least one part and that every part is a ``cls``.
+
+    Raises:
+      EmptyMeshError: no parts. UnsupportedTopologyError: a part of another class.
+    """
+    parts = list(parts)
+    if not parts:
+        raise errors.EmptyMeshError("concatenate: no structures given")
+    for i, p in enumerate(parts):
+        if type(p) is not cls:
+            raise errors.UnsupportedTopologyError(
+                f"{cls.__name__}.concatenate: part {i} is a {type(p).__name__}; pack one structure kind "
+                "(a packed batch cannot be packed again)")
+    return parts

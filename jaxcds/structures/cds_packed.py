@@ -41,6 +41,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
+from jaxcds.structures.base import parts_of_one_class
 
 __all__ = ["concatenate_cds", "packed_class"]
 
@@ -241,14 +242,7 @@ def concatenate_cds(cls, parts: Sequence) -> object:
       UnsupportedTopologyError: a part of another class, or more than ``2^30`` union vertices
         (the 30-bit reference fields of Sec. 2.1).
     """
-    parts = list(parts)
-    if not parts:
-        raise errors.EmptyMeshError("concatenate: no structures given")
-    for i, p in enumerate(parts):
-        if type(p) is not cls:
-            raise errors.UnsupportedTopologyError(
-                f"{cls.__name__}.concatenate: part {i} is a {type(p).__name__}; pack one structure kind "
-                "(a packed batch cannot be packed again)")
+    parts = parts_of_one_class(cls, parts)
     nv = np.array([p.num_vertices for p in parts], np.int64)
     total = int(nv.sum())
     if total > _IDX + 1:

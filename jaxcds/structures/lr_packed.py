@@ -36,6 +36,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
+from jaxcds.structures.base import parts_of_one_class
 
 __all__ = ["concatenate_lr", "packed_class"]
 
@@ -225,14 +226,7 @@ def concatenate_lr(cls, parts: Sequence) -> object:
     Raises:
       UnsupportedTopologyError: a part of another class, or an id over int32.
     """
-    parts = list(parts)
-    if not parts:
-        raise errors.EmptyMeshError("concatenate: no structures given")
-    for i, p in enumerate(parts):
-        if type(p) is not cls:
-            raise errors.UnsupportedTopologyError(
-                f"{cls.__name__}.concatenate: part {i} is a {type(p).__name__}; pack one structure kind "
-                "(a packed batch cannot be packed again)")
+    parts = parts_of_one_class(cls, parts)
     P = packed_class(cls)
     sizes = np.array([[getattr(p, s) for s in _SIZES] for p in parts], np.int64)
     nd = np.array([p.num_darts for p in parts], np.int64)
