@@ -513,12 +513,37 @@ def _check_hook(cls) -> None:
 
 def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32) -> jnp.ndarray:
     """``(num_vertices, 3)`` positions of the packed meshes, in the batch structure's vertex
-    order (concatenated, then permuted by ``vertex_order`` when the structure renumbers)."""
-    ms = [m if isinstance(m, np.ndarray) else _load(m).vertices for m in meshes]
-    p = np.concatenate([np.asarray(v, np.float64) for v in ms])
-    if p.shape[0] != batch.num_vertices:
+    order (concatenated, then permuted by ``vertex_order`` when the structure renumbers).
+
+    Structures that close holes with a dummy vertex each and keep it as a vertex (the CDS family,
+    CDS paper Sec. 4.5) have more vertices than the mesh: for such a mesh (given as a mesh, not
+    as a bare position array) the positions are those of the closed mesh, dummies at their loop's
+    centroid, as :func:`jaxcds.mesh.close_boundaries` places them when the structure is built.
+
+    Raises:
+      MeshError: the positions do not match the batch's vertex counts (naming the mesh).
+    """
+    from jaxcds.mesh import validate_and_close
+
+    want = np.asarray(batch.n_vertex)
+    if len(meshes) != want.shape[0]:
         raise errors.MeshError(
-            f"pack_positions: {p.shape[0]} positions for a batch of {batch.num_vertices} vertices")
+            f"pack_positions: {len(meshes)} meshes for a batch of {want.shape[0]}")
+    ps = []
+    for i, m in enumerate(meshes):
+        if isinstance(m, np.ndarray):
+            v = m
+        else:
+            tm = _load(m)
+            v = tm.vertices
+            if v.shape[0] < want[i]:  # the structure closed its holes: dummies are vertices
+                v = validate_and_close(tm).vertices
+        if v.shape[0] != want[i]:
+            raise errors.MeshError(
+                f"pack_positions: mesh {i} has {v.shape[0]} positions, the batch holds "
+                f"{int(want[i])} vertices for it")
+        ps.append(np.asarray(v, np.float64))
+    p = np.concatenate(ps)
     order = batch.vertex_order
     if order is not None:
         p = p[np.asarray(order)]

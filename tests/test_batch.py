@@ -395,3 +395,27 @@ def test_cds_concatenate_shifts_vertex_fields_and_keeps_service_bits():
 def test_pemb_is_refused_with_the_reason():
     with pytest.raises(errors.UnsupportedTopologyError, match="pemb.*root"):
         B.pack(compact_meshes()[:2], "pemb")
+
+
+@pytest.mark.parametrize("name", ["cds5n", "cds4n", "lr"])
+def test_pack_positions_of_holed_meshes(name):
+    """Holed meshes: the CDS family keeps each hole's dummy vertex as a vertex (CDS paper Sec.
+    4.5), LR gives it a null index (LR paper Sec. 4.6). pack_positions follows the structure:
+    the packed normals equal each mesh's own structure's normals on its own positions (the
+    closed mesh's for a CDS)."""
+    from jaxcds.mesh import validate_and_close
+
+    ms = [load_shared("2triangles.off"), load_shared("grid.off"), icosphere(1)]
+    b = B.pack(ms, name)
+    parts = [registry.build(name, m) for m in ms]
+    pos = B.pack_positions(b, ms)
+    assert pos.shape == (b.num_vertices, 3)
+    want = []
+    for p, m in zip(parts, ms):
+        v = m.vertices if p.num_vertices == m.num_vertices else validate_and_close(m).vertices
+        assert v.shape[0] == p.num_vertices
+        v = v if p.vertex_order is None else v[np.asarray(p.vertex_order)]
+        want.append(np.asarray(vertex_normals(p, jnp.asarray(v, jnp.float32))))
+    np.testing.assert_allclose(np.asarray(vertex_normals(b, pos)), np.concatenate(want), atol=1e-5)
+    with pytest.raises(errors.MeshError, match="mesh 1 has 3 positions"):
+        B.pack_positions(b, [ms[0], np.zeros((3, 3)), ms[2]])
