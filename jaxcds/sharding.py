@@ -81,6 +81,8 @@ class ShardedStructure(MeshStructure):
       logical_darts: the input structure's ``num_darts`` (darts past it are padding).
       logical_references: the input structure's ``references``.
       num_devices: devices of the mesh the arrays are sharded over.
+      leaf_rows: the unpadded length of every leaf of ``structure`` (flatten order; ``-1`` for
+        a 0-d leaf), so :meth:`unpadded` can cut the padding off inside a jitted function.
     """
 
     structure: Any
@@ -90,6 +92,7 @@ class ShardedStructure(MeshStructure):
     logical_darts: int = static_field()
     logical_references: int = static_field()
     num_devices: int = static_field()
+    leaf_rows: tuple = static_field(default=())
 
     name = "sharded"
 
@@ -113,6 +116,23 @@ class ShardedStructure(MeshStructure):
     def dart_valid(self, e: Int) -> Int:
         return (e >= 0) & (e < self.logical_darts) & self.structure.dart_valid(e)
 
+    def unpadded(self):
+        """The input structure again, its arrays the padded ones sliced to their logical length
+        (inside ``jit`` the slices stay partitioned: XLA shards uneven shapes itself)."""
+        leaves, treedef = jax.tree_util.tree_flatten(self.structure)
+        if len(self.leaf_rows) != len(leaves):
+            raise ValueError("ShardedStructure without leaf_rows: build it with shard_structure")
+        return jax.tree_util.tree_unflatten(
+            treedef, [x if r < 0 else x[:r] for x, r in zip(leaves, self.leaf_rows)])
+
+    def face_vertices(self) -> Int:
+        """The structure's own ``face_vertices`` (the CDS face map of Thm 7, the half-edge's
+        reshape...) on the :meth:`unpadded` arrays. Those fast routes read whole arrays, which
+        padding has lengthened; the protocol's generic route (``edge_of_face``, ``next``,
+        ``origin`` per face) gives the same faces but costs a navigation per corner (a CDS
+        ``next`` is a ``LeftFront`` and a ``Target``: the sharded CDS normals were 60x slower)."""
+        return self.unpadded().face_vertices()
+
     def __getattr__(self, attr):
         if attr.startswith("__") or attr == "structure":
             raise AttributeError(attr)
@@ -132,8 +152,7 @@ for _op in ("origin", "source", "target", "twin", "next", "prev", "face", "face_
             "right_front", "right_back", "ccw_vertex_edge", "cw_vertex_edge", "corner_vertex",
             "corner_next", "corner_prev", "corner_opposite", "corner_swing"):
     setattr(ShardedStructure, _op, _forward(_op))
-# face_vertices stays the protocol's generic route (edge_of_face, next, origin): the structures'
-# fast overrides reshape whole arrays, which padding has lengthened
+# face_vertices: see ShardedStructure.face_vertices (the unpadded view)
 
 
 def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
@@ -167,7 +186,9 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
         structure=padded,
         order=None,
         num_vertices=s.num_vertices, num_faces=s.num_faces, logical_darts=s.num_darts,
-        logical_references=s.references, num_devices=d)
+        logical_references=s.references, num_devices=d,
+        leaf_rows=tuple(-1 if np.ndim(x) == 0 else int(np.shape(x)[0])
+                        for x in jax.tree_util.tree_leaves(s)))
 
 
 def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None) -> jax.Array:
