@@ -232,3 +232,142 @@ def cycles(nxt):
             e = nxt[e]
     offsets[k] = pos
     return items, offsets[: k + 1].copy()
+
+
+# ------------------------------------------------------------------ fast path: clean meshes
+# Status codes of :func:`manifold_twins` (0: no defect). Any other code only says *that* the fast
+# path stopped; the caller then runs the full checks, which find and name the defect.
+CLEAN, BAD_INDEX, DEGENERATE, NON_MANIFOLD_EDGE, SAME_DIRECTION, DUPLICATE, NON_MANIFOLD_VERTEX = range(7)
+
+_SMALL_BUCKET = 24  # insertion sort below this bucket size, np.sort above (a high-degree vertex)
+
+
+@numba.njit(cache=True)
+def manifold_twins(faces, num_vertices, components):
+    """One-shot check of a face list for every defect :func:`jaxcds.mesh.find_defects` looks at
+    (except coordinates), building the twin of every dart on the way.
+
+    Returns ``(status, opp, vertex_corner, num_edges, num_components)``: ``opp[d]`` is the dart
+    on the other side of ``d``'s edge (-1 on a border), ``vertex_corner[v]`` the smallest corner
+    of ``v`` (-1 if unreferenced), ``num_components`` the components of faces through shared
+    vertices. ``status`` is :data:`CLEAN` or the first kind of defect met, in which case the
+    other outputs are meaningless.
+
+    Why it is cheaper than the edge table: one counting sort of the darts by their smaller
+    endpoint (not two), each bucket (the edges of one vertex, average size 6) sorted by the
+    other endpoint in cache, and on a manifold each edge group has one or two darts, which are
+    the twins directly. Then one walk around every vertex (swing ``c -> opp[c.p]``) counts its
+    fan and, breadth first through the corners' targets, the components. Every check is exact
+    for detection: a duplicate face shares each of its edges with its copy, so either that edge
+    has more than two darts or its two darts have the same third vertex; a vertex has one fan
+    iff the swing from its first corner reaches all its corners, i.e. iff the fans reached sum
+    to ``3F`` corners.
+    """
+    nf = faces.shape[0]
+    nc = 3 * nf
+    nv = num_vertices
+    fl = faces.reshape(-1)
+    opp = np.full(nc, -1, dtype=np.int32)
+    vc = np.full(nv, -1, dtype=np.int32)
+    start = np.zeros(nv + 1, dtype=np.int32)  # 3F < 2^31 (checked by the caller)
+    # pass 1: indices, degenerate faces, first corner of each vertex, bucket sizes (by lo)
+    for f in range(nf):
+        a, b, c = fl[3 * f], fl[3 * f + 1], fl[3 * f + 2]
+        if a < 0 or b < 0 or c < 0 or a >= nv or b >= nv or c >= nv:
+            return BAD_INDEX, opp, vc, 0, 0
+        if a == b or b == c or a == c:
+            return DEGENERATE, opp, vc, 0, 0
+        if vc[a] < 0:
+            vc[a] = 3 * f
+        if vc[b] < 0:
+            vc[b] = 3 * f + 1
+        if vc[c] < 0:
+            vc[c] = 3 * f + 2
+        start[min(a, b) + 1] += 1
+        start[min(b, c) + 1] += 1
+        start[min(c, a) + 1] += 1
+    for v in range(nv):
+        start[v + 1] += start[v]
+    # pass 2: scatter keys (hi << 32 | dart); afterwards start[v] is the end of bucket v
+    keys = np.empty(nc, dtype=np.int64)
+    for d in range(nc):
+        a = fl[d]
+        b = fl[d + 1] if d % 3 != 2 else fl[d - 2]
+        if a < b:
+            lo, hi = a, b
+        else:
+            lo, hi = b, a
+        keys[start[lo]] = (np.int64(hi) << 32) | d
+        start[lo] += 1
+    # pass 3: per bucket, sort by (hi, dart) and pair the darts of each edge; components of
+    # vertices joined by edges (union-find while the bucket is in cache)
+    parent = np.arange(nv if components else 0).astype(np.int32)
+    ne = 0
+    s = 0
+    for v in range(nv):
+        t = start[v]
+        if t - s > _SMALL_BUCKET:
+            keys[s:t] = np.sort(keys[s:t])
+        else:
+            for i in range(s + 1, t):  # insertion sort: buckets hold a vertex's few edges
+                k = keys[i]
+                j = i - 1
+                while j >= s and keys[j] > k:
+                    keys[j + 1] = keys[j]
+                    j -= 1
+                keys[j + 1] = k
+        i = s
+        while i < t:
+            hi = keys[i] >> 32
+            if i + 1 < t and (keys[i + 1] >> 32) == hi:
+                if i + 2 < t and (keys[i + 2] >> 32) == hi:
+                    return NON_MANIFOLD_EDGE, opp, vc, 0, 0
+                d1 = np.int32(keys[i] & 0xFFFFFFFF)
+                d2 = np.int32(keys[i + 1] & 0xFFFFFFFF)
+                if fl[d1] == fl[d2]:  # both darts leave the same end
+                    return SAME_DIRECTION, opp, vc, 0, 0
+                if fl[3 * (d1 // 3) + (d1 % 3 + 2) % 3] == fl[3 * (d2 // 3) + (d2 % 3 + 2) % 3]:
+                    return DUPLICATE, opp, vc, 0, 0
+                opp[d1] = d2
+                opp[d2] = d1
+                i += 2
+            else:
+                i += 1
+            ne += 1
+            if components:
+                _union_min(parent, v, hi)
+        s = t
+    # pass 4: one fan per vertex: walk around each vertex in id order (vertex order keeps the
+    # walks in cache; a breadth-first order was 5x slower at 10M vertices)
+    walked = 0
+    for v in range(nv):
+        c0 = vc[v]
+        if c0 < 0:
+            continue
+        c = c0
+        border = False
+        while True:  # ccw swing: c -> twin of c.p (terminates: the swing is injective)
+            walked += 1
+            t = opp[3 * (c // 3) + (c % 3 + 2) % 3]
+            if t < 0:
+                border = True
+                break
+            c = t
+            if c == c0:
+                break
+        if border:  # an open fan: also walk cw from the first corner
+            c = c0
+            while True:
+                t = opp[c]
+                if t < 0:
+                    break
+                c = 3 * (t // 3) + (t % 3 + 1) % 3
+                walked += 1
+    if walked != nc:
+        return NON_MANIFOLD_VERTEX, opp, vc, ne, 0
+    ncomp = 0
+    if components:
+        for v in range(nv):
+            if vc[v] >= 0 and parent[v] == v:
+                ncomp += 1
+    return CLEAN, opp, vc, ne, ncomp

@@ -289,3 +289,109 @@ def test_duplicate_faces_on_a_huge_non_manifold_edge():
     m = TriMesh(vertices=np.random.default_rng(0).normal(size=(202, 3)), faces=f)
     dup = [d for d in find_defects(m) if isinstance(d, errors.DuplicateFaceError)]
     assert dup and "faces 48 and 200" in str(dup[0])
+
+
+# --------------------------------------------------------------- the fast validation path
+def _mutants(seed):
+    """Small closed random triangulations and defective variants of them: every kind of defect
+    the validation names, holes, pinches, several components (fast-path oracles below)."""
+    from jaxcds.generators import random_planar_triangulation_faces
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(8, 40))
+    base = random_planar_triangulation_faces(n, seed=seed)
+    v = rng.normal(size=(2 * n + 1, 3))
+    out = [("closed", base, n)]
+    nf = base.shape[0]
+    holes = np.delete(base, rng.choice(nf, size=int(rng.integers(1, max(2, nf // 3))),
+                                       replace=False), axis=0)
+    used = np.unique(holes)
+    remap = np.full(n, -1, np.int32)
+    remap[used] = np.arange(used.size)
+    out.append(("holes", remap[holes], used.size))  # holes, pinched boundaries, pieces
+    f = base.copy()
+    f[0] = f[0, ::-1]
+    out.append(("flipped", f, n))
+    out.append(("one-hole", base[1:], n))
+    far = np.nonzero(~np.isin(base, base[0]).any(axis=1))[0]  # faces sharing no vertex with 0
+    out.append(("two-holes", np.delete(base, [0, far[rng.integers(far.size)]], axis=0), n))
+    # the pillow: two faces on one vertex set, every edge with two opposite darts
+    out.append(("pillow", np.concatenate([base, [[n, n + 1, n + 2], [n, n + 2, n + 1]]]), n + 3))
+    out.append(("duplicate", np.concatenate([base, base[rng.integers(nf)][None, [1, 2, 0]]]), n))
+    out.append(("dup-reversed", np.concatenate([base, base[rng.integers(nf)][None, ::-1]]), n))
+    a, b, _ = base[rng.integers(nf)]
+    out.append(("nm-edge", np.concatenate([base, [[a, b, n]]]), n + 1))
+    out.append(("degenerate", np.concatenate([base, [[a, a, b]]]), n))
+    out.append(("two-spheres", np.concatenate([base, base + n]), 2 * n))
+    glued = base + n - 1  # second copy shares vertex n - 1 only: a closed bow-tie
+    out.append(("bow-tie", np.concatenate([base, glued]), 2 * n - 1))
+    out.append(("unreferenced", base, n + 1))
+    cases = []
+    for name, f, nv in out:
+        cases.append((name, TriMesh(vertices=v[:nv].copy(), faces=np.ascontiguousarray(f, np.int32))))
+    nan = v[:n].copy()
+    nan[rng.integers(n), 1] = np.nan
+    cases.append(("nan", TriMesh(vertices=nan, faces=base)))
+    return cases
+
+
+def _outcome(fn):
+    try:
+        return fn()
+    except errors.MeshError as exc:
+        return (type(exc), str(exc))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_fast_validation_path_agrees_with_full_checks(seed, monkeypatch):
+    """validate / validate_and_close through the one-kernel fast path give the same mesh, or the
+    same typed error with the same message, as the full edge-table checks; the twins they hand
+    out equal an independent twin matching of the returned faces."""
+    from jaxcds import mesh as M
+    from jaxcds.structures.halfedge import _match_twins
+
+    full_path = lambda *a, **k: None  # noqa: E731
+    for name, m in _mutants(seed):
+        for closed, connected in ((False, False), (True, True), (False, True)):
+            fast = _outcome(lambda: M.validate(m, closed=closed, connected=connected,
+                                               return_twins=True))
+            with monkeypatch.context() as mp:
+                mp.setattr(M, "_fast_check", full_path)
+                full = _outcome(lambda: M.validate(m, closed=closed, connected=connected))
+            if isinstance(full, tuple):
+                assert fast == full, (name, closed, connected)
+            else:
+                assert fast[0] is m, name
+        for connected in (False, True):
+            fast = _outcome(lambda: M.validate_and_close(m, connected=connected, return_twins=True))
+            with monkeypatch.context() as mp:
+                mp.setattr(M, "_fast_check", full_path)
+                full = _outcome(lambda: M.validate_and_close(m, connected=connected))
+            if isinstance(full, tuple):
+                assert fast == full, (name, connected)
+                continue
+            got, twins = fast
+            assert twins is not None, name
+            for field in ("vertices", "faces", "dummy_vertices", "dummy_faces"):
+                a, b = getattr(got, field), getattr(full, field)
+                assert (a is None and b is None) or np.array_equal(a, b), (name, field)
+            f = got.faces
+            np.testing.assert_array_equal(twins.opp, _match_twins(f, got.num_vertices))
+            first = np.full(got.num_vertices, -1)
+            vals, idx = np.unique(f.ravel(), return_index=True)
+            first[vals] = idx
+            np.testing.assert_array_equal(twins.vertex_corner, first)
+
+
+def test_fast_path_counts_components_and_refuses_bad_indices():
+    from jaxcds import _mesh_kernels as kernels
+    from jaxcds.mesh import _components
+
+    for seed in range(3):
+        for name, m in _mutants(seed):
+            st, _, _, _, ncomp = kernels.manifold_twins(m.faces, m.num_vertices, True)
+            if st == kernels.CLEAN:
+                assert ncomp == _components(m)[0], name
+    v, f = octahedron()
+    with pytest.raises(errors.InvalidIndexError, match=r"face 0 refers to vertex 6, outside \[0, 6\)"):
+        validate(TriMesh(vertices=v, faces=np.where(f == 4, 6, f)))

@@ -11,13 +11,15 @@ Closed, consistently oriented manifold meshes only (close holes with
 
 from __future__ import annotations
 
+from typing import Optional
+
 import jax
 import jax.numpy as jnp
 import numba
 import numpy as np
 
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, load_mesh, validate
+from jaxcds.mesh import TriMesh, Twins, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
 from jaxcds.structures.halfedge import _match_twins, halfedge_arrays
 
@@ -49,14 +51,23 @@ def _closed_corner_table(faces, num_vertices):
         a = faces[d // 3, d % 3]
         if vertex_corner[a] < 0:
             vertex_corner[a] = d
-    # dart d = 3f + k runs faces[f, k] -> faces[f, k+1] and faces corner 3f + (k+2) % 3
+    O, closed = _opposite_corners(opp)
+    return O, vertex_corner, closed
+
+
+@numba.njit(cache=True)
+def _opposite_corners(opp):
+    """``(O, closed)`` from the dart twins ``opp``: dart ``d = 3f + k`` runs ``faces[f, k] ->
+    faces[f, k+1]`` and faces corner ``3f + (k+2) % 3``, so ``O`` of that corner is the corner
+    its twin faces. ``closed`` is False (and ``O`` unfinished) when a dart has no twin."""
+    n3 = opp.shape[0]
     O = np.empty(n3, dtype=np.int32)
     for d in range(n3):
         t = opp[d]
         if t < 0:
-            return O, vertex_corner, False
+            return O, False
         O[3 * (d // 3) + (d + 2) % 3] = 3 * (t // 3) + (t + 2) % 3
-    return O, vertex_corner, True
+    return O, True
 
 
 @pytree_dataclass
@@ -80,15 +91,25 @@ class CornerTable(MeshStructure):
     @classmethod
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "CornerTable":
         mesh = load_mesh(mesh)
+        twins = None
         if check:
-            validate(mesh, closed=True, structure="corner-table")
-        return cls.from_faces(mesh.faces, mesh.num_vertices)
+            mesh, twins = validate(mesh, closed=True, structure="corner-table", return_twins=True)
+        return cls.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
 
     @classmethod
-    def from_faces(cls, faces, num_vertices: int) -> "CornerTable":
+    def from_faces(cls, faces, num_vertices: int, *, twins: Optional[Twins] = None) -> "CornerTable":
+        """Build from an ``(F, 3)`` face array of a closed manifold (not re-validated).
+        ``twins``: the :class:`jaxcds.mesh.Twins` that validation returned for these faces
+        (``validate(..., return_twins=True)``); then no twin is matched again, only ``O`` is
+        derived from them (one pass)."""
         f = np.ascontiguousarray(faces, dtype=np.int32)
         nf = f.shape[0]
-        O, vedge, closed = _closed_corner_table(f, int(num_vertices))
+        closed = False
+        if twins is not None and twins.opp.shape[0] == 3 * nf:
+            O, closed = _opposite_corners(twins.opp)
+            vedge = twins.vertex_corner
+        if not closed:
+            O, vedge, closed = _closed_corner_table(f, int(num_vertices))
         if closed:
             vert = f.reshape(-1)
         else:  # a dart without twin: the half-edge route (border half-edges), as it always did

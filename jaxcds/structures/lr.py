@@ -572,14 +572,17 @@ class LRBits(_LRNavigation):
 _AUTO_K = (16, 32, 64, 128, 256, 512, 1024, 0)
 
 
-def _prepare(mesh) -> TriMesh:
+def _prepare(mesh):
+    """``(mesh, twins)``: the validated mesh, holes closed, and the dart twins validation found
+    for its faces (:class:`jaxcds.mesh.Twins`; ``None`` if it took the full path), so the corner
+    table does not match twins a second time."""
     mesh = load_mesh(mesh)
     if mesh.dummy_vertices is not None and np.any(mesh.dummy_vertices):
-        validate(mesh, closed=True, connected=True, structure="lr")
-        return mesh  # already closed by close_boundaries: keep its dummy flags
-    # validation and hole closing (Sec. 4.6: one dummy vertex per hole) from one edge table;
-    # a closed mesh comes back unchanged
-    return validate_and_close(mesh, connected=True, structure="lr")
+        # already closed by close_boundaries: keep its dummy flags
+        return validate(mesh, closed=True, connected=True, structure="lr", return_twins=True)
+    # validation and hole closing (Sec. 4.6: one dummy vertex per hole) in one pass over the
+    # faces; a closed mesh comes back unchanged
+    return validate_and_close(mesh, connected=True, structure="lr", return_twins=True)
 
 
 def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
@@ -592,8 +595,8 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     num_faces``), as the HalfEdge of the input; with ``borders=False`` it is the closed mesh.
     ``k``: hybrid period for ``LRBits`` (``"auto"`` tries several and keeps the fewest bits, as
     the paper does, Sec. 8; 0 = depth-first). ``seeds``: number of random seed corners (or a list)."""
-    mesh = _prepare(mesh)
-    ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices)
+    mesh, twins = _prepare(mesh)
+    ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
     dummy = mesh.dummy_vertices
     if not bits:
         return _from_corner_table(LR, ct, dummy=dummy, seeds=seeds, k=None, check=check,

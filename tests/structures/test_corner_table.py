@@ -1,0 +1,46 @@
+"""CornerTable from the twins that validation hands out (jaxcds.mesh.Twins) equals the one that
+matches twins itself (corner_table._closed_corner_table, the half-edge's _match_twins)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jaxcds import mesh as M
+from jaxcds.generators import random_planar_triangulation_faces
+from jaxcds.structures import CornerTable
+
+from conftest import load_shared, mesh_params
+
+
+def _same(a: CornerTable, b: CornerTable):
+    for field in ("V", "O", "vertex_corner"):
+        np.testing.assert_array_equal(np.asarray(getattr(a, field)), np.asarray(getattr(b, field)))
+    assert (a.num_vertices, a.num_faces) == (b.num_vertices, b.num_faces)
+
+
+@pytest.mark.parametrize("name", mesh_params(["bunny.off", "3holes.off", "grid.off",
+                                              "stanford-bunny.obj"]))
+def test_corner_table_from_validation_twins(name):
+    m, twins = M.validate_and_close(load_shared(name), connected=False, return_twins=True)
+    assert twins is not None
+    _same(CornerTable.from_faces(m.faces, m.num_vertices, twins=twins),
+          CornerTable.from_faces(m.faces, m.num_vertices))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_corner_table_from_mesh_uses_twins_on_random_triangulations(seed):
+    f = random_planar_triangulation_faces(200 + 37 * seed, seed=seed)
+    m = M.TriMesh(vertices=np.zeros((int(f.max()) + 1, 3)), faces=f)
+    ct = CornerTable.from_mesh(m)
+    _same(ct, CornerTable.from_faces(f, m.num_vertices))
+    # O is an involution without fixed points, c.o.v is the vertex facing c's edge
+    O = np.asarray(ct.O)
+    assert (O[O] == np.arange(O.size)).all() and (O != np.arange(O.size)).all()
+
+
+def test_twins_of_another_face_list_are_not_used():
+    f = random_planar_triangulation_faces(50, seed=1)
+    _, twins = M.validate(M.TriMesh(vertices=np.zeros((50, 3)), faces=f), return_twins=True)
+    g = random_planar_triangulation_faces(60, seed=2)  # other sizes: the twins are ignored
+    _same(CornerTable.from_faces(g, 60, twins=twins), CornerTable.from_faces(g, 60))
