@@ -20,7 +20,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds.codec import fileformat as ff
 from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n
-from jaxcds.codec.encode import encode_schnyder
+from jaxcds.codec.encode import encode_faces
 from jaxcds.codec.words import Words, to_mixed
 from jaxcds.mesh import (TriMesh, boundary_loops, close_boundaries, load_mesh, topology, validate,
                          validate_and_close)
@@ -65,8 +65,6 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     Raises:
       UnsupportedTopologyError: genus > 0, several components, or (``close=False``) boundaries.
     """
-    from jaxcds.construct.schnyder import schnyder_wood
-
     mesh = load_mesh(mesh)
     if check and close:
         mesh = validate_and_close(mesh, structure="the 4n-bit encoding")
@@ -74,12 +72,12 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
         validate(mesh, connected=True, structure="the 4n-bit encoding")
     elif close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
         mesh = close_boundaries(mesh)
-    t0 = time.perf_counter()
-    wood = schnyder_wood(mesh.faces, mesh.num_vertices, root_face=root_face, maximal=maximal)
-    t1 = time.perf_counter()
-    words, order = encode_schnyder(wood, mixed=mixed)
-    t2 = time.perf_counter()
-    return EncodedMesh(words, order, mesh, t1 - t0, t2 - t1)
+    # the wood's out table and rotations, then the words in one DFS pass (encode_faces): the
+    # colour labels of a full SchnyderWood are not needed to encode (same words)
+    tm: dict = {}
+    words, order = encode_faces(mesh.faces, mesh.num_vertices, mixed=mixed, maximal=maximal,
+                                root_face=root_face, timings=tm)
+    return EncodedMesh(words, order, mesh, tm["wood_s"], tm["words_s"])
 
 
 def decode(words: Words, *, structure: str = "faces"):

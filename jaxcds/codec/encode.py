@@ -20,7 +20,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds.codec.words import Words, num_bits, pack
 
-__all__ = ["encode_wood", "encode_schnyder", "dart_twins"]
+__all__ = ["encode_wood", "encode_schnyder", "encode_faces", "dart_twins"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -222,65 +222,138 @@ def encode_wood(faces: np.ndarray, num_vertices: int, red_parent: np.ndarray, bl
     return Words(n, pack(bits), mixed=False), order
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _set1(buf, i):
+    # bit i of a zeroed, packed MSB-first buffer (np.packbits order) := 1
+    buf[i >> 3] |= np.uint8(0x80 >> (i & 7))
+
+
 @numba.njit(cache=True, nogil=True)
-def _encode_rot(offsets, neighbors, out, n, v_red, v_blue, v_black, bits, order, mixed):
-    """As :func:`_encode`, from the ccw rotations of a :class:`SchnyderWood` (neighbours of
-    ``u`` ccw starting at its red parent; at ``V_red`` starting at ``V_blue``). With ``mixed``
-    the black block of a vertex is written right after its red ``0`` (Sec. 3.3)."""
-    indeg = np.zeros(n, dtype=np.int32)
+def _encode_pos(offsets, nb, out, n, v_red, v_blue, v_black, buf, order, mixed, work):
+    """ccw DFS of the red tree from the ccw rotations (any starting neighbour) and ``out``,
+    writing the words straight into the zeroed packed buffer ``buf`` (MSB first): red word at
+    bits ``[0, 2n)`` and black word at ``[2n, 4n - 3)``, or the mixed word of Sec. 3.3.
+
+    Two sequential passes over the vertices first build the red tree as a compact children
+    table (CSR, ccw order) with the black in-degrees beside it, so that the DFS -- the only
+    pass in random vertex order -- touches two cache lines per vertex (its record and its
+    children) instead of its whole rotation and ``out`` row. The red children of an inner
+    vertex ``u`` are found by position: by the local Schnyder rule (Definition 1) they are the
+    neighbours strictly between ``u``'s outgoing blue and outgoing black edge, ccw (``V_red``:
+    all neighbours from ``V_blue`` on; ``V_blue``, ``V_black``: none). Each one is checked
+    (``out[w, RED] == u``; ``w`` is a neighbour, so this read is near) and the tree must span
+    the ``n`` vertices, so an input breaking the rule is refused rather than mis-encoded.
+
+    ``work``: int32 scratch of ``>= 5n + 2`` words (e.g. the Schnyder-wood kernels' scratch):
+    ``rec[u] = (first child slot, black in-degree)``, the children, and the DFS stack.
+
+    Returns (status, vertex): 0 ok; 1 a block entry is not a red child / vertex reached twice /
+    outgoing edge missing from the rotation; 2 wrong vertex count; 3 outer vertices misplaced;
+    4 black degrees do not sum to n - 3."""
+    rec = work[:2 * n + 2].reshape((n + 1, 2))
+    kids = work[2 * n + 2:3 * n + 2]
+    scur = work[3 * n + 2:4 * n + 2]   # DFS frame: next child slot (pass A: block start)
+    send = work[4 * n + 2:5 * n + 2]   # DFS frame: end of the children slots
+    for u in range(n + 1):
+        rec[u, 0] = 0
+        rec[u, 1] = 0
     tot = 0
-    for u in range(n):
+    for u in range(n):  # black in-degrees, counted from out (the truth, not by position)
         p = out[u, 2]
         if 0 <= p < n:
-            indeg[p] += 1
+            rec[p, 1] += 1
             tot += 1
     if tot != n - 3:
         return 4, n
-    vstack = np.empty(n, dtype=np.int32)
-    cur = np.empty(n, dtype=np.int64)
-    pr = 0
-    pb = 2 * n
+    # pass A: each vertex's block of red children in its rotation (start, count)
+    for v in range(n):
+        a = offsets[v]
+        b = offsets[v + 1]
+        if v == v_red:
+            q = a
+            while q < b and nb[q] != v_blue:
+                q += 1
+            if q == b:
+                return 1, v
+            start = q - a
+            cnt = b - a
+        elif v == v_blue or v == v_black:
+            start = 0
+            cnt = 0
+        else:
+            o1 = out[v, 1]
+            o2 = out[v, 2]
+            q1 = -1
+            q2 = -1
+            for q in range(a, b):
+                x = nb[q]
+                if x == o1:
+                    q1 = q
+                elif x == o2:
+                    q2 = q
+            if q1 < 0 or q2 < 0:
+                return 1, v
+            start = q1 + 1 - a
+            if start == b - a:
+                start = 0
+            cnt = q2 - q1 - 1
+            if cnt < 0:
+                cnt += b - a
+        scur[v] = start
+        rec[v + 1, 0] = cnt
+    for v in range(n):
+        rec[v + 1, 0] += rec[v, 0]
+    if rec[n, 0] != n - 1:
+        return 2, rec[n, 0]
+    # pass B: copy the children, checking each is a red child
+    for v in range(n):
+        a = offsets[v]
+        deg = offsets[v + 1] - a
+        k = scur[v]
+        for i in range(rec[v, 0], rec[v + 1, 0]):
+            w = nb[a + k]
+            if out[w, 0] != v:
+                return 1, w
+            kids[i] = w
+            k += 1
+            if k == deg:
+                k = 0
+    # the DFS (preorder = decoded vertex ids)
+    pr = 0          # red (or mixed) cursor; '(' = 0 is written by skipping (buf is zeroed)
+    pb = 2 * n      # black cursor (separate form)
     nv = 0
     sp = 0
     v = v_red
     while True:
-        # open v
+        # ---- open v
         if nv >= n:
             return 1, v
         order[nv] = v
         nv += 1
-        bits[pr] = 0
         pr += 1
+        d = rec[v, 1]
         if mixed:
-            for _ in range(indeg[v]):
-                bits[pr] = 1
+            for _ in range(d):
+                _set1(buf, pr)
                 pr += 1
-            bits[pr] = 0
             pr += 1
         else:
-            for _ in range(indeg[v]):
-                bits[pb] = 1
+            for _ in range(d):
+                _set1(buf, pb)
                 pb += 1
-            bits[pb] = 0
             pb += 1
-        vstack[sp] = v
-        cur[sp] = offsets[v] if v == v_red else offsets[v] + 1
+        scur[sp] = rec[v, 0]
+        send[sp] = rec[v + 1, 0]
         sp += 1
-        # advance to the next child, closing finished vertices
+        # ---- advance to the next red child, closing finished vertices
         v = -1
         while sp > 0:
-            u = vstack[sp - 1]
-            k = cur[sp - 1]
-            while k < offsets[u + 1]:
-                w = neighbors[k]
-                k += 1
-                if out[w, 0] == u:
-                    v = w
-                    break
-            cur[sp - 1] = k
-            if v >= 0:
+            c = scur[sp - 1]
+            if c < send[sp - 1]:
+                scur[sp - 1] = c + 1
+                v = kids[c]
                 break
-            bits[pr] = 1
+            _set1(buf, pr)  # ')'
             pr += 1
             sp -= 1
         if v < 0:
@@ -292,19 +365,53 @@ def _encode_rot(offsets, neighbors, out, n, v_red, v_blue, v_black, bits, order,
     return 0, 0
 
 
-def encode_schnyder(wood, *, mixed: bool = False) -> tuple[Words, np.ndarray]:
-    """Words of a :class:`jaxcds.construct.schnyder.SchnyderWood` (Sec. 3.1), using its ccw
-    rotations (no twin computation); ``mixed`` writes the streamable word of Sec. 3.3 directly.
-    Returns ``(words, order)`` as :func:`encode_wood`."""
-    n = int(wood.num_vertices)
-    if n < 4:
-        raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
-    bits = np.zeros(num_bits(n), dtype=np.uint8)
+def _encode_lean(offsets, neighbors, out, n, v_red, v_blue, v_black, mixed, work=None) -> tuple[Words, np.ndarray]:
+    buf = np.zeros((num_bits(n) + 7) // 8, dtype=np.uint8)
     order = np.empty(n, dtype=np.int32)
-    status, vertex = _encode_rot(np.asarray(wood.offsets, dtype=np.int64), np.asarray(wood.neighbors, dtype=np.int32),
-                                 np.asarray(wood.out, dtype=np.int32), n, int(wood.v_red), int(wood.v_blue),
-                                 int(wood.v_black), bits, order, bool(mixed))
+    if work is None or work.size < 5 * n + 2:
+        work = np.empty(5 * n + 2, dtype=np.int32)
+    status, vertex = _encode_pos(np.asarray(offsets, dtype=np.int64), np.asarray(neighbors, dtype=np.int32),
+                                 np.ascontiguousarray(out, dtype=np.int32), n, int(v_red), int(v_blue),
+                                 int(v_black), buf, order, bool(mixed), work)
     if status:
         raise errors.StructureError(f"Schnyder wood is not a valid encoding input (status {status}, vertex {vertex}): "
                                     "red tree not spanning, outer vertices misplaced, or black tree without n-3 edges")
-    return Words(n, pack(bits), mixed=bool(mixed)), order
+    return Words(n, buf, mixed=bool(mixed)), order
+
+
+def encode_schnyder(wood, *, mixed: bool = False) -> tuple[Words, np.ndarray]:
+    """Words of a :class:`jaxcds.construct.schnyder.SchnyderWood` (Sec. 3.1) -- or of the lean
+    :class:`~jaxcds.construct.schnyder.WoodOut` -- from its ccw rotations and ``out`` (no twin
+    computation); ``mixed`` writes the streamable word of Sec. 3.3 directly. One linear pass
+    writes the packed bits (no 0/1 byte array, no ``np.packbits``). Returns ``(words, order)``
+    as :func:`encode_wood`."""
+    n = int(wood.num_vertices)
+    if n < 4:
+        raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
+    return _encode_lean(wood.offsets, wood.neighbors, wood.out, n, wood.v_red, wood.v_blue, wood.v_black, mixed)
+
+
+def encode_faces(faces: np.ndarray, num_vertices: int, *, mixed: bool = True, maximal: bool = True,
+                 root_face: int | None = None, timings: dict | None = None) -> tuple[Words, np.ndarray]:
+    """Words of a closed genus-0 triangulation, Schnyder wood included (Appendix A + Sec. 3.1):
+    the vertex conquest (:func:`~jaxcds.construct.schnyder.schnyder_out`) then one DFS pass that
+    writes the packed words; the colour labels of a full :class:`SchnyderWood` are never built
+    (the encoder reads the local Schnyder rule by position). The words equal
+    ``encode_schnyder(schnyder_wood(faces, n, ...))``. ``timings``, if given, receives
+    ``wood_s`` and ``words_s``. Returns ``(words, order)`` as :func:`encode_wood`."""
+    import time
+
+    from jaxcds.construct.schnyder import schnyder_out
+
+    n = int(num_vertices)
+    if n < 4:
+        raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
+    t0 = time.perf_counter()
+    work = np.empty(6 * n + 16, dtype=np.int32)  # one scratch for rotations, conquest and words
+    w = schnyder_out(faces, n, root_face=root_face, maximal=maximal, work=work)
+    t1 = time.perf_counter()
+    out = _encode_lean(w.offsets, w.neighbors, w.out, n, w.v_red, w.v_blue, w.v_black, mixed, work)
+    if timings is not None:
+        timings["wood_s"] = t1 - t0
+        timings["words_s"] = time.perf_counter() - t1
+    return out

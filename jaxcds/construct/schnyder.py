@@ -41,7 +41,7 @@ from jaxcds import errors
 __all__ = [
     "RED", "BLUE", "BLACK", "COLOUR_NAMES",
     "SchnyderWood", "schnyder_wood", "check_schnyder_wood", "schnyder_wood_reference",
-    "mesh_darts", "prepare_mesh",
+    "mesh_darts", "prepare_mesh", "WoodOut", "schnyder_out", "label_wood",
 ]
 
 RED, BLUE, BLACK = 0, 1, 2
@@ -343,189 +343,222 @@ def _rotations(faces, twin, first, out, n, v_red, v_blue):
     return offsets, nb, col, og, bad
 
 
-@numba.njit(cache=True)
-def _rotation_csr(faces, n):
+# Memory note. On the shared box a fresh page costs more than the work done on it (a 4 KiB page
+# fault is ~2-3 us, i.e. ~0.7 ms per MB first touched), so the kernels below allocate nothing
+# large themselves: their outputs and one int32 scratch of 6n + 16 words are numpy arrays made
+# by the caller (numpy asks for transparent huge pages on big arrays, numba's allocator does
+# not), and the scratch is reused by every phase of the encoder (rotations, conquest, words).
+@numba.njit(cache=True, nogil=True)
+def _rotation_csr(faces, n, offsets, nb, first):
     """Neighbours of every vertex in ccw order (CSR), straight from the corners: the corner of
     face ``(a, b, c)`` at ``a`` says that ``c`` follows ``b`` ccw around ``a``. No twin table,
-    per-vertex contiguous work (O(sum deg^2) with tiny constants). Returns ``(offsets, nb, bad)``
-    with ``bad`` the first vertex whose corners do not form one cycle (else -1)."""
+    per-vertex contiguous work (O(sum deg^2) with tiny constants).
+
+    Fills ``offsets`` (``(n + 1,)`` int64, zeroed) and ``nb`` (``(3F,)`` int32); ``first``
+    (``>= 3F`` int32) is scratch. The corner pairs ``(b, c)`` are scattered as ``first = b`` and
+    ``nb = c`` at the vertex's slots, then each vertex's cycle is chained through a small local
+    copy and written back over ``nb``. Returns ``bad``: the first vertex whose corners do not
+    form one cycle, -2 for an index outside ``[0, n)``, else -1."""
     nf = faces.shape[0]
-    offsets = np.zeros(n + 1, dtype=np.int64)
     for f in range(nf):
         for k in range(3):
-            offsets[faces[f, k] + 1] += 1
+            x = faces[f, k]
+            if x < 0 or x >= n:  # index check folded into the counting pass (no f.min/f.max)
+                return -2
+            offsets[x + 1] += 1
+    maxdeg = 0
     for i in range(n):
+        d = offsets[i + 1]
+        if d > maxdeg:
+            maxdeg = d
         offsets[i + 1] += offsets[i]
-    pos = offsets[:-1].copy()
-    first = np.empty(3 * nf, dtype=np.int32)
-    second = np.empty(3 * nf, dtype=np.int32)
+    # scatter with offsets[v] as the moving cursor of v (no separate position array); afterwards
+    # offsets[v] is v's end = (v + 1)'s start, shifted back below
     for f in range(nf):
         a = faces[f, 0]
         b = faces[f, 1]
         c = faces[f, 2]
-        j = pos[a]
+        j = offsets[a]
         first[j] = b
-        second[j] = c
-        pos[a] = j + 1
-        j = pos[b]
+        nb[j] = c
+        offsets[a] = j + 1
+        j = offsets[b]
         first[j] = c
-        second[j] = a
-        pos[b] = j + 1
-        j = pos[c]
+        nb[j] = a
+        offsets[b] = j + 1
+        j = offsets[c]
         first[j] = a
-        second[j] = b
-        pos[c] = j + 1
-    nb = np.empty(3 * nf, dtype=np.int32)
+        nb[j] = b
+        offsets[c] = j + 1
+    for i in range(n, 0, -1):
+        offsets[i] = offsets[i - 1]
+    offsets[0] = 0
+    lf = np.empty(max(maxdeg, 1), dtype=np.int32)
+    ls = np.empty(max(maxdeg, 1), dtype=np.int32)
     for v in range(n):
         a = offsets[v]
-        b = offsets[v + 1]
-        if b == a:
-            return offsets, nb, v
-        cur = first[a]
+        deg = offsets[v + 1] - a
+        if deg == 0:
+            return v
+        for j in range(deg):
+            lf[j] = first[a + j]
+            ls[j] = nb[a + j]
+        start = lf[0]
+        cur = start
         nb[a] = cur
-        for k in range(1, b - a):
+        for k in range(1, deg):
             nxt = -1
-            for j in range(a, b):
-                if first[j] == cur:
-                    nxt = second[j]
+            for j in range(deg):
+                if lf[j] == cur:
+                    nxt = ls[j]
                     break
             if nxt < 0:
-                return offsets, nb, v
+                return v
             cur = nxt
             nb[a + k] = cur
         # the cycle must close on the start
         closes = False
-        for j in range(a, b):
-            if first[j] == cur and second[j] == nb[a]:
+        for j in range(deg):
+            if lf[j] == cur and ls[j] == start:
                 closes = True
                 break
         if not closes:
-            return offsets, nb, v
-    return offsets, nb, -1
+            return v
+    return -1
 
 
-@numba.njit(cache=True)
-def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal):
-    """The vertex conquest of Appendix A on the ccw rotations (see :func:`_conquest`)."""
-    out = np.full((n, 3), n, dtype=np.int32)
-    removed = np.zeros(n, dtype=np.bool_)
-    on_b = np.zeros(n, dtype=np.bool_)
-    chords = np.zeros(n, dtype=np.int32)
-    bnext = np.full(n, -1, dtype=np.int32)
-    bprev = np.full(n, -1, dtype=np.int32)
-    in_stack = np.zeros(n, dtype=np.bool_)
-    cap = offsets[n] + n + 8
-    stack = np.empty(cap, dtype=np.int32)
-    order = np.empty(max(n - 2, 0), dtype=np.int32)
-    new = np.empty(n, dtype=np.int32)
-    on_b[v_blue] = True
-    on_b[v_black] = True
-    on_b[v_red] = True
-    bnext[v_blue] = v_black
-    bprev[v_black] = v_blue
-    bnext[v_black] = v_red
-    bprev[v_red] = v_black
+_ONB, _REM, _INS, _CH = 1, 2, 4, 8  # conquest state word: on B, removed, in stack; chords * 8
+
+
+@numba.njit(cache=True, nogil=True)
+def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal, out, order, work):
+    """The vertex conquest of Appendix A on the ccw rotations (see :func:`_conquest`).
+
+    Writes ``out`` (``(n, 3)`` int32, filled with ``n``) and ``order`` (``(n - 2,)``); ``work``
+    (int32, ``>= 6n + 8``) holds the per-vertex state -- one word per vertex packing the three
+    flags and the chord count, so a neighbour test reads one word -- the boundary path
+    (prev/next side by side) and the candidate stack (at most ``3n - 6`` pushes: the start, the
+    ``n - 3`` fan vertices and two per conquest). Returns the number of conquered vertices
+    (``-1``: inconsistent rotations)."""
+    st = work[:n]
+    bl = work[n:3 * n].reshape((n, 2))  # bl[u, 0] = prev (toward V_blue), bl[u, 1] = next
+    stack = work[3 * n:]
+    cap = stack.shape[0]
+    for u in range(n):
+        st[u] = 0
+    new = np.empty(n, dtype=np.int32)  # the current fan (only its first pages are touched)
+    st[v_blue] = _ONB
+    st[v_black] = _ONB
+    st[v_red] = _ONB
+    bl[v_blue, 1] = v_black
+    bl[v_black, 0] = v_blue
+    bl[v_black, 1] = v_red
+    bl[v_red, 0] = v_black
     top = 0
     stack[top] = v_black
     top += 1
-    in_stack[v_black] = True
+    st[v_black] |= _INS
     done = 0
     while done < n - 2:
         if top == 0:
-            return out, order, done
+            return done
         v = stack[top - 1]
         top -= 1
-        in_stack[v] = False
-        if removed[v] or (not on_b[v]) or chords[v] != 0 or v == v_red or v == v_blue:
+        s = st[v] & ~_INS
+        st[v] = s
+        # free: on B, not removed, no chord (the state word is exactly _ONB), not V_red / V_blue
+        if s != _ONB or v == v_red or v == v_blue:
             continue
-        vr = bprev[v]
-        vl = bnext[v]
+        vr = bl[v, 0]
+        vl = bl[v, 1]
         a = offsets[v]
-        deg = offsets[v + 1] - a
-        p = -1
-        for j in range(deg):
-            if nb[a + j] == vr:
-                p = j
-                break
-        if p < 0:
-            return out, order, -1
-        removed[v] = True
-        on_b[v] = False
+        b = offsets[v + 1]
+        p = a
+        while p < b and nb[p] != vr:
+            p += 1
+        if p == b:
+            return -1
+        st[v] = _REM
         order[done] = v
         done += 1
         out[v, BLUE] = vr
         out[v, RED] = vl
         # cw from vr to vl around v (backwards in the ccw list): the fan still to conquer
         k = 0
-        j = p - 1 if p > 0 else deg - 1
-        w = nb[a + j]
+        j = p - 1 if p > a else b - 1
+        w = nb[j]
         steps = 0
+        deg = b - a
         while w != vl:
             new[k] = w
             k += 1
             out[w, BLACK] = v
-            j = j - 1 if j > 0 else deg - 1
-            w = nb[a + j]
+            j = j - 1 if j > a else b - 1
+            w = nb[j]
             steps += 1
             if steps > deg:
-                return out, order, -1
+                return -1
         prev = vr
         for i in range(k):
             u = new[i]
-            bprev[u] = prev
-            bnext[prev] = u
+            bl[u, 0] = prev
+            bl[prev, 1] = u
             prev = u
-        bnext[prev] = vl
-        bprev[vl] = prev
+        bl[prev, 1] = vl
+        bl[vl, 0] = prev
         if k == 0:
+            # the chord {vr, vl} becomes a boundary edge
             if not (vr == v_blue and vl == v_red):
-                chords[vr] -= 1
-                chords[vl] -= 1
+                st[vr] -= _CH
+                st[vl] -= _CH
         else:
             for i in range(k):
                 u = new[i]
-                left = bprev[u]
-                right = bnext[u]
+                left = bl[u, 0]
+                right = bl[u, 1]
+                c = 0
                 for jj in range(offsets[u], offsets[u + 1]):
                     x = nb[jj]
-                    if on_b[x] and x != left and x != right:
-                        chords[u] += 1
-                        chords[x] += 1
-                on_b[u] = True
+                    if (st[x] & _ONB) and x != left and x != right:
+                        c += 1
+                        st[x] += _CH
+                st[u] += c * _CH + _ONB
+        if top + k + 2 > cap:  # cannot happen on a triangulation (3n - 6 pushes in all)
+            return -1
+        # push candidates so that the top of the stack is the leftmost (closest to V_blue)
         if maximal:
-            if vl != v_red and not in_stack[vl] and chords[vl] == 0:
+            if vl != v_red and (st[vl] & _INS) == 0 and (st[vl] >> 3) == 0:
                 stack[top] = vl
                 top += 1
-                in_stack[vl] = True
+                st[vl] |= _INS
             for i in range(k - 1, -1, -1):
                 u = new[i]
-                if chords[u] == 0:
+                if (st[u] >> 3) == 0:
                     stack[top] = u
                     top += 1
-                    in_stack[u] = True
-            if vr != v_blue and not in_stack[vr] and chords[vr] == 0:
+                    st[u] |= _INS
+            if vr != v_blue and (st[vr] & _INS) == 0 and (st[vr] >> 3) == 0:
                 stack[top] = vr
                 top += 1
-                in_stack[vr] = True
+                st[vr] |= _INS
         else:
-            if vr != v_blue and not in_stack[vr] and chords[vr] == 0:
+            # any free vertex: last-in first-out from the right side (a different valid wood)
+            if vr != v_blue and (st[vr] & _INS) == 0 and (st[vr] >> 3) == 0:
                 stack[top] = vr
                 top += 1
-                in_stack[vr] = True
+                st[vr] |= _INS
             for i in range(k):
                 u = new[i]
-                if chords[u] == 0:
+                if (st[u] >> 3) == 0:
                     stack[top] = u
                     top += 1
-                    in_stack[u] = True
-            if vl != v_red and not in_stack[vl] and chords[vl] == 0:
+                    st[u] |= _INS
+            if vl != v_red and (st[vl] & _INS) == 0 and (st[vl] >> 3) == 0:
                 stack[top] = vl
                 top += 1
-                in_stack[vl] = True
-        if top + k + 2 >= cap:
-            return out, order, -1
+                st[vl] |= _INS
     out[v_blue, RED] = v_red
-    return out, order, done
+    return done
 
 
 @numba.njit(cache=True)
@@ -582,6 +615,93 @@ def _default_root(faces: np.ndarray) -> int:
     return 0
 
 
+@dataclasses.dataclass(frozen=True)
+class WoodOut:
+    """The outgoing edges of a Schnyder wood and the unlabelled ccw rotations it was built on:
+    what the 4n-bit encoder needs (Sec. 3.1), without the colour / orientation labels and the
+    rotated neighbour lists of :class:`SchnyderWood` (one linear pass, :func:`label_wood`, away).
+
+    Attributes:
+      num_vertices, v_red, v_blue, v_black, out, offsets, conquest_order, root_face, maximal: as
+        in :class:`SchnyderWood`.
+      neighbors: ``(6n - 12,)`` int32; ``neighbors[offsets[u]:offsets[u+1]]`` are the neighbours
+        of ``u`` in ccw order, starting at an arbitrary one (the mesh's first corner at ``u``).
+    """
+
+    num_vertices: int
+    v_red: int
+    v_blue: int
+    v_black: int
+    out: np.ndarray
+    offsets: np.ndarray
+    neighbors: np.ndarray
+    conquest_order: np.ndarray
+    root_face: int = -1
+    maximal: bool = True
+
+    @property
+    def outer(self) -> tuple[int, int, int]:
+        """``(V_red, V_blue, V_black)``."""
+        return (self.v_red, self.v_blue, self.v_black)
+
+
+def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
+                 maximal: bool = True, work: Optional[np.ndarray] = None) -> WoodOut:
+    """The Schnyder wood of :func:`schnyder_wood` as its ``out`` table plus the unlabelled ccw
+    rotations (:class:`WoodOut`): the vertex conquest of Appendix A without the final labelling
+    pass. Same arguments, checks and errors as :func:`schnyder_wood`; ``out`` is identical.
+    ``work``: optional int32 scratch of ``6n + 16`` words, for a caller that reuses it after
+    (the encoder does); its content on return is garbage."""
+    f = np.ascontiguousarray(faces, dtype=np.int32)
+    n = int(num_vertices)
+    nf = int(f.shape[0])
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise errors.InvalidIndexError(f"faces must be (F, 3), got shape {f.shape}")
+    if n < 3 or nf != 2 * n - 4:
+        raise errors.UnsupportedTopologyError(
+            f"a Schnyder wood needs a closed genus-0 triangulation with F = 2n - 4 faces; got "
+            f"n = {n} vertices and F = {nf} faces (Euler characteristic {n - 3 * nf // 2 + nf}); "
+            "use the 'lr' or 'halfedge' structure for other topologies")
+    root = 0 if root_face is None else int(root_face)
+    if not 0 <= root < nf:
+        raise errors.InvalidIndexError(f"root_face {root} out of range [0, {nf})")
+    offsets0 = np.zeros(n + 1, dtype=np.int64)
+    nb0 = np.empty(3 * nf, dtype=np.int32)
+    if work is None or work.dtype != np.int32 or work.size < 6 * n + 16:
+        work = np.empty(6 * n + 16, dtype=np.int32)  # scratch of both kernels (3F < 6n + 16)
+    bad = _rotation_csr(f, n, offsets0, nb0, work)
+    if bad == -2:
+        raise errors.InvalidIndexError(f"face indices must lie in [0, {n})")
+    if bad >= 0:
+        raise errors.UnsupportedTopologyError(
+            f"vertex {bad}: its faces do not form a single closed fan (a boundary or a non-manifold "
+            "vertex); close holes with jaxcds.mesh.close_boundaries, or use 'halfedge'")
+    v_red, v_black, v_blue = (int(x) for x in f[root])
+    out = np.full((n, 3), n, dtype=np.int32)
+    order = np.empty(n - 2, dtype=np.int32)
+    done = _conquest_csr(offsets0, nb0, n, v_red, v_blue, v_black, bool(maximal), out, order, work)
+    if done != n - 2:
+        raise errors.UnsupportedTopologyError(
+            f"the vertex conquest stopped after {max(done, 0)} of {n - 2} vertices: the mesh is not a "
+            "planar (genus-0, simple) triangulation; use the 'lr' or 'halfedge' structure")
+    if n == 3:
+        out[v_blue, RED] = v_red
+    return WoodOut(num_vertices=n, v_red=v_red, v_blue=v_blue, v_black=v_black, out=out, offsets=offsets0,
+                   neighbors=nb0, conquest_order=order, root_face=root, maximal=bool(maximal))
+
+
+def label_wood(w: WoodOut) -> SchnyderWood:
+    """The :class:`SchnyderWood` of a :class:`WoodOut`: every rotation turned to start at the
+    outgoing red edge and each entry labelled with its colour and direction (one linear pass)."""
+    n = w.num_vertices
+    nb, col, og, bad = _finish_rotations(w.offsets, w.neighbors, w.out, n, w.v_red, w.v_blue)
+    if bad >= 0:
+        raise errors.StructureError(f"Schnyder wood: an edge at vertex {bad} got no colour")
+    return SchnyderWood(num_vertices=n, v_red=w.v_red, v_blue=w.v_blue, v_black=w.v_black, out=w.out,
+                        offsets=w.offsets, neighbors=nb, colour=col, outgoing=og,
+                        conquest_order=w.conquest_order, root_face=w.root_face, maximal=w.maximal)
+
+
 def schnyder_wood(faces, num_vertices: int, root_face: Optional[int] = None,
                   maximal: bool = True) -> SchnyderWood:
     """Schnyder wood of a closed genus-0 triangle mesh, in linear time (Appendix A).
@@ -598,41 +718,7 @@ def schnyder_wood(faces, num_vertices: int, root_face: Optional[int] = None,
       UnsupportedTopologyError: the faces do not form a planar triangulation (wrong Euler count,
         border edges, or the conquest got stuck), naming what failed.
     """
-    f = np.ascontiguousarray(faces, dtype=np.int32)
-    n = int(num_vertices)
-    nf = int(f.shape[0])
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise errors.InvalidIndexError(f"faces must be (F, 3), got shape {f.shape}")
-    if n < 3 or nf != 2 * n - 4:
-        raise errors.UnsupportedTopologyError(
-            f"a Schnyder wood needs a closed genus-0 triangulation with F = 2n - 4 faces; got "
-            f"n = {n} vertices and F = {nf} faces (Euler characteristic {n - 3 * nf // 2 + nf}); "
-            "use the 'lr' or 'halfedge' structure for other topologies")
-    root = 0 if root_face is None else int(root_face)
-    if not 0 <= root < nf:
-        raise errors.InvalidIndexError(f"root_face {root} out of range [0, {nf})")
-    if f.size and (f.min() < 0 or f.max() >= n):
-        raise errors.InvalidIndexError(f"face indices must lie in [0, {n})")
-    offsets0, nb0, bad = _rotation_csr(f, n)
-    if bad >= 0:
-        raise errors.UnsupportedTopologyError(
-            f"vertex {bad}: its faces do not form a single closed fan (a boundary or a non-manifold "
-            "vertex); close holes with jaxcds.mesh.close_boundaries, or use 'halfedge'")
-    v_red, v_black, v_blue = (int(x) for x in f[root])
-    out, order, done = _conquest_csr(offsets0, nb0, n, v_red, v_blue, v_black, bool(maximal))
-    if done != n - 2:
-        raise errors.UnsupportedTopologyError(
-            f"the vertex conquest stopped after {max(done, 0)} of {n - 2} vertices: the mesh is not a "
-            "planar (genus-0, simple) triangulation; use the 'lr' or 'halfedge' structure")
-    if n == 3:
-        out[v_blue, RED] = v_red
-    nb, col, og, bad = _finish_rotations(offsets0, nb0, out, n, v_red, v_blue)
-    offsets = offsets0
-    if bad >= 0:
-        raise errors.StructureError(f"Schnyder wood: an edge at vertex {bad} got no colour")
-    return SchnyderWood(num_vertices=n, v_red=v_red, v_blue=v_blue, v_black=v_black, out=out,
-                        offsets=offsets, neighbors=nb, colour=col, outgoing=og,
-                        conquest_order=order, root_face=root, maximal=bool(maximal))
+    return label_wood(schnyder_out(faces, num_vertices, root_face=root_face, maximal=maximal))
 
 
 # ---------------------------------------------------------------------------------- checker
