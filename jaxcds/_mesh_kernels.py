@@ -257,17 +257,19 @@ def manifold_twins(faces, num_vertices, components):
     endpoint (not two), each bucket (the edges of one vertex, average size 6) sorted by the
     other endpoint in cache, and on a manifold each edge group has one or two darts, which are
     the twins directly. Then one walk around every vertex (swing ``c -> opp[c.p]``) counts its
-    fan and, breadth first through the corners' targets, the components. Every check is exact
-    for detection: a duplicate face shares each of its edges with its copy, so either that edge
-    has more than two darts or its two darts have the same third vertex; a vertex has one fan
-    iff the swing from its first corner reaches all its corners, i.e. iff the fans reached sum
-    to ``3F`` corners.
+    fan; components are a union-find over the edges while pairing. Every check is exact for
+    detection: a vertex has one fan iff the swing from its first corner reaches all its
+    corners, i.e. iff the fans reached sum to ``3F`` corners; a face and its duplicate share
+    their three edges, so either an edge has more than two darts, or the two darts of one edge
+    run the same way, or (the copy reversed) the two faces close a fan of two faces around
+    each of their vertices -- which only a duplicate pair can do (``(v, a, b)`` followed by
+    ``(v, b, a)``) -- or a vertex of theirs has a second fan.
     """
     nf = faces.shape[0]
     nc = 3 * nf
     nv = num_vertices
     fl = faces.reshape(-1)
-    opp = np.full(nc, -1, dtype=np.int32)
+    opp = np.empty(nc, dtype=np.int32)  # every entry written in pass 3
     vc = np.full(nv, -1, dtype=np.int32)
     start = np.zeros(nv + 1, dtype=np.int32)  # 3F < 2^31 (checked by the caller)
     # pass 1: indices, degenerate faces, first corner of each vertex, bucket sizes (by lo)
@@ -288,19 +290,20 @@ def manifold_twins(faces, num_vertices, components):
         start[min(c, a) + 1] += 1
     for v in range(nv):
         start[v + 1] += start[v]
-    # pass 2: scatter keys (hi << 32 | dart); afterwards start[v] is the end of bucket v
+    # pass 2: scatter keys ``hi << 32 | backward << 31 | dart`` (dart < 2^31): the direction
+    # bit spares pass 3 any read of the faces; afterwards start[v] is the end of bucket v
     keys = np.empty(nc, dtype=np.int64)
     for d in range(nc):
         a = fl[d]
         b = fl[d + 1] if d % 3 != 2 else fl[d - 2]
         if a < b:
-            lo, hi = a, b
+            keys[start[a]] = (np.int64(b) << 32) | d
+            start[a] += 1
         else:
-            lo, hi = b, a
-        keys[start[lo]] = (np.int64(hi) << 32) | d
-        start[lo] += 1
-    # pass 3: per bucket, sort by (hi, dart) and pair the darts of each edge; components of
-    # vertices joined by edges (union-find while the bucket is in cache)
+            keys[start[b]] = (np.int64(a) << 32) | (np.int64(1) << 31) | d
+            start[b] += 1
+    # pass 3: per bucket, sort by (hi, direction, dart) and pair the darts of each edge;
+    # components of vertices joined by edges (union-find while the bucket is in cache)
     parent = np.arange(nv if components else 0).astype(np.int32)
     ne = 0
     s = 0
@@ -322,16 +325,17 @@ def manifold_twins(faces, num_vertices, components):
             if i + 1 < t and (keys[i + 1] >> 32) == hi:
                 if i + 2 < t and (keys[i + 2] >> 32) == hi:
                     return NON_MANIFOLD_EDGE, opp, vc, 0, 0
-                d1 = np.int32(keys[i] & 0xFFFFFFFF)
-                d2 = np.int32(keys[i + 1] & 0xFFFFFFFF)
-                if fl[d1] == fl[d2]:  # both darts leave the same end
+                if (keys[i + 1] >> 31) & 1 == 0:  # sorted: both darts forward (low -> high)
                     return SAME_DIRECTION, opp, vc, 0, 0
-                if fl[3 * (d1 // 3) + (d1 % 3 + 2) % 3] == fl[3 * (d2 // 3) + (d2 % 3 + 2) % 3]:
-                    return DUPLICATE, opp, vc, 0, 0
+                if (keys[i] >> 31) & 1 == 1:  # both backward
+                    return SAME_DIRECTION, opp, vc, 0, 0
+                d1 = np.int32(keys[i] & 0x7FFFFFFF)
+                d2 = np.int32(keys[i + 1] & 0x7FFFFFFF)
                 opp[d1] = d2
                 opp[d2] = d1
                 i += 2
             else:
+                opp[np.int32(keys[i] & 0x7FFFFFFF)] = -1  # a border side
                 i += 1
             ne += 1
             if components:
@@ -346,8 +350,9 @@ def manifold_twins(faces, num_vertices, components):
             continue
         c = c0
         border = False
+        n = 0
         while True:  # ccw swing: c -> twin of c.p (terminates: the swing is injective)
-            walked += 1
+            n += 1
             t = opp[3 * (c // 3) + (c % 3 + 2) % 3]
             if t < 0:
                 border = True
@@ -355,6 +360,9 @@ def manifold_twins(faces, num_vertices, components):
             c = t
             if c == c0:
                 break
+        walked += n
+        if n == 2 and not border:  # two faces closing around v are on one vertex set
+            return DUPLICATE, opp, vc, ne, 0
         if border:  # an open fan: also walk cw from the first corner
             c = c0
             while True:
