@@ -39,11 +39,17 @@ def main(argv=None):
     ap.add_argument("--points", type=int, default=100_000)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--ops", nargs="+", default=list(OPS))
+    ap.add_argument("--tree", default=None, choices=["dfs", "bfs"],
+                    help="pemb spanning tree (default: PEMB.from_faces's default)")
     ap.add_argument("--check", default=None, help="save (or compare with) results in this .npz")
     a = ap.parse_args(argv)
     pts = np.random.default_rng(0).random((a.points, 2))
     tri = io.from_points(pts, "u")
-    s = P.build_structure(tri, "pemb", check=False)
+    if a.tree is None:
+        s = P.build_structure(tri, "pemb", check=False)
+    else:
+        from jaxcds.structures.pemb import PEMB
+        s = PEMB.from_faces(tri.faces, tri.num_vertices, tree=a.tree)
     e = jnp.arange(s.num_darts, dtype=jnp.int32)
     print(json.dumps({"darts": s.num_darts, "bits_per_edge": s.bits_per_edge}), flush=True)
     results = {}
