@@ -118,10 +118,13 @@ def label_phase(s, positions, vertex_ids):
 
     e = _darts(s)
     valid = s.dart_valid(e)
-    border = s.is_border(e) & valid
+    border_any = s.is_border(e)
+    border = border_any & valid
     inner = valid & ~border
     tw = s.twin(e)
-    border_t = s.is_border(tw)
+    # is_border(twin(e)) read from the array of all darts' flags (a gather, not a second
+    # is_border per dart: on pemb that is a parenthesis search each)
+    border_t = border_any[jnp.clip(tw, 0, E - 1)]
     max_t = max_edge[tw]
     # Def. 4: frontier = border edge, or an edge that is the longest of neither triangle
     frontier = valid & (border | border_t | ~(max_edge | max_t))
@@ -132,24 +135,33 @@ def label_phase(s, positions, vertex_ids):
 
 
 # ------------------------------------------------------------------------------ 2. traversal
-def _turn_to_frontier(s, frontier, queries, rounds):
+def _turn_to_frontier(s, frontier, queries, inner, max_rounds):
     """``first frontier dart in the clockwise turn (cw_vertex_edge) starting at q`` for every dart,
-    by pointer doubling: ``p0(e) = e`` on frontier darts (fixed points), ``cw(e)`` elsewhere;
-    ``p <- p[p]``, ``rounds`` times (``2^rounds`` >= the largest degree suffices). The pointer and
-    the frontier flag of its target travel packed in one int32 (``2 p + flag``), so a round is one
-    gather. Returns ``(p, converged)`` (every query on a frontier dart)."""
+    by pointer doubling: ``p0(e) = e`` on frontier darts and non-inner darts (fixed points),
+    ``cw(e)`` elsewhere; ``p <- p[p]`` until every pointer's target is a frontier dart or a
+    fixed point (a ``while_loop``: ``ceil(log2(longest run of non-frontier darts))`` rounds, at
+    most ``max_rounds``; no degree count needed). The pointer and the "stopped" flag of its
+    target travel packed in one int32 (``2 p + flag``), so a round is one gather. Returns
+    ``(p, converged)`` (every query on a frontier dart)."""
     e = _darts(s)
-    inner = s.dart_valid(e) & ~s.is_border(e)
-    p = jnp.where(frontier | ~inner, e, s.cw_vertex_edge(e)).astype(jnp.int32)
-    pf = 2 * p + frontier[p].astype(jnp.int32)
+    fixed = frontier | ~inner
+    p = jnp.where(fixed, e, s.cw_vertex_edge(e)).astype(jnp.int32)
+    pf = 2 * p + fixed[p].astype(jnp.int32)
 
-    def body(k, pf):
-        return pf[pf >> 1]
+    def cond(c):
+        pf, k = c
+        return (k < max_rounds) & ~jnp.all((pf & 1) == 1)
 
-    pf = jax.lax.fori_loop(0, rounds, body, pf)
+    def body(c):
+        pf, k = c
+        return pf[pf >> 1], k + 1
+
+    pf, _ = jax.lax.while_loop(cond, body, (pf, jnp.int32(0)))
+    p = pf >> 1
     qmask = queries < s.num_darts
-    ok = jnp.all(~qmask | ((pf[jnp.where(qmask, queries, 0)] & 1) == 1))
-    return pf >> 1, ok
+    qs = jnp.where(qmask, queries, 0)
+    ok = jnp.all(~qmask | frontier[p[qs]])
+    return p, ok
 
 
 @jax.jit
@@ -165,13 +177,12 @@ def traversal_phase(s, frontier):
     """
     e = _darts(s)
     valid = s.dart_valid(e)
-    active = valid & ~s.is_border(e) & frontier
+    inner = valid & ~s.is_border(e)
+    active = inner & frontier
     q = jnp.where(active, s.next(e), s.num_darts)
-    # rounds: 2^rounds >= largest degree (one scatter-add for the degrees)
-    deg = jnp.zeros((s.num_vertices + 1,), jnp.int32).at[
-        jnp.where(valid, s.origin(e), s.num_vertices)].add(1)
-    rounds = jnp.ceil(jnp.log2(jnp.maximum(jnp.max(deg), 2).astype(jnp.float32))).astype(jnp.int32)
-    turn, ok = _turn_to_frontier(s, frontier, q, rounds)
+    # at most ceil(log2(num_darts)) doubling rounds; the loop stops as soon as every pointer
+    # has stopped (log2 of the longest clockwise run of non-frontier darts, about 4)
+    turn, ok = _turn_to_frontier(s, frontier, q, inner, max(1, int(s.num_darts).bit_length()))
     succ = jnp.where(active, turn[jnp.minimum(q, s.num_darts - 1)], s.num_darts)
     return succ.astype(jnp.int32), ok
 
