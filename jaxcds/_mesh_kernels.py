@@ -19,10 +19,59 @@ import numba
 import numpy as np
 
 
+_SMALL_BUCKET = 24  # insertion sort up to this bucket size, np.sort above (a high-degree vertex)
+
+
 @numba.njit(cache=True)
-def _dart_ends(faces, d):
-    f, k = d // 3, d % 3
-    return faces[f, k], faces[f, (k + 1) % 3]
+def _lo_bucket_sizes(fl, num_vertices):
+    """``start[v + 1]``: number of darts whose smaller endpoint is ``v``, prefix-summed (int32:
+    fewer than 2^31 darts, checked by the callers)."""
+    start = np.zeros(num_vertices + 1, dtype=np.int32)
+    for f in range(fl.size // 3):
+        a, b, c = fl[3 * f], fl[3 * f + 1], fl[3 * f + 2]
+        start[min(a, b) + 1] += 1
+        start[min(b, c) + 1] += 1
+        start[min(c, a) + 1] += 1
+    for v in range(num_vertices):
+        start[v + 1] += start[v]
+    return start
+
+
+@numba.njit(cache=True)
+def _scatter_by_lo(fl, start):
+    """One counting sort of the darts by their smaller endpoint ``lo`` (``start``: the prefix
+    sums of :func:`_lo_bucket_sizes`; on return ``start[v]`` is the end of bucket ``v``). Each
+    dart is the key ``hi << 32 | dart << 1 | backward`` (``backward``: it runs high -> low), so
+    sorting a bucket's keys orders its darts by ``(hi, dart)`` and whoever pairs them needs no
+    second read of the faces."""
+    nc = fl.size
+    keys = np.empty(nc, dtype=np.int64)
+    for d in range(nc):
+        a = fl[d]
+        b = fl[d + 1] if d % 3 != 2 else fl[d - 2]
+        if a < b:
+            keys[start[a]] = (np.int64(b) << 32) | (np.int64(d) << 1)
+            start[a] += 1
+        else:
+            keys[start[b]] = (np.int64(a) << 32) | (np.int64(d) << 1) | 1
+            start[b] += 1
+    return keys
+
+
+@numba.njit(cache=True)
+def _sort_bucket(keys, s, t):
+    """Sort ``keys[s:t]`` in place: insertion sort for the few edges of a typical vertex (in
+    cache), ``np.sort`` for a high-degree one (so a hub of degree k costs k log k, not k^2)."""
+    if t - s > _SMALL_BUCKET:
+        keys[s:t] = np.sort(keys[s:t])
+        return
+    for i in range(s + 1, t):
+        k = keys[i]
+        j = i - 1
+        while j >= s and keys[j] > k:
+            keys[j + 1] = keys[j]
+            j -= 1
+        keys[j + 1] = k
 
 
 @numba.njit(cache=True)
@@ -32,60 +81,75 @@ def edge_groups(faces, num_vertices):
     Returns ``(order, starts, dart_edge, forward, edges)``: ``order[starts[e]:starts[e+1]]`` are
     the darts on edge ``e`` in increasing id; ``dart_edge[d]`` is ``e``; ``forward[e]`` counts
     the darts of ``e`` that run low -> high; ``edges[e]`` is ``(lo, hi)``. Needs fewer than 2^31
-    darts (the intermediate order is int32 to halve its memory traffic).
+    darts. One counting sort by ``lo`` (:func:`_scatter_by_lo`), each bucket sorted by
+    ``(hi, dart)`` in cache: the order of ``np.unique(lo * V + hi)``, darts increasing.
     """
     nd = faces.shape[0] * 3
-    count = np.zeros(num_vertices + 1, dtype=np.int64)
-    for d in range(nd):
-        a, b = _dart_ends(faces, d)
-        count[max(a, b) + 1] += 1
-    for v in range(num_vertices):
-        count[v + 1] += count[v]
-    by_hi = np.empty(nd, dtype=np.int32)
-    for d in range(nd):
-        a, b = _dart_ends(faces, d)
-        h = max(a, b)
-        by_hi[count[h]] = d
-        count[h] += 1
-    count[:] = 0
-    for d in range(nd):
-        a, b = _dart_ends(faces, d)
-        count[min(a, b) + 1] += 1
-    for v in range(num_vertices):
-        count[v + 1] += count[v]
+    fl = faces.reshape(-1)
+    start = _lo_bucket_sizes(fl, num_vertices)
+    keys = _scatter_by_lo(fl, start)
     order = np.empty(nd, dtype=np.int64)
-    for i in range(nd):  # stable: equal lo keep their hi order, and darts their id order
-        d = by_hi[i]
-        a, b = _dart_ends(faces, d)
-        lo = min(a, b)
-        order[count[lo]] = d
-        count[lo] += 1
-    # one sequential pass over the grouped darts: edge ids, starts, endpoints, forward counts
     dart_edge = np.empty(nd, dtype=np.int64)
     starts = np.empty(nd + 1, dtype=np.int64)
-    ends = by_hi  # reuse: by_hi is dead from here on; holds lo of each edge, hi goes to fwd
+    ends = np.empty(nd, dtype=np.int32)
     his = np.empty(nd, dtype=np.int32)
     fwd = np.zeros(nd, dtype=np.int32)
     ne = 0
-    plo, phi = -1, -1
-    for i in range(nd):
-        d = order[i]
-        a, b = _dart_ends(faces, d)
-        lo, hi = min(a, b), max(a, b)
-        if lo != plo or hi != phi:
-            starts[ne] = i
-            ends[ne] = lo
-            his[ne] = hi
-            ne += 1
-            plo, phi = lo, hi
-        dart_edge[d] = ne - 1
-        if a < b:
-            fwd[ne - 1] += 1
+    s = 0
+    for v in range(num_vertices):
+        t = start[v]
+        _sort_bucket(keys, s, t)
+        phi = -1
+        for i in range(s, t):
+            k = keys[i]
+            hi = k >> 32
+            d = (k & 0xFFFFFFFF) >> 1
+            if hi != phi:
+                starts[ne] = i
+                ends[ne] = v
+                his[ne] = hi
+                ne += 1
+                phi = hi
+            order[i] = d
+            dart_edge[d] = ne - 1
+            if k & 1 == 0:
+                fwd[ne - 1] += 1
+        s = t
     starts[ne] = nd
     edges = np.empty((ne, 2), dtype=np.int64)
     edges[:, 0] = ends[:ne]
     edges[:, 1] = his[:ne]
     return order, starts[: ne + 1].copy(), dart_edge, fwd[:ne].astype(np.int64), edges
+
+
+@numba.njit(cache=True)
+def match_twins(faces, num_vertices):
+    """``opp[d]``: the twin of dart ``d`` among the face darts, or -1 (a border side), int32.
+    The darts of each undirected edge, in increasing id, are paired two by two (the first with
+    the second, the third with the fourth...; an odd last one stays -1): what the half-edge's
+    first-unpaired-dart matching gives, without its scan, quadratic in a vertex's degree."""
+    nc = faces.shape[0] * 3
+    fl = faces.reshape(-1)
+    start = _lo_bucket_sizes(fl, num_vertices)
+    keys = _scatter_by_lo(fl, start)
+    opp = np.empty(nc, dtype=np.int32)
+    s = 0
+    for v in range(num_vertices):
+        t = start[v]
+        _sort_bucket(keys, s, t)
+        i = s
+        while i < t:
+            d1 = np.int32((keys[i] & 0xFFFFFFFF) >> 1)
+            if i + 1 < t and (keys[i + 1] >> 32) == (keys[i] >> 32):
+                d2 = np.int32((keys[i + 1] & 0xFFFFFFFF) >> 1)
+                opp[d1] = d2
+                opp[d2] = d1
+                i += 2
+            else:
+                opp[d1] = -1
+                i += 1
+        s = t
+    return opp
 
 
 @numba.njit(cache=True)
@@ -239,8 +303,6 @@ def cycles(nxt):
 # path stopped; the caller then runs the full checks, which find and name the defect.
 CLEAN, BAD_INDEX, DEGENERATE, NON_MANIFOLD_EDGE, SAME_DIRECTION, DUPLICATE, NON_MANIFOLD_VERTEX = range(7)
 
-_SMALL_BUCKET = 24  # insertion sort below this bucket size, np.sort above (a high-degree vertex)
-
 
 @numba.njit(cache=True)
 def manifold_twins(faces, num_vertices, components):
@@ -271,8 +333,7 @@ def manifold_twins(faces, num_vertices, components):
     fl = faces.reshape(-1)
     opp = np.empty(nc, dtype=np.int32)  # every entry written in pass 3
     vc = np.full(nv, -1, dtype=np.int32)
-    start = np.zeros(nv + 1, dtype=np.int32)  # 3F < 2^31 (checked by the caller)
-    # pass 1: indices, degenerate faces, first corner of each vertex, bucket sizes (by lo)
+    # pass 1: indices, degenerate faces, first corner of each vertex
     for f in range(nf):
         a, b, c = fl[3 * f], fl[3 * f + 1], fl[3 * f + 2]
         if a < 0 or b < 0 or c < 0 or a >= nv or b >= nv or c >= nv:
@@ -285,57 +346,32 @@ def manifold_twins(faces, num_vertices, components):
             vc[b] = 3 * f + 1
         if vc[c] < 0:
             vc[c] = 3 * f + 2
-        start[min(a, b) + 1] += 1
-        start[min(b, c) + 1] += 1
-        start[min(c, a) + 1] += 1
-    for v in range(nv):
-        start[v + 1] += start[v]
-    # pass 2: scatter keys ``hi << 32 | backward << 31 | dart`` (dart < 2^31): the direction
-    # bit spares pass 3 any read of the faces; afterwards start[v] is the end of bucket v
-    keys = np.empty(nc, dtype=np.int64)
-    for d in range(nc):
-        a = fl[d]
-        b = fl[d + 1] if d % 3 != 2 else fl[d - 2]
-        if a < b:
-            keys[start[a]] = (np.int64(b) << 32) | d
-            start[a] += 1
-        else:
-            keys[start[b]] = (np.int64(a) << 32) | (np.int64(1) << 31) | d
-            start[b] += 1
-    # pass 3: per bucket, sort by (hi, direction, dart) and pair the darts of each edge;
+    # pass 2: one counting sort of the darts by smaller endpoint (3F < 2^31: the caller checks)
+    start = _lo_bucket_sizes(fl, nv)
+    keys = _scatter_by_lo(fl, start)
+    # pass 3: per bucket, sort by (hi, dart) and pair the darts of each edge;
     # components of vertices joined by edges (union-find while the bucket is in cache)
     parent = np.arange(nv if components else 0).astype(np.int32)
     ne = 0
     s = 0
     for v in range(nv):
         t = start[v]
-        if t - s > _SMALL_BUCKET:
-            keys[s:t] = np.sort(keys[s:t])
-        else:
-            for i in range(s + 1, t):  # insertion sort: buckets hold a vertex's few edges
-                k = keys[i]
-                j = i - 1
-                while j >= s and keys[j] > k:
-                    keys[j + 1] = keys[j]
-                    j -= 1
-                keys[j + 1] = k
+        _sort_bucket(keys, s, t)
         i = s
         while i < t:
             hi = keys[i] >> 32
             if i + 1 < t and (keys[i + 1] >> 32) == hi:
                 if i + 2 < t and (keys[i + 2] >> 32) == hi:
                     return NON_MANIFOLD_EDGE, opp, vc, 0, 0
-                if (keys[i + 1] >> 31) & 1 == 0:  # sorted: both darts forward (low -> high)
+                if (keys[i] ^ keys[i + 1]) & 1 == 0:  # both darts run the same way
                     return SAME_DIRECTION, opp, vc, 0, 0
-                if (keys[i] >> 31) & 1 == 1:  # both backward
-                    return SAME_DIRECTION, opp, vc, 0, 0
-                d1 = np.int32(keys[i] & 0x7FFFFFFF)
-                d2 = np.int32(keys[i + 1] & 0x7FFFFFFF)
+                d1 = np.int32((keys[i] & 0xFFFFFFFF) >> 1)
+                d2 = np.int32((keys[i + 1] & 0xFFFFFFFF) >> 1)
                 opp[d1] = d2
                 opp[d2] = d1
                 i += 2
             else:
-                opp[np.int32(keys[i] & 0x7FFFFFFF)] = -1  # a border side
+                opp[np.int32((keys[i] & 0xFFFFFFFF) >> 1)] = -1  # a border side
                 i += 1
             ne += 1
             if components:

@@ -395,3 +395,40 @@ def test_fast_path_counts_components_and_refuses_bad_indices():
     v, f = octahedron()
     with pytest.raises(errors.InvalidIndexError, match=r"face 0 refers to vertex 6, outside \[0, 6\)"):
         validate(TriMesh(vertices=v, faces=np.where(f == 4, 6, f)))
+
+
+def _first_unpaired_twins(f, nv):
+    """The half-edge's former twin matching, verbatim in Python (the oracle of the sort-based
+    one): darts bucketed by smaller endpoint, each paired with the first unpaired dart of its
+    bucket with the same other endpoint."""
+    buckets = [[] for _ in range(nv)]
+    for d in range(3 * f.shape[0]):
+        a, b = int(f[d // 3, d % 3]), int(f[d // 3, (d % 3 + 1) % 3])
+        buckets[min(a, b)].append((d, max(a, b)))
+    opp = np.full(3 * f.shape[0], -1, np.int32)
+    for bucket in buckets:
+        for i, (d, o) in enumerate(bucket):
+            if opp[d] >= 0:
+                continue
+            for d2, o2 in bucket[i + 1:]:
+                if o2 == o and opp[d2] < 0:
+                    opp[d], opp[d2] = d2, d
+                    break
+    return opp
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sort_based_twin_matching_equals_first_unpaired_matching(seed):
+    from jaxcds.structures.halfedge import _match_twins
+
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(3, 30))
+    f = _random_soup(rng, nv=nv, nf=int(rng.integers(1, 200)))  # odd groups, loops, repeats
+    np.testing.assert_array_equal(_match_twins(f, nv), _first_unpaired_twins(f, nv))
+    # hub 0 of degree 60 (its bucket, 120 darts, goes through np.sort) on a closed bipyramid
+    k = 60
+    ring, nxt = 1 + np.arange(k), 1 + (np.arange(k) + 1) % k
+    g = np.concatenate([np.stack([np.zeros(k, int), ring, nxt], 1),
+                        np.stack([np.full(k, k + 1), nxt, ring], 1)]).astype(np.int32)
+    g = g[rng.permutation(g.shape[0])]
+    np.testing.assert_array_equal(_match_twins(g, k + 2), _first_unpaired_twins(g, k + 2))

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numba
 import numpy as np
 
+from jaxcds import _mesh_kernels as _kernels
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
@@ -159,39 +160,11 @@ def halfedge_arrays(faces: np.ndarray, num_vertices: int):
 
 @numba.njit(cache=True)
 def _match_twins(faces, num_vertices):
-    """``opp[d]``: the twin of dart ``d`` among the face darts, or -1 (a border side). Darts are
-    bucketed by their smaller endpoint (a counting sort) and each is paired with the first
-    unpaired dart of its bucket with the same other endpoint."""
-    nf = faces.shape[0]
-    n3 = 3 * nf
-    start = np.zeros(num_vertices + 1, dtype=np.int64)
-    for d in range(n3):
-        a = faces[d // 3, d % 3]
-        b = faces[d // 3, (d % 3 + 1) % 3]
-        start[min(a, b) + 1] += 1
-    for v in range(num_vertices):
-        start[v + 1] += start[v]
-    fill = start[:-1].copy()
-    bucket = np.empty(n3, dtype=np.int32)  # int32: half the memory traffic (darts < 2^31)
-    other = np.empty(n3, dtype=np.int32)
-    for d in range(n3):
-        a = faces[d // 3, d % 3]
-        b = faces[d // 3, (d % 3 + 1) % 3]
-        lo = min(a, b)
-        bucket[fill[lo]] = d
-        other[fill[lo]] = max(a, b)
-        fill[lo] += 1
-    opp = np.full(n3, -1, dtype=np.int32)
-    for v in range(num_vertices):
-        for i in range(start[v], start[v + 1]):
-            if opp[bucket[i]] >= 0:
-                continue
-            for j in range(i + 1, start[v + 1]):
-                if other[j] == other[i] and opp[bucket[j]] < 0:
-                    opp[bucket[i]] = bucket[j]
-                    opp[bucket[j]] = bucket[i]
-                    break
-    return opp
+    """``opp[d]``: the twin of dart ``d`` among the face darts, or -1 (a border side). The darts
+    of each undirected edge, in increasing id, are paired two by two (one counting sort by the
+    smaller endpoint, each bucket sorted by the other endpoint:
+    :func:`jaxcds._mesh_kernels.match_twins`; a vertex of degree k costs k log k)."""
+    return _kernels.match_twins(faces, num_vertices)
 
 
 @numba.njit(cache=True)
