@@ -54,16 +54,18 @@ class HalfEdge(MeshStructure):
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "HalfEdge":
         """Build from a validated mesh (borders allowed, several components allowed)."""
         mesh = load_mesh(mesh)
+        twins = None
         if check:
-            validate(mesh, structure="halfedge")
-        return cls.from_faces(mesh.faces, mesh.num_vertices)
+            mesh, twins = validate(mesh, structure="halfedge", return_twins=True)
+        return cls.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
 
     @classmethod
-    def from_faces(cls, faces, num_vertices: int) -> "HalfEdge":
+    def from_faces(cls, faces, num_vertices: int, *, twins=None) -> "HalfEdge":
         """Build from an ``(F, 3)`` ccw face array of a manifold, consistently oriented mesh
-        (not re-validated here: use :meth:`from_mesh` for untrusted input)."""
+        (not re-validated here: use :meth:`from_mesh` for untrusted input). ``twins``: the
+        :class:`jaxcds.mesh.Twins` validation returned for these faces (no second matching)."""
         f = np.ascontiguousarray(faces, dtype=np.int32)
-        nxt, opp, vert, vedge, bprev = halfedge_arrays(f, int(num_vertices))
+        nxt, opp, vert, vedge, bprev = halfedge_arrays(f, int(num_vertices), twins=twins)
         return cls(next_=jnp.asarray(nxt), opposite=jnp.asarray(opp), vertex=jnp.asarray(vert),
                    vertex_edge=jnp.asarray(vedge), border_prev=jnp.asarray(bprev),
                    num_vertices=int(num_vertices), num_faces=int(f.shape[0]))
@@ -147,14 +149,18 @@ class HalfEdge(MeshStructure):
 
 
 # ------------------------------------------------------------------ numba builder
-def halfedge_arrays(faces: np.ndarray, num_vertices: int):
+def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None):
     """``(next, opposite, vertex, vertex_edge, border_prev)`` int32 arrays for a face list.
 
     Linear time: darts are bucketed by their smaller endpoint (a counting sort), and each dart
-    finds its twin inside its bucket, whose size is the vertex degree.
+    finds its twin inside its bucket, whose size is the vertex degree -- or the twins come from
+    validation (``twins``, :class:`jaxcds.mesh.Twins` of these faces).
     """
     f = np.ascontiguousarray(faces, dtype=np.int32)
-    opp = _match_twins(f, int(num_vertices))
+    if twins is not None and twins.opp.shape[0] == 3 * f.shape[0]:
+        opp = twins.opp.copy()  # _link writes the border half-edges into it
+    else:
+        opp = _match_twins(f, int(num_vertices))
     return _link(f, opp, int(num_vertices), f.shape[0])
 
 

@@ -1,5 +1,5 @@
-"""CornerTable from the twins that validation hands out (jaxcds.mesh.Twins) equals the one that
-matches twins itself (corner_table._closed_corner_table, the half-edge's _match_twins)."""
+"""CornerTable (and HalfEdge) from the twins that validation hands out (jaxcds.mesh.Twins) equal
+the ones that match twins themselves (corner_table._closed_corner_table, the half-edge's _match_twins)."""
 
 from __future__ import annotations
 
@@ -44,3 +44,13 @@ def test_twins_of_another_face_list_are_not_used():
     _, twins = M.validate(M.TriMesh(vertices=np.zeros((50, 3)), faces=f), return_twins=True)
     g = random_planar_triangulation_faces(60, seed=2)  # other sizes: the twins are ignored
     _same(CornerTable.from_faces(g, 60, twins=twins), CornerTable.from_faces(g, 60))
+
+
+@pytest.mark.parametrize("name", mesh_params(["grid.off", "stanford-bunny.obj", "3holes.off"]))
+def test_halfedge_from_validation_twins(name):
+    from jaxcds.structures import HalfEdge
+
+    m = load_shared(name)
+    a, b = HalfEdge.from_mesh(m), HalfEdge.from_faces(m.faces, m.num_vertices)  # twins / matched
+    for field in ("next_", "opposite", "vertex", "vertex_edge", "border_prev"):
+        np.testing.assert_array_equal(np.asarray(getattr(a, field)), np.asarray(getattr(b, field)))
