@@ -301,7 +301,8 @@ def cycles(nxt):
 # ------------------------------------------------------------------ fast path: clean meshes
 # Status codes of :func:`manifold_twins` (0: no defect). Any other code only says *that* the fast
 # path stopped; the caller then runs the full checks, which find and name the defect.
-CLEAN, BAD_INDEX, DEGENERATE, NON_MANIFOLD_EDGE, SAME_DIRECTION, DUPLICATE, NON_MANIFOLD_VERTEX = range(7)
+(CLEAN, BAD_INDEX, DEGENERATE, NON_MANIFOLD_EDGE, SAME_DIRECTION, DUPLICATE,
+ NON_MANIFOLD_VERTEX) = range(7)
 
 
 @numba.njit(cache=True)

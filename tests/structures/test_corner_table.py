@@ -1,5 +1,6 @@
-"""CornerTable (and HalfEdge) from the twins that validation hands out (jaxcds.mesh.Twins) equal
-the ones that match twins themselves (corner_table._closed_corner_table, the half-edge's _match_twins)."""
+"""CornerTable (and HalfEdge) from the twins that validation hands out (jaxcds.mesh.Twins)
+equal the ones that match twins themselves (corner_table._closed_corner_table, the
+half-edge's _match_twins)."""
 
 from __future__ import annotations
 
