@@ -342,6 +342,7 @@ class Twins:
 class _Clean:
     twins: Twins
     num_components: int  # -1: not counted
+    num_edges: int
 
 
 def _fast_check(mesh: TriMesh, components: bool) -> Optional[_Clean]:
@@ -361,13 +362,13 @@ def _fast_check(mesh: TriMesh, components: bool) -> Optional[_Clean]:
     # coordinates to the full check, which then finds nothing
     if not np.isfinite(np.sum(mesh.vertices)):
         return None
-    status, opp, vc, _, ncomp = kernels.manifold_twins(np.ascontiguousarray(f),
-                                                       mesh.num_vertices, components)
+    status, opp, vc, ne, ncomp = kernels.manifold_twins(np.ascontiguousarray(f),
+                                                        mesh.num_vertices, components)
     if status == kernels.BAD_INDEX:  # load_mesh refuses these; a TriMesh built by hand may not
         _check_indices(f, mesh.num_vertices, mesh.source)
     if status != kernels.CLEAN:
         return None
-    return _Clean(Twins(opp, vc), int(ncomp) if components else -1)
+    return _Clean(Twins(opp, vc), int(ncomp) if components else -1, int(ne))
 
 
 def _components_error(mesh: TriMesh, ncomp: int, structure: str) -> errors.MeshError:
@@ -533,6 +534,9 @@ def topology(mesh: TriMesh) -> dict:
     """Topology report: counts, components, boundary loops, Euler characteristic, genus,
     orientability, manifoldness, and the list of defects (as messages). Never raises on a
     readable mesh."""
+    clean = _fast_check(mesh, components=True)
+    if clean is not None:  # no defect: everything follows from the twins (same report)
+        return _clean_topology(mesh, clean)
     f = mesh.faces.astype(np.int64)
     et = edge_table(mesh.faces)
     defects = find_defects(mesh, et)
@@ -574,6 +578,36 @@ def topology(mesh: TriMesh) -> dict:
         "removed_unreferenced_vertices": int(mesh.removed_unreferenced),
         "dummy_vertices": int(np.sum(mesh.dummy_vertices)) if mesh.dummy_vertices is not None else 0,
         "defects": [f"{type(d).__name__}: {d}" for d in defects],
+    }
+
+
+def _clean_topology(mesh: TriMesh, clean: _Clean) -> dict:
+    """:func:`topology` of a mesh without defects, from the fast path's twins: one side per
+    border edge, consistently oriented (hence orientable), manifold."""
+    border = np.flatnonzero(clean.twins.opp < 0)
+    loops = _boundary_cycles(mesh, border)[0]
+    v, e, nf = mesh.num_vertices, clean.num_edges, mesh.num_faces
+    chi = v - e + nf
+    g2 = 2 * clean.num_components - chi - len(loops)
+    return {
+        "source": mesh.source,
+        "vertices": v,
+        "edges": e,
+        "faces": nf,
+        "components": clean.num_components,
+        "boundary_loops": len(loops),
+        "boundary_loop_lengths": sorted((int(len(l)) for l in loops), reverse=True),
+        "boundary_edges": int(border.size),
+        "euler_characteristic": int(chi),
+        "genus": g2 // 2 if g2 % 2 == 0 and g2 >= 0 else None,
+        "closed": border.size == 0,
+        "manifold": True,
+        "orientable": True,
+        "consistently_oriented": True,
+        "welded_vertices": int(mesh.welded),
+        "removed_unreferenced_vertices": int(mesh.removed_unreferenced),
+        "dummy_vertices": int(np.sum(mesh.dummy_vertices)) if mesh.dummy_vertices is not None else 0,
+        "defects": [],
     }
 
 

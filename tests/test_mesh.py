@@ -383,6 +383,20 @@ def test_fast_validation_path_agrees_with_full_checks(seed, monkeypatch):
             np.testing.assert_array_equal(twins.vertex_corner, first)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_topology_fast_path_equals_full_report(seed, monkeypatch):
+    from jaxcds import mesh as M
+
+    meshes = _mutants(seed) + [(n, load_shared(n)) for n in ("grid.off", "stanford-bunny.obj",
+                                                             "3holes.off", "beetle.off")]
+    for name, m in meshes:
+        fast = M.topology(m)
+        with monkeypatch.context() as mp:
+            mp.setattr(M, "_fast_check", lambda *a, **k: None)
+            full = M.topology(m)
+        assert fast == full, name
+
+
 def test_fast_path_counts_components_and_refuses_bad_indices():
     from jaxcds import _mesh_kernels as kernels
     from jaxcds.mesh import _components
