@@ -427,9 +427,23 @@ class LRTables:
         n0 = int(self.t0.size)
         nw = int(self.skip_left.sum() + self.skip_right.sum())
         ni = int(self.irr_left.sum() + self.irr_right.sum())
+        ni2 = int(self._irregular_t2().sum())
         return {"m_r": self.num_ring, "m_i": self.ring.num_isolated, "T0": n0, "T0w": nw,
-                "Ti": ni, "T2": self.num_t2,
-                "pct_T0": 100.0 * n0 / n, "pct_T0w": 100.0 * nw / n, "pct_Ti": 100.0 * ni / n}
+                "Ti": ni, "T1i": ni - ni2, "T2i": ni2, "T2": self.num_t2,
+                "pct_T0": 100.0 * n0 / n, "pct_T0w": 100.0 * nw / n, "pct_Ti": 100.0 * ni / n,
+                "pct_T1i": 100.0 * (ni - ni2) / n, "pct_T2i": 100.0 * ni2 / n}
+
+    def _irregular_t2(self) -> np.ndarray:
+        """``(2 m_r,)`` irregular slots holding a T2 (T_2^i, Sec. 4.3): a T2 fills two
+        consecutive slots of one side and is canonical in the second one (Sec. 4.4), so slot
+        ``v`` holds a T2 iff slot ``v - 1`` of the same side holds its redundant copy, or holds
+        the T_0^w that wart skipping put there in its place (Sec. 5). A T_0^w slot counts as
+        T_1 (it is stored as one)."""
+        out = []
+        for irr, red, skip in ((self.irr_left, self.red_left, self.skip_left),
+                               (self.irr_right, self.red_right, self.skip_right)):
+            out.append(irr & np.roll(red | skip, 1))
+        return np.concatenate(out)
 
 
 def lr_tables(V, O, ring: Ring, num_vertices: int, *, wart_skipping: bool = True) -> LRTables:

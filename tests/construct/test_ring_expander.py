@@ -152,3 +152,37 @@ def test_corrupted_corner_table_is_refused():
     with pytest.raises((errors.StructureError, errors.UnsupportedTopologyError)):
         tm, _ = ring_expander(V, O_bad, 20, 0)
         extract_ring(V, O_bad, tm, 20, 0)
+
+
+@pytest.mark.parametrize("skipping", [True, False])
+@pytest.mark.parametrize("name,faces", [("armadillo.obj", None), ("random", 3000)])
+def test_irregular_split_t1_t2_against_ring_edges(name, faces, skipping):
+    """Table 1's T^i split into T_1^i and T_2^i: an irregular slot's triangle is a T_2^i when
+    two of its edges are ring edges, counted here straight from the ring order (oracle). With
+    wart skipping every T_2 next to a T_0 is a wart and is absorbed (T_2^i = 0, as the paper's
+    Table 1 shows no T_2^i column for standard LR); without it the warts are the T_2^i."""
+    from jaxcds.construct.ring_expander import lr_tables
+
+    if faces is None:
+        m = load_shared(name)
+        f, nv = m.faces, m.num_vertices
+    else:
+        f = random_planar_triangulation_faces(faces, seed=4)
+        nv = int(f.max()) + 1
+    V, O = _vo(f, nv)
+    tb = lr_tables(V, O, best_ring(V, O, nv, seeds=2), nv, wart_skipping=skipping)
+    ring = tb.order
+    edges = {frozenset((int(a), int(b))) for a, b in zip(ring, np.roll(ring, -1))}
+    tris = np.concatenate([tb.left_corner // 3, tb.right_corner // 3])
+    irr = np.concatenate([tb.irr_left, tb.irr_right])
+    skip = np.concatenate([tb.skip_left, tb.skip_right])
+    t2 = 0
+    for t, sk in zip(tris[irr], skip[irr]):
+        a, b, c = (int(x) for x in V[3 * t: 3 * t + 3])
+        k = sum(frozenset(e) in edges for e in ((a, b), (b, c), (c, a)))
+        t2 += (k == 2) and not sk
+    st = tb.stats(len(V) // 3)
+    assert st["Ti"] == int(irr.sum()) > 0
+    assert st["T2i"] == t2
+    assert st["T1i"] + st["T2i"] == st["Ti"]
+    assert (st["T2i"] == 0) if skipping else (st["T2i"] > 0)
