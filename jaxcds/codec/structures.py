@@ -32,6 +32,8 @@ RED, BLUE, BLACK = 0, 1, 2
 _IDX = (1 << 30) - 1
 _B30 = 1 << 30
 _B31 = 1 << 31
+_U30 = np.uint32(_B30)  # the same bits as uint32 constants: stores into the uint32 view stay 32-bit
+_U31 = np.uint32(_B31)
 
 # column layouts: (red left/toleft, red right, red I col, black left, black right, black I col,
 #                  stack col A, stack col B (== A: one two-ended stack column))
@@ -66,7 +68,11 @@ def _sb(r, u, col, bit, flag):
 
 @numba.njit(cache=True, nogil=True)
 def _phase1(buf, n, mixed, r, L, five):
-    """Fig. 10 + 11 into packed refs ``r`` (uint32 view). Returns (status, bit, vertex)."""
+    """Fig. 10 + 11 into packed refs ``r`` (uint32 view). Returns (status, bit, vertex).
+
+    Each reference is written with one store (value, colour bit 30, and bit 31 kept where it
+    holds an ``I`` flag) instead of a read-modify-write per field; a leaf's ``I_red`` is not
+    cleared (the table starts zeroed and only a first child sets it)."""
     c_rl, c_rr, c_ri, c_kl, c_kr, c_ki, c_sa, c_sb = L
     shared = c_sa == c_sb
     end_r = 4 * n - 3 if mixed else 2 * n
@@ -106,21 +112,17 @@ def _phase1(buf, n, mixed, r, L, five):
                     return 6, (pr if mixed else pb) - 1, u
                 if d > btop:
                     return 7, (pr if mixed else pb) - 1, u
-                _sb(r, u, c_ki, 31, True)  # I_black[u]
+                r[u, c_ki] |= _U31  # I_black[u]
                 btop -= 1
                 x = np.int64(r[n - 1 - btop, c_sb]) if shared else np.int64(r[btop, c_sb])
-                _ss(r, x, c_kl, u)  # first black child: LeftFront = u_red
-                _sb(r, x, c_kl, 30, False)
+                r[x, c_kl] = (r[x, c_kl] & _U31) | np.uint32(u)  # first black child: LeftFront = u_red
                 for _ in range(d - 1):
                     y = x
                     btop -= 1
                     x = np.int64(r[n - 1 - btop, c_sb]) if shared else np.int64(r[btop, c_sb])
-                    _ss(r, x, c_kl, y)
-                    _sb(r, x, c_kl, 30, True)
-                    _ss(r, y, c_kr, x)
-                    _sb(r, y, c_kr, 30, True)
-                _ss(r, x, c_kr, u)  # last black child: RightFront = u_blue
-                _sb(r, x, c_kr, 30, False)
+                    r[x, c_kl] = (r[x, c_kl] & _U31) | np.uint32(y) | _U30
+                    r[y, c_kr] = np.uint32(x) | _U30
+                r[x, c_kr] = np.uint32(u)  # last black child: RightFront = u_blue
         if pr >= end_r:
             return 4, pr, u
         s = _bit(buf, pr)
@@ -134,23 +136,12 @@ def _phase1(buf, n, mixed, r, L, five):
             if shared and rtop + btop >= n:
                 return 3, pr - 1, N
             if prev_open:  # first red child: LeftFront = top_blue
-                _sb(r, top, c_ri, 31, True)
-                _ss(r, v, c_rl, top)
-                if five:
-                    _sb(r, v, c_rl, 30, True)   # C_red^toleft = blue (1)
-                    _sb(r, v, c_rl, 31, False)
-                else:
-                    _sb(r, v, c_rl, 30, False)
+                r[top, c_ri] |= _U31
+                r[v, c_rl] = np.uint32(top) | (_U30 if five else np.uint32(0))
             else:  # next sibling of last_closed
                 w = last_closed
-                _ss(r, v, c_rl, w)
-                if five:
-                    _sb(r, v, c_rl, 30, False)  # C_red^toleft = red (0)
-                    _sb(r, v, c_rl, 31, False)
-                else:
-                    _sb(r, v, c_rl, 30, True)
-                _ss(r, w, c_rr, v)
-                _sb(r, w, c_rr, 30, True)
+                r[v, c_rl] = np.uint32(w) | (np.uint32(0) if five else _U30)
+                r[w, c_rr] = (r[w, c_rr] & _U31) | np.uint32(v) | _U30
             r[rtop, c_sa] = np.uint32(v)
             rtop += 1
             u = v
@@ -158,16 +149,12 @@ def _phase1(buf, n, mixed, r, L, five):
         else:
             rtop -= 1
             u = np.int64(r[rtop, c_sa])
-            if prev_open:
-                _sb(r, u, c_ri, 31, False)
-            else:
+            if not prev_open:
                 if u == 0:
                     root_last = last_closed
-                    _ss(r, last_closed, c_rr, 1)
-                    _sb(r, last_closed, c_rr, 30, True)
+                    r[last_closed, c_rr] = (r[last_closed, c_rr] & _U31) | np.uint32(1) | _U30
                 else:
-                    _ss(r, last_closed, c_rr, u)
-                    _sb(r, last_closed, c_rr, 30, False)
+                    r[last_closed, c_rr] = (r[last_closed, c_rr] & _U31) | np.uint32(u)
             if u > 1:
                 if shared:
                     if rtop + btop >= n:
@@ -203,53 +190,59 @@ def _phase1(buf, n, mixed, r, L, five):
 
 @numba.njit(cache=True, nogil=True)
 def _blue6(n, r):
-    """ConstructBlueTree (Fig. 12) on the CDS6n refs; V_blue's children by the same walk."""
+    """ConstructBlueTree (Fig. 12) on the CDS6n refs; V_blue's children by the same walk.
+
+    The walk cw around ``x`` picks the next blue child ``v`` of ``x`` by the colour of the edge
+    ``{v, u}`` (red: ``v = u + 1``; black: ``v = S_black^right[u]``) -- a coin flip for the
+    branch predictor, so both candidates and both stop tests are computed and selected
+    instead. Column 3 (``S_blue^right``, bit 31 unused) is written once per vertex by a plain
+    store; column 2 keeps ``I_blue`` in bit 31."""
     budget = n
     for x in range(1, n - 1):
+        rx1 = r[x, 1]
+        rx4 = r[x, 4]
+        sx1 = np.int64(rx1 & _IDX)
+        sx4 = np.int64(rx4 & _IDX)
+        cx1 = (rx1 >> 30) & 1
+        cx4 = (rx4 >> 30) & 1
         if x == 1:
-            if not _gb(r, 1, 1, 30):
+            if not cx1:
                 return 9, 1
-            u = _gs(r, 1, 1)
+            u = sx1
         else:
-            if _gs(r, x, 1) == _gs(r, x, 4) and _gb(r, x, 1, 30) != _gb(r, x, 4, 30):
+            if sx1 == sx4 and cx1 != cx4:
                 continue  # x has no blue child (I_blue stays false)
-            if _gb(r, x, 1, 30):
-                u = _gs(r, x, 1)
-            else:
-                u = _gs(r, _gs(r, x, 1), 5)
-        _sb(r, x, 2, 31, True)  # I_blue[x]
+            if cx1:  # RightFront(x_red) is red: its source is the first blue child
+                u = sx1
+            else:  # RightFront(x_red) is black, out of z = red parent of x
+                u = np.int64(r[sx1, 5] & _IDX)
+        r[x, 2] |= np.uint32(_B31)  # I_blue[x]
         if u <= 1 or u >= n:
             return 10, x
-        _ss(r, u, 3, x)  # S_blue^right[u] = x, C false (x's red edge)
-        _sb(r, u, 3, 30, False)
+        r[u, 3] = np.uint32(x)  # (u, x) first blue edge: S_blue^right[u] = x, C false (x's red edge)
+        # stop tests of the walk: (v, u) red and v = S_black^left[x] with C false, or (u, v)
+        # black and u = S_black^left[x] (V_blue: only at (V_black, V_blue), below)
+        stop_red = sx4 if (x != 1 and cx4 == 0) else -1
+        stop_blk = sx4 if x != 1 else -1
         while True:
             budget -= 1
             if budget < 0:
                 return 10, x
-            if x == 1 and u == n - 1:
-                _ss(r, u, 2, 1)
-                _sb(r, u, 2, 30, False)
+            ired = (r[u, 0] >> 31) & 1  # I_red[u]: (v, u) red, v its first red child
+            vb = np.int64(r[u, 5] & _IDX)
+            v = u + 1 if ired else vb
+            last = (v == stop_red) if ired else (u == stop_blk)
+            if x == 1 and u == n - 1:  # (V_black, V_blue): last blue child of V_blue
+                last = True
+            if last:  # (u, x) last blue edge: LeftFront = x's black edge (V_blue: (V_blue, V_red))
+                r[u, 2] = (r[u, 2] & np.uint32(_B31)) | np.uint32(x)
                 break
-            if _gb(r, u, 0, 31):  # I_red[u]: (v, u) red, v first red child
-                v = u + 1
-                if x != 1 and _gs(r, x, 4) == v and not _gb(r, x, 4, 30):
-                    _ss(r, u, 2, x)
-                    _sb(r, u, 2, 30, False)
-                    break
-            else:
-                if x != 1 and _gs(r, x, 4) == u:
-                    _ss(r, u, 2, x)
-                    _sb(r, u, 2, 30, False)
-                    break
-                if u == n - 1:
-                    return 10, x
-                v = _gs(r, u, 5)
+            if (not ired) and u == n - 1:
+                return 10, x
             if v <= 1 or v >= n:
                 return 10, x
-            _ss(r, u, 2, v)
-            _sb(r, u, 2, 30, True)
-            _ss(r, v, 3, u)
-            _sb(r, v, 3, 30, True)
+            r[u, 2] = (r[u, 2] & np.uint32(_B31)) | np.uint32(v) | np.uint32(_B30)
+            r[v, 3] = np.uint32(u) | np.uint32(_B30)
             u = v
     if budget != 2:
         return 10, n - 1
