@@ -358,6 +358,7 @@ def manifold_twins(faces, num_vertices, components):
     for v in range(nv):
         t = start[v]
         _sort_bucket(keys, s, t)
+        rv = _root(parent, v) if components else 0  # kept current: one find per edge, not two
         i = s
         while i < t:
             hi = keys[i] >> 32
@@ -376,7 +377,12 @@ def manifold_twins(faces, num_vertices, components):
                 i += 1
             ne += 1
             if components:
-                _union_min(parent, v, hi)
+                rh = _root(parent, hi)
+                if rh < rv:
+                    parent[rv] = rh
+                    rv = rh
+                elif rv < rh:
+                    parent[rh] = rv
         s = t
     # pass 4: one fan per vertex: walk around each vertex in id order (vertex order keeps the
     # walks in cache; a breadth-first order was 5x slower at 10M vertices)
