@@ -252,71 +252,66 @@ def _blue6(n, r):
 @numba.njit(cache=True, nogil=True)
 def _blue5(n, r):
     """ConstructBlueTree5n (Fig. 13) on the CDS5n refs: S_blue is LeftFront when I_red[u], else
-    RightFront; S_red^toleft becomes a black reference (C = 2) to the second left neighbour."""
+    RightFront; S_red^toleft becomes a black reference (C = 2) to the second left neighbour.
+
+    As in :func:`_blue6`, the next blue child and the stop test are selected rather than
+    branched on, and each reference is written with one store."""
     budget = n
     for x in range(1, n - 1):
+        rx1 = r[x, 1]
+        rx3 = r[x, 3]
+        sx1 = np.int64(rx1 & _IDX)
+        sx3 = np.int64(rx3 & _IDX)
+        cx1 = (rx1 >> 30) & 1
+        cx3 = (rx3 >> 30) & 1
         if x == 1:
-            if not _gb(r, 1, 1, 30):
+            if not cx1:
                 return 9, 1
-            u = _gs(r, 1, 1)
+            u = sx1
         else:
-            if _gs(r, x, 1) == _gs(r, x, 3) and _gb(r, x, 1, 30) != _gb(r, x, 3, 30):
+            if sx1 == sx3 and cx1 != cx3:
                 continue  # x has no blue child
             # RightFront of x_red must be red (no cw triangles in the maximal wood, Fig. 13)
-            if not _gb(r, x, 1, 30):
+            if not cx1:
                 return 10, x
-            u = _gs(r, x, 1)
-        _sb(r, x, 2, 31, True)  # I_blue[x]
+            u = sx1
+        r[x, 2] |= _U31  # I_blue[x]
         if u <= 1 or u >= n:
             return 10, x
+        stop_red = sx3 if (x != 1 and cx3 == 0) else -1
+        stop_blk = sx3 if x != 1 else -1
         last_black = False  # ColorLastEdge = red
         z = x
         while True:
             budget -= 1
             if budget < 0:
                 return 10, x
-            ired = _gb(r, u, 1, 31)
+            ired = (r[u, 1] >> 31) & 1
             if x == 1 and u == n - 1:
                 # (V_black, V_blue): I_red false, S_blue = RightFront (Thm 4, exterior edge)
-                _ss(r, u, 2, z if z != x else 1)
-                _sb(r, u, 2, 30, z != x)
+                r[u, 2] = (r[u, 2] & _U31) | (np.uint32(z) | _U30 if z != x else np.uint32(1))
                 break
-            if ired:  # (v, u) red, v = first red child of u
-                v = u + 1
-                if last_black:  # modified red reference: second left neighbour is black
-                    _ss(r, v, 0, z)
-                    _sb(r, v, 0, 30, False)
-                    _sb(r, v, 0, 31, True)   # C_red^toleft = black (2)
-                last_black = False
-                if x != 1 and _gs(r, x, 3) == v and not _gb(r, x, 3, 30):
-                    _ss(r, u, 2, x)  # (u, x) last blue edge: LeftFront = x_black
-                    _sb(r, u, 2, 30, False)
-                    break
-                _ss(r, u, 2, v)  # LeftFront = v_blue
-                _sb(r, u, 2, 30, True)
-                if not _gb(r, v, 1, 31):  # I_red[v] false: v stores its RightFront = u_blue
-                    _ss(r, v, 2, u)
-                    _sb(r, v, 2, 30, True)
-            else:  # (u, v) black: S_blue = RightFront
-                last_black = True
-                if z == x:  # (u, x) is the first blue child: RightFront = x_red
-                    _ss(r, u, 2, x)
-                    _sb(r, u, 2, 30, False)
-                else:
-                    _ss(r, u, 2, z)
-                    _sb(r, u, 2, 30, True)
-                if x != 1 and _gs(r, x, 3) == u:
-                    break  # (u, x) last blue edge
-                if u == n - 1:
-                    return 10, x
-                v = _gs(r, u, 4)
-                if v <= 1 or v >= n:
-                    return 10, x
-                if not _gb(r, v, 1, 31):
-                    _ss(r, v, 2, u)
-                    _sb(r, v, 2, 30, True)
+            vb = np.int64(r[u, 4] & _IDX)
+            v = u + 1 if ired else vb
+            if ired and last_black:  # modified red reference: second left neighbour is black
+                r[v, 0] = np.uint32(z) | _U31
+            stop = (v == stop_red) if ired else (u == stop_blk)
+            if ired:
+                val = np.uint32(x) if stop else (np.uint32(v) | _U30)
+            else:
+                val = np.uint32(x) if z == x else (np.uint32(z) | _U30)
+            r[u, 2] = (r[u, 2] & _U31) | val
+            last_black = not ired
+            if stop:
+                break
+            if (not ired) and u == n - 1:
+                return 10, x
             if v <= 1 or v >= n:
                 return 10, x
+            rv2 = r[v, 2]
+            if not ((r[v, 1] >> 31) & 1):  # I_red[v] false: v stores its RightFront = u_blue
+                rv2 = (rv2 & _U31) | np.uint32(u) | _U30
+            r[v, 2] = rv2
             z = u
             u = v
     if budget != 2:
