@@ -229,7 +229,7 @@ def _set1(buf, i):
 
 
 @numba.njit(cache=True, nogil=True)
-def _encode_pos(offsets, nb, out, n, v_red, v_blue, v_black, buf, order, mixed, work):
+def _encode_pos(offsets, nb, out, n, v_red, v_blue, v_black, buf, order, mixed, work, blk, have_blk):
     """ccw DFS of the red tree from the ccw rotations (any starting neighbour) and ``out``,
     writing the words straight into the zeroed packed buffer ``buf`` (MSB first): red word at
     bits ``[0, 2n)`` and black word at ``[2n, 4n - 3)``, or the mixed word of Sec. 3.3.
@@ -245,7 +245,10 @@ def _encode_pos(offsets, nb, out, n, v_red, v_blue, v_black, buf, order, mixed, 
     the ``n`` vertices, so an input breaking the rule is refused rather than mis-encoded.
 
     ``work``: int32 scratch of ``>= 5n + 2`` words (e.g. the Schnyder-wood kernels' scratch):
-    ``rec[u] = (first child slot, black in-degree)``, the children, and the DFS stack.
+    ``rec[u] = (first child slot, black in-degree)``, the children, and the DFS stack. With
+    ``have_blk``, ``blk`` (``(n, 3)``: first red-child slot, red-child count, black in-degree)
+    was filled by the vertex conquest (:func:`jaxcds.construct.schnyder._conquest_csr`) while
+    each rotation was in cache, and the first two passes below are skipped.
 
     Returns (status, vertex): 0 ok; 1 a block entry is not a red child / vertex reached twice /
     outgoing edge missing from the rotation; 2 wrong vertex count; 3 outer vertices misplaced;
@@ -254,53 +257,22 @@ def _encode_pos(offsets, nb, out, n, v_red, v_blue, v_black, buf, order, mixed, 
     kids = work[2 * n + 2:3 * n + 2]
     scur = work[3 * n + 2:4 * n + 2]   # DFS frame: next child slot (pass A: block start)
     send = work[4 * n + 2:5 * n + 2]   # DFS frame: end of the children slots
-    for u in range(n + 1):
-        rec[u, 0] = 0
-        rec[u, 1] = 0
-    tot = 0
-    for u in range(n):  # black in-degrees, counted from out (the truth, not by position)
-        p = out[u, 2]
-        if 0 <= p < n:
-            rec[p, 1] += 1
-            tot += 1
-    if tot != n - 3:
-        return 4, n
-    # pass A: each vertex's block of red children in its rotation (start, count)
-    for v in range(n):
-        a = offsets[v]
-        b = offsets[v + 1]
-        if v == v_red:
-            q = a
-            while q < b and nb[q] != v_blue:
-                q += 1
-            if q == b:
-                return 1, v
-            start = q - a
-            cnt = b - a
-        elif v == v_blue or v == v_black:
-            start = 0
-            cnt = 0
-        else:
-            o1 = out[v, 1]
-            o2 = out[v, 2]
-            q1 = -1
-            q2 = -1
-            for q in range(a, b):
-                x = nb[q]
-                if x == o1:
-                    q1 = q
-                elif x == o2:
-                    q2 = q
-            if q1 < 0 or q2 < 0:
-                return 1, v
-            start = q1 + 1 - a
-            if start == b - a:
-                start = 0
-            cnt = q2 - q1 - 1
-            if cnt < 0:
-                cnt += b - a
-        scur[v] = start
-        rec[v + 1, 0] = cnt
+    rec[0, 0] = 0
+    if have_blk:
+        tot = 0
+        for v in range(n):
+            scur[v] = blk[v, 0]
+            rec[v + 1, 0] = blk[v, 1]
+            rec[v, 1] = blk[v, 2]
+            tot += blk[v, 2]
+        if tot != n - 3:
+            return 4, n
+    else:
+        tot = _block_pass(offsets, nb, out, n, v_red, v_blue, v_black, rec, scur)
+        if tot < 0:
+            return 1, -1 - tot
+        if tot != n - 3:
+            return 4, n
     for v in range(n):
         rec[v + 1, 0] += rec[v, 0]
     if rec[n, 0] != n - 1:
@@ -318,6 +290,68 @@ def _encode_pos(offsets, nb, out, n, v_red, v_blue, v_black, buf, order, mixed, 
             k += 1
             if k == deg:
                 k = 0
+    return _dfs(n, v_red, v_blue, v_black, buf, order, mixed, rec, kids, scur, send)
+
+
+@numba.njit(cache=True, nogil=True)
+def _block_pass(offsets, nb, out, n, v_red, v_blue, v_black, rec, scur):
+    """Black in-degrees (``rec[:, 1]``, counted from ``out``: the truth, not by position) and
+    each vertex's block of red children in its rotation (``scur`` = first slot, relative;
+    ``rec[v + 1, 0]`` = count). Returns the number of black edges, or ``-1 - v`` if an outgoing
+    edge of ``v`` is missing from its rotation."""
+    for u in range(n + 1):
+        rec[u, 0] = 0
+        rec[u, 1] = 0
+    tot = 0
+    for u in range(n):
+        p = out[u, 2]
+        if 0 <= p < n:
+            rec[p, 1] += 1
+            tot += 1
+    # pass A: each vertex's block of red children in its rotation (start, count)
+    for v in range(n):
+        a = offsets[v]
+        b = offsets[v + 1]
+        if v == v_red:
+            q = a
+            while q < b and nb[q] != v_blue:
+                q += 1
+            if q == b:
+                return -1 - v
+            start = q - a
+            cnt = b - a
+        elif v == v_blue or v == v_black:
+            start = 0
+            cnt = 0
+        else:
+            o1 = out[v, 1]
+            o2 = out[v, 2]
+            q1 = -1
+            q2 = -1
+            for q in range(a, b):
+                x = nb[q]
+                if x == o1:
+                    q1 = q
+                elif x == o2:
+                    q2 = q
+            if q1 < 0 or q2 < 0:
+                return -1 - v
+            start = q1 + 1 - a
+            if start == b - a:
+                start = 0
+            cnt = q2 - q1 - 1
+            if cnt < 0:
+                cnt += b - a
+        scur[v] = start
+        rec[v + 1, 0] = cnt
+    return tot
+
+
+@numba.njit(cache=True, nogil=True)
+def _dfs(n, v_red, v_blue, v_black, buf, order, mixed, rec, kids, scur, send):
+    """The ccw DFS of the red tree over the children table, writing the packed words; the only
+    pass in random vertex order (two cache lines per vertex: ``rec[v]`` and its children).
+    Returns (status, vertex) as :func:`_encode_pos`."""
     # the DFS (preorder = decoded vertex ids)
     pr = 0          # red (or mixed) cursor; '(' = 0 is written by skipping (buf is zeroed)
     pb = 2 * n      # black cursor (separate form)
@@ -365,14 +399,18 @@ def _encode_pos(offsets, nb, out, n, v_red, v_blue, v_black, buf, order, mixed, 
     return 0, 0
 
 
-def _encode_lean(offsets, neighbors, out, n, v_red, v_blue, v_black, mixed, work=None) -> tuple[Words, np.ndarray]:
+def _encode_lean(offsets, neighbors, out, n, v_red, v_blue, v_black, mixed, work=None,
+                 blk=None) -> tuple[Words, np.ndarray]:
     buf = np.zeros((num_bits(n) + 7) // 8, dtype=np.uint8)
     order = np.empty(n, dtype=np.int32)
     if work is None or work.size < 5 * n + 2:
         work = np.empty(5 * n + 2, dtype=np.int32)
+    have_blk = blk is not None
+    if not have_blk:
+        blk = np.zeros((1, 3), dtype=np.int32)
     status, vertex = _encode_pos(np.asarray(offsets, dtype=np.int64), np.asarray(neighbors, dtype=np.int32),
                                  np.ascontiguousarray(out, dtype=np.int32), n, int(v_red), int(v_blue),
-                                 int(v_black), buf, order, bool(mixed), work)
+                                 int(v_black), buf, order, bool(mixed), work, blk, have_blk)
     if status:
         raise errors.StructureError(f"Schnyder wood is not a valid encoding input (status {status}, vertex {vertex}): "
                                     "red tree not spanning, outer vertices misplaced, or black tree without n-3 edges")
@@ -408,9 +446,10 @@ def encode_faces(faces: np.ndarray, num_vertices: int, *, mixed: bool = True, ma
         raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
     t0 = time.perf_counter()
     work = np.empty(6 * n + 16, dtype=np.int32)  # one scratch for rotations, conquest and words
-    w = schnyder_out(faces, n, root_face=root_face, maximal=maximal, work=work)
+    blk = np.empty((n, 3), dtype=np.int32)       # red-children blocks + black in-degrees, from the conquest
+    w = schnyder_out(faces, n, root_face=root_face, maximal=maximal, work=work, blk=blk)
     t1 = time.perf_counter()
-    out = _encode_lean(w.offsets, w.neighbors, w.out, n, w.v_red, w.v_blue, w.v_black, mixed, work)
+    out = _encode_lean(w.offsets, w.neighbors, w.out, n, w.v_red, w.v_blue, w.v_black, mixed, work, blk)
     if timings is not None:
         timings["wood_s"] = t1 - t0
         timings["words_s"] = time.perf_counter() - t1

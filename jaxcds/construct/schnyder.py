@@ -431,7 +431,7 @@ _ONB, _REM, _INS, _CH = 1, 2, 4, 8  # conquest state word: on B, removed, in sta
 
 
 @numba.njit(cache=True, nogil=True)
-def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal, out, order, work):
+def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal, out, order, work, blk, want_blk):
     """The vertex conquest of Appendix A on the ccw rotations (see :func:`_conquest`).
 
     Writes ``out`` (``(n, 3)`` int32, filled with ``n``) and ``order`` (``(n - 2,)``); ``work``
@@ -439,7 +439,13 @@ def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal, out, order, w
     flags and the chord count, so a neighbour test reads one word -- the boundary path
     (prev/next side by side) and the candidate stack (at most ``3n - 6`` pushes: the start, the
     ``n - 3`` fan vertices and two per conquest). Returns the number of conquered vertices
-    (``-1``: inconsistent rotations)."""
+    (``-1``: inconsistent rotations).
+
+    With ``want_blk`` it also fills ``blk`` (``(n, 3)`` int32) with what the 4n-bit encoder
+    needs of each vertex ``v``, while ``v``'s rotation is in cache: the slot (relative to
+    ``offsets[v]``) of its first red child, the number of red children (the neighbours ccw
+    strictly between its outgoing blue and black edges, Definition 1) and its black in-degree
+    (the fan it conquers)."""
     st = work[:n]
     bl = work[n:3 * n].reshape((n, 2))  # bl[u, 0] = prev (toward V_blue), bl[u, 1] = next
     stack = work[3 * n:]
@@ -498,6 +504,19 @@ def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal, out, order, w
             steps += 1
             if steps > deg:
                 return -1
+        if want_blk:
+            blk[v, 2] = k  # the fan gets its black edges to v: v's black in-degree
+            q = p + 1 if p + 1 < b else a
+            blk[v, 0] = q - a
+            c = 0
+            if v != v_black:  # V_black has no red child (its rotation: V_red, in black*, V_blue)
+                ob = out[v, BLACK]  # set when v joined the boundary as a fan vertex
+                while nb[q] != ob:
+                    c += 1
+                    q = q + 1 if q + 1 < b else a
+                    if c > deg:
+                        return -1
+            blk[v, 1] = c
         prev = vr
         for i in range(k):
             u = new[i]
@@ -561,6 +580,20 @@ def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal, out, order, w
                 top += 1
                 st[vl] |= _INS
     out[v_blue, RED] = v_red
+    if want_blk:  # the two vertices never conquered: V_red (all neighbours from V_blue on), V_blue
+        a = offsets[v_red]
+        b = offsets[v_red + 1]
+        q = a
+        while q < b and nb[q] != v_blue:
+            q += 1
+        if q == b:
+            return -1
+        blk[v_red, 0] = q - a
+        blk[v_red, 1] = b - a
+        blk[v_red, 2] = 0
+        blk[v_blue, 0] = 0
+        blk[v_blue, 1] = 0
+        blk[v_blue, 2] = 0
     return done
 
 
@@ -649,12 +682,15 @@ class WoodOut:
 
 
 def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
-                 maximal: bool = True, work: Optional[np.ndarray] = None) -> WoodOut:
+                 maximal: bool = True, work: Optional[np.ndarray] = None,
+                 blk: Optional[np.ndarray] = None) -> WoodOut:
     """The Schnyder wood of :func:`schnyder_wood` as its ``out`` table plus the unlabelled ccw
     rotations (:class:`WoodOut`): the vertex conquest of Appendix A without the final labelling
     pass. Same arguments, checks and errors as :func:`schnyder_wood`; ``out`` is identical.
     ``work``: optional int32 scratch of ``6n + 16`` words, for a caller that reuses it after
-    (the encoder does); its content on return is garbage."""
+    (the encoder does); its content on return is garbage. ``blk``: optional ``(n, 3)`` int32
+    filled with each vertex's red-children block and black in-degree (see
+    :func:`_conquest_csr`; the encoder's input)."""
     f = np.ascontiguousarray(faces, dtype=np.int32)
     n = int(num_vertices)
     nf = int(f.shape[0])
@@ -682,7 +718,10 @@ def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
     v_red, v_black, v_blue = (int(x) for x in f[root])
     out = np.full((n, 3), n, dtype=np.int32)
     order = np.empty(n - 2, dtype=np.int32)
-    done = _conquest_csr(offsets0, nb0, n, v_red, v_blue, v_black, bool(maximal), out, order, work)
+    want_blk = blk is not None
+    if not want_blk:
+        blk = np.zeros((1, 3), dtype=np.int32)
+    done = _conquest_csr(offsets0, nb0, n, v_red, v_blue, v_black, bool(maximal), out, order, work, blk, want_blk)
     if done != n - 2:
         raise errors.UnsupportedTopologyError(
             f"the vertex conquest stopped after {max(done, 0)} of {n - 2} vertices: the mesh is not a "
