@@ -74,20 +74,9 @@ def _darts(s):
 
 # ------------------------------------------------------------------------------ 1. label
 @jax.jit
-def label_phase(s, positions, vertex_ids):
-    """Label phase (paper Alg. 1; slides "Label Phase"), elementwise over all darts.
-
-    Args:
-      s: a structure with borders (``MeshStructure``).
-      positions: ``(V, 2)`` (or ``(V, 3)``) float coordinates in the structure's vertex numbering.
-      vertex_ids: ``(V,)`` int32 input id of every structure vertex (tie-breaking only).
-
-    Returns:
-      ``(max_edge, frontier, seed)``: ``(num_darts,)`` bool arrays. ``max_edge[e]``: ``e`` is the
-      longest edge of its left triangle; ``frontier[e]``: border edge, or longest edge of neither
-      triangle (Def. 4); ``seed[e]``: one dart per terminal edge (the one with the smaller id) and
-      the inner dart of every border terminal edge (Def. 3). Jittable.
-    """
+def _label_phase(s, positions, vertex_ids):
+    """:func:`label_phase` plus ``is_border`` of every dart (the traversal reuses it instead of
+    asking the structure again: a parenthesis search per dart on pemb)."""
     # longest edge, per triangle: its three darts from edge_of_face / next, lengths from origins
     f = jnp.arange(s.num_faces, dtype=jnp.int32)
     e0 = s.edge_of_face(f)
@@ -131,7 +120,26 @@ def label_phase(s, positions, vertex_ids):
     # Def. 3 case "terminal edge": longest of both triangles (one dart kept, the smaller id);
     # case "border terminal edge": longest of its only triangle
     seed = inner & max_edge & (border_t | (max_t & (e < tw)))
-    return max_edge, frontier, seed
+    return max_edge, frontier, seed, border_any
+
+
+
+@jax.jit
+def label_phase(s, positions, vertex_ids):
+    """Label phase (paper Alg. 1; slides "Label Phase"), elementwise over all darts.
+
+    Args:
+      s: a structure with borders (``MeshStructure``).
+      positions: ``(V, 2)`` (or ``(V, 3)``) float coordinates in the structure's vertex numbering.
+      vertex_ids: ``(V,)`` int32 input id of every structure vertex (tie-breaking only).
+
+    Returns:
+      ``(max_edge, frontier, seed)``: ``(num_darts,)`` bool arrays. ``max_edge[e]``: ``e`` is the
+      longest edge of its left triangle; ``frontier[e]``: border edge, or longest edge of neither
+      triangle (Def. 4); ``seed[e]``: one dart per terminal edge (the one with the smaller id) and
+      the inner dart of every border terminal edge (Def. 3). Jittable.
+    """
+    return _label_phase(s, positions, vertex_ids)[:3]
 
 
 # ------------------------------------------------------------------------------ 2. traversal
@@ -165,7 +173,7 @@ def _turn_to_frontier(s, frontier, queries, inner, max_rounds):
 
 
 @jax.jit
-def traversal_phase(s, frontier):
+def traversal_phase(s, frontier, border=None):
     """Traversal phase as a successor map (paper Alg. 2, reference ``travel_triangles``).
 
     Returns:
@@ -173,11 +181,12 @@ def traversal_phase(s, frontier):
       with an inner left face the next frontier dart of its polygon (first frontier dart turning
       clockwise around ``target(f)`` from ``next(f)``), ``num_darts`` elsewhere; ``ok`` False if
       some turn met no frontier dart (impossible on a valid mesh: ``twin(f)`` is frontier).
+      ``border``: optional ``is_border`` of every dart (from the label phase), else asked here.
       Jittable.
     """
     e = _darts(s)
     valid = s.dart_valid(e)
-    inner = valid & ~s.is_border(e)
+    inner = valid & ~(s.is_border(e) if border is None else border)
     active = inner & frontier
     q = jnp.where(active, s.next(e), s.num_darts)
     # at most ceil(log2(num_darts)) doubling rounds; the loop stops as soon as every pointer
@@ -198,7 +207,10 @@ def barrier_tips(s, succ):
 
 
 def _rotate(s, start, stop, step, mask, max_steps):
-    """Turn every lane with ``step`` from ``start`` until ``stop(e)`` (lanes not in ``mask`` stay)."""
+    """Turn every lane with ``step`` from ``start`` until ``stop(e)``, at least one step (the
+    first dart strictly after ``start``; lanes not in ``mask`` stay). The first step is a trip of
+    the loop, not a call of its own: ``step`` is compiled once (on pemb a step is a parenthesis
+    search, the largest program of the phase)."""
 
     def cond(c):
         d, done, k = c
@@ -209,7 +221,7 @@ def _rotate(s, start, stop, step, mask, max_steps):
         d2 = jnp.where(done, d, step(d))
         return d2, done | stop(d2), k + 1
 
-    d, _, _ = jax.lax.while_loop(cond, body, (start, ~mask | stop(start), jnp.int32(0)))
+    d, _, _ = jax.lax.while_loop(cond, body, (start, ~mask, jnp.int32(0)))
     return d
 
 
@@ -227,32 +239,24 @@ def middle_edges(s, tip_darts, mask):
     fe = s.twin(tip_darts)  # the barrier edge, leaving the tip
     limit = s.num_darts
 
-    # degree of the tip: clockwise turns from the barrier edge back to it
+    # one loop, one clockwise step per trip (one copy of cw_vertex_edge to compile): first turn
+    # until back at the barrier edge counting the tip's degree, then from it again deg // 2 turns
     def cond(c):
-        d, deg, done, k = c
-        return jnp.any(~done) & (k < limit)
+        d, deg, k, counting, j = c
+        return jnp.any(mask & (counting | (k < deg // 2))) & (j < 2 * limit)
 
     def body(c):
-        d, deg, done, k = c
+        d, deg, k, counting, j = c
+        turning = mask & ~counting & (k < deg // 2)
         d2 = s.cw_vertex_edge(d)
-        deg = jnp.where(done, deg, deg + 1)
-        d = jnp.where(done, d, d2)
-        return d, deg, done | (d2 == fe), k + 1
+        back = counting & (d2 == fe)  # a full turn: deg known, start again at the barrier edge
+        deg = jnp.where(counting, deg + 1, deg)
+        d = jnp.where(back, fe, jnp.where(counting | turning, d2, d))
+        k = k + turning.astype(jnp.int32)
+        return d, deg, k, counting & ~back, j + 1
 
     zeros = jnp.zeros(fe.shape, jnp.int32)
-    _, deg, _, _ = jax.lax.while_loop(cond, body, (fe, zeros, ~mask, jnp.int32(0)))
-    half = deg // 2
-
-    def cond2(c):
-        d, k = c
-        return jnp.any(mask & (k < half))
-
-    def body2(c):
-        d, k = c
-        go = mask & (k < half)
-        return jnp.where(go, s.cw_vertex_edge(d), d), k + go.astype(jnp.int32)
-
-    d, _ = jax.lax.while_loop(cond2, body2, (fe, zeros))
+    d, _, _, _, _ = jax.lax.while_loop(cond, body, (fe, zeros, zeros, mask, jnp.int32(0)))
     return d.astype(jnp.int32)
 
 
@@ -268,15 +272,18 @@ def repair_phase(s, frontier, succ, middle, mask):
     ``num_darts``.
     """
     E = s.num_darts
-    m = jnp.concatenate([middle, s.twin(middle)])
+    mid = jnp.where(mask, middle, 0).astype(jnp.int32)
+    m = jnp.concatenate([mid, s.twin(mid)])
     mk = jnp.concatenate([mask, mask])
     m = jnp.where(mk, m, 0).astype(jnp.int32)
     frontier2 = frontier.at[jnp.where(mk, m, E)].set(True, mode="drop")
     isf = lambda d: frontier2[d]  # noqa: E731
-    after = _rotate(s, s.cw_vertex_edge(m), isf, s.cw_vertex_edge, mk, E)
-    before = _rotate(s, s.ccw_vertex_edge(m), isf, s.ccw_vertex_edge, mk, E)
-    succ2 = succ.at[jnp.where(mk, s.twin(m), E)].set(after, mode="drop")
-    succ2 = succ2.at[jnp.where(mk, s.twin(before), E)].set(m, mode="drop")
+    after = _rotate(s, m, isf, s.cw_vertex_edge, mk, E)
+    before = _rotate(s, m, isf, s.ccw_vertex_edge, mk, E)
+    n = m.shape[0]
+    tw = s.twin(jnp.concatenate([m, before]))  # one twin program for both
+    succ2 = succ.at[jnp.where(mk, tw[:n], E)].set(after, mode="drop")
+    succ2 = succ2.at[jnp.where(mk, tw[n:], E)].set(m, mode="drop")
     return frontier2, succ2, jnp.where(mk, m, E).astype(jnp.int32)
 
 
@@ -470,13 +477,14 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) 
 
     t0 = marks[0][0]
     with jax.enable_x64(True):
-        max_edge, frontier, seed = label_phase(s, jnp.asarray(pos_s, jnp.float64), vids_j)
+        max_edge, frontier, seed, border = _label_phase(s, jnp.asarray(pos_s, jnp.float64), vids_j)
         t1 = done(seed)
     t["label"] = t1 - t0
 
     n_frontier = int(jnp.sum(frontier)) // 2  # undirected, before repair
     regions = int(jnp.sum(seed))
-    succ, ok = traversal_phase(s, frontier)
+    succ, ok = traversal_phase(s, frontier, border)
+    del border
     tip_darts = np.nonzero(np.asarray(barrier_tips(s, succ)))[0].astype(np.int32)
     if not bool(ok):
         raise errors.StructureError("Polylla: a clockwise turn from a frontier dart met no "
