@@ -8,13 +8,17 @@ compilation is excluded):
 * sizes: the ``.cds`` file as the paper stores it (connectivity + float32 geometry, no
   permutation), with the original vertex order (+4 bytes/vertex), binary OFF (float32 xyz and
   3 int32 per face, Table 2 footnote 6), and gzip (level 6) of that binary OFF;
-* encode: maximal Schnyder wood (Appendix A) + words (Sec. 3.1) + mixed word (Sec. 3.3), in
-  seconds and vertices per second (Schnyder wood included);
+* encode: maximal Schnyder wood (Appendix A: ccw rotations + vertex conquest, the ``out``
+  table) + the mixed word (Sec. 3.1, 3.3) written in one DFS pass -- ``encode_faces``, what
+  ``encode_mesh`` runs after validation -- in seconds and vertices per second (Schnyder wood
+  included); ``encode_wood_s`` / ``encode_words_s`` split the median run;
 * decode: container check (CRC-32 of every section), words -> packed CDS6n refs (Fig. 10-12),
   -> packed CDS5n refs (Fig. 13), -> face list (Thm 2 table with targets), -> Thm 2 table alone;
   vertices per second;
 * peak memory of each decoder (``tracemalloc``: numpy allocations, including those the numba
-  kernels receive) against the size of what it returns.
+  kernels receive) against the size of what it returns, and of the encoder;
+* ``*_cpu_s``: the same medians in CPU seconds of the (single) working thread: on the shared
+  2-core box the wall-clock figures move by 2x with the load, these much less.
 
 Usage::
 
@@ -68,16 +72,29 @@ def load(spec: str):
     return m
 
 
+CPU = {}  # id(fn) -> median thread CPU seconds of the last timed() call on it
+
+
 def timed(fn, repeats: int):
-    """(result of the last run, median seconds, all times) after one warm-up run."""
+    """(result of the last run, median seconds, all times) after one warm-up run. The median
+    thread CPU time is left in ``CPU[id(fn)]``."""
     out = fn()
-    times = []
+    times, cpu = [], []
     for _ in range(repeats):
         gc.collect()
+        c0 = time.thread_time()
         t0 = time.perf_counter()
         out = fn()
         times.append(time.perf_counter() - t0)
+        cpu.append(time.thread_time() - c0)
+    CPU[id(fn)] = statistics.median(cpu)
     return out, statistics.median(times), times
+
+
+def timed_cpu(fn, repeats: int):
+    """``timed`` plus the median thread CPU seconds."""
+    out, med, times = timed(fn, repeats)
+    return out, med, CPU.pop(id(fn))
 
 
 def peak_bytes(fn):
@@ -93,10 +110,10 @@ def peak_bytes(fn):
 
 
 def bench_mesh(spec: str, repeats: int, gzip_max: int) -> dict:
-    from jaxcds.codec import decode_faces, decode_paper6n, encode_schnyder, to_mixed
+    from jaxcds.codec import decode_faces, decode_paper6n
     from jaxcds.codec import fileformat as ff
+    from jaxcds.codec.encode import encode_faces
     from jaxcds.codec.structures import decode_refs5n, decode_refs6n
-    from jaxcds.construct.schnyder import schnyder_wood
 
     t0 = time.perf_counter()
     mesh = load(spec)
@@ -104,20 +121,31 @@ def bench_mesh(spec: str, repeats: int, gzip_max: int) -> dict:
     _log(f"{spec}: n = {n}, F = {F} (loaded in {time.perf_counter() - t0:.2f} s)")
     row = {"mesh": spec, "vertices": n, "faces": F}
 
-    # ---- encode: wood + words + mixed
-    wood, t_wood, _ = timed(lambda: schnyder_wood(mesh.faces, n), repeats)
-    (mixed, order), t_words, _ = timed(lambda: encode_schnyder(wood, mixed=True), repeats)
+    row["load_average_start"] = round(os.getloadavg()[0], 2)
+    # ---- encode: wood (rotations + conquest) + mixed word, one call
+    faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
+    splits = []
+
+    def enc():
+        tm = {}
+        res = encode_faces(faces, n, mixed=True, timings=tm)
+        splits.append((tm["wood_s"] + tm["words_s"], tm["wood_s"], tm["words_s"]))
+        return res
+
+    (mixed, order), t_enc, c_enc = timed_cpu(enc, repeats)
     words = mixed
-    t_mix = 0.0
-    t_enc = t_wood + t_words
+    mid = sorted(splits[1:])[len(splits[1:]) // 2]  # the median timed run's split
     row.update({
         "connectivity_bits": words.num_bits,
         "bits_per_vertex": round(words.num_bits / n, 4),
-        "encode_wood_s": round(t_wood, 4),
-        "encode_words_s": round(t_words + t_mix, 4),
+        "encode_wood_s": round(mid[1], 4),
+        "encode_words_s": round(mid[2], 4),
         "encode_total_s": round(t_enc, 4),
         "encode_vertices_per_s": round(n / t_enc),
+        "encode_cpu_s": round(c_enc, 4),
     })
+    _, peak, _ = peak_bytes(lambda: encode_faces(faces, n, mixed=True))
+    row["encode_peak_bytes"] = int(peak)
 
     # ---- sizes
     pos = mesh.vertices[order].astype(np.float32)
@@ -136,8 +164,8 @@ def bench_mesh(spec: str, repeats: int, gzip_max: int) -> dict:
 
     # ---- decode
     _, t_parse, _ = timed(lambda: ff.unpack_cds(blob), repeats)
-    r6, t6, _ = timed(lambda: decode_refs6n(mixed), repeats)
-    r5, t5, _ = timed(lambda: decode_refs5n(mixed), repeats)
+    r6, t6, c6 = timed_cpu(lambda: decode_refs6n(mixed), repeats)
+    r5, t5, c5 = timed_cpu(lambda: decode_refs5n(mixed), repeats)
     (faces, _tab), tf, _ = timed(lambda: decode_faces(mixed), repeats)
     _, tt, _ = timed(lambda: decode_paper6n(mixed, targets=False), repeats)
     del _tab
@@ -145,6 +173,7 @@ def bench_mesh(spec: str, repeats: int, gzip_max: int) -> dict:
         "parse_s": round(t_parse, 4),
         "decode_cds6n_s": round(t6, 4), "decode_cds6n_vertices_per_s": round(n / t6),
         "decode_cds5n_s": round(t5, 4), "decode_cds5n_vertices_per_s": round(n / t5),
+        "decode_cds6n_cpu_s": round(c6, 4), "decode_cds5n_cpu_s": round(c5, 4),
         "decode_faces_s": round(tf, 4), "decode_faces_vertices_per_s": round(n / tf),
         "decode_table6n_s": round(tt, 4),
     })
@@ -157,6 +186,7 @@ def bench_mesh(spec: str, repeats: int, gzip_max: int) -> dict:
         row[f"decode_{name}_peak_bytes"] = int(peak)
         row[f"decode_{name}_result_bytes"] = int(size)
         row[f"decode_{name}_peak_over_result"] = round(peak / size, 3)
+    row["load_average_end"] = round(os.getloadavg()[0], 2)
     _log(f"{spec}: encode {t_enc:.3f} s ({n / t_enc / 1e6:.2f} M v/s), decode cds6n {t6:.3f} s "
          f"({n / t6 / 1e6:.1f} M v/s), faces {tf:.3f} s, {len(blob)} bytes")
     return row
@@ -186,8 +216,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         with open(a.json, "w") as fh:
             json.dump(out, fh, indent=1)
     cols = ["mesh", "vertices", "bits_per_vertex", "cds_bytes", "binary_off_bytes", "gzip_off_bytes",
-            "encode_total_s", "encode_vertices_per_s", "decode_cds6n_s", "decode_cds6n_vertices_per_s",
-            "decode_cds5n_s", "decode_faces_s", "decode_cds6n_peak_over_result"]
+            "encode_total_s", "encode_vertices_per_s", "encode_cpu_s", "decode_cds6n_s",
+            "decode_cds6n_vertices_per_s", "decode_cds5n_s", "decode_cds5n_vertices_per_s", "decode_cds6n_cpu_s",
+            "decode_faces_s", "decode_cds6n_peak_over_result", "load_average_start"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in rows:
