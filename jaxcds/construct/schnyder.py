@@ -597,7 +597,7 @@ def _conquest_csr(offsets, nb, n, v_red, v_blue, v_black, maximal, out, order, w
     return done
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _finish_rotations(offsets, nb, out, n, v_red, v_blue):
     """Rotate every ccw list to start at the outgoing red edge (V_red: at V_blue) and label each
     entry with its colour and direction. Returns ``(nb2, colour, outgoing, bad)``."""
@@ -620,8 +620,12 @@ def _finish_rotations(offsets, nb, out, n, v_red, v_blue):
         o0 = out[u, 0]
         o1 = out[u, 1]
         o2 = out[u, 2]
+        q = a + p  # source slot, wrapping at the end of u's list (no integer division per entry)
         for j in range(deg):
-            x = nb[a + (p + j) % deg]
+            x = nb[q]
+            q += 1
+            if q == a + deg:
+                q = a
             nb2[a + j] = x
             if x == o0:
                 col[a + j] = 0
