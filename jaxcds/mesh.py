@@ -662,6 +662,9 @@ def close_boundaries(mesh: TriMesh) -> TriMesh:
     (CDS paper Sec. 4.5, LR paper Sec. 4.6). Dummy vertices and faces are appended after the
     originals and flagged in ``dummy_vertices`` / ``dummy_faces``, so results map back by
     slicing ``[:num_original]``. A closed mesh is returned unchanged (with all-False masks)."""
+    clean = _fast_check(mesh, components=False)
+    if clean is not None:  # no defect: the border sides are the darts without a twin
+        return _close_loops(mesh, _boundary_cycles(mesh, np.flatnonzero(clean.twins.opp < 0))[0])
     et = edge_table(mesh.faces)
     found = find_defects(mesh, et)
     if found:

@@ -381,6 +381,15 @@ def test_fast_validation_path_agrees_with_full_checks(seed, monkeypatch):
             vals, idx = np.unique(f.ravel(), return_index=True)
             first[vals] = idx
             np.testing.assert_array_equal(twins.vertex_corner, first)
+        fast = _outcome(lambda: M.close_boundaries(m))
+        with monkeypatch.context() as mp:
+            mp.setattr(M, "_fast_check", full_path)
+            full = _outcome(lambda: M.close_boundaries(m))
+        if isinstance(full, tuple):
+            assert fast == full, name
+        else:
+            for field in ("vertices", "faces", "dummy_vertices", "dummy_faces"):
+                assert np.array_equal(getattr(fast, field), getattr(full, field)), (name, field)
 
 
 @pytest.mark.parametrize("seed", range(3))
