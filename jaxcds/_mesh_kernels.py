@@ -4,10 +4,14 @@ Why a module of its own: validation runs before every build, so at 10M vertices 
 few linear passes, not ``np.unique`` on 60M keys (a sort) and scipy's graph components on 60M
 corners. Everything here is O(F + V) except where a comment says otherwise:
 
-* darts are grouped by undirected edge with two stable counting sorts (by the larger end, then by
-  the smaller), which yields exactly the order of ``np.unique(lo * V + hi)``;
+* darts are grouped by undirected edge with one counting sort by the smaller end and, inside
+  each bucket (a vertex's few edges, in cache), a sort by ``(larger end, dart)``, which yields
+  exactly the order of ``np.unique(lo * V + hi)`` (a vertex of degree k costs k log k);
 * fans of faces around a vertex, and connected components, are union-find with the smallest id as
-  the root, so labels come out in the order a graph search from id 0 upward would give them.
+  the root, so labels come out in the order a graph search from id 0 upward would give them;
+* the fast path of validation (:func:`manifold_twins`) checks a mesh without building the edge
+  table: on a mesh without defects the darts pair off directly into twins, which the builders
+  reuse; on any defect the full checks above name it.
 
 Dart ``d = 3f + k`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``; corner ``3f + k`` is
 the corner of face ``f`` at ``faces[f, k]``.
