@@ -209,8 +209,8 @@ class EdgeTable:
 
 
 def edge_table(faces: np.ndarray) -> EdgeTable:
-    """Group the darts by undirected edge in O(F + V) (two counting sorts, see
-    :mod:`jaxcds._mesh_kernels`)."""
+    """Group the darts by undirected edge (one counting sort by the smaller end, each bucket
+    sorted in cache, see :mod:`jaxcds._mesh_kernels`)."""
     f = np.ascontiguousarray(faces)
     n = int(f.max(initial=-1)) + 1
     if 3 * f.shape[0] >= 2**31:
