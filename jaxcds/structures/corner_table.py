@@ -36,23 +36,29 @@ def _opposites(opp, nf):
     return O
 
 
-@numba.njit(cache=True)
 def _closed_corner_table(faces, num_vertices):
-    """``(O, vertex_corner, closed)`` of a face list in O(F + V): darts bucketed by their smaller
-    endpoint (a counting sort), each paired with the first unpaired dart of its bucket with the
-    same other endpoint -- the half-edge's own twin matching (``_match_twins``), without the
-    border half-edges a corner table has no use for (same pairs, same
-    ``vertex_corner``: the first corner of each vertex). ``closed`` is False when a dart has no
-    twin (the caller falls back to the half-edge route)."""
-    n3 = 3 * faces.shape[0]
+    """``(O, vertex_corner, closed)`` of a face list in O(F + V) (O(k log k) more at a vertex of
+    degree k): the half-edge's own twin matching (``_match_twins``: darts bucketed by their
+    smaller endpoint, paired by the other), without the border half-edges a corner table has no
+    use for (same pairs, same ``vertex_corner``: the first corner of each vertex). ``closed`` is
+    False when a dart has no twin (the caller falls back to the half-edge route).
+
+    A Python function on purpose: numba's on-disk cache of a jitted caller is not invalidated
+    when a jitted callee in another module changes, so the kernels are called from here."""
     opp = _match_twins(faces, num_vertices)
+    O, closed = _opposite_corners(opp)
+    return O, _first_corners(faces, num_vertices), closed
+
+
+@numba.njit(cache=True)
+def _first_corners(faces, num_vertices):
+    """``vertex_corner[v]``: the smallest corner ``3f + k`` of ``v`` (-1 if unreferenced)."""
     vertex_corner = np.full(num_vertices, -1, dtype=np.int32)
-    for d in range(n3):
+    for d in range(3 * faces.shape[0]):
         a = faces[d // 3, d % 3]
         if vertex_corner[a] < 0:
             vertex_corner[a] = d
-    O, closed = _opposite_corners(opp)
-    return O, vertex_corner, closed
+    return vertex_corner
 
 
 @numba.njit(cache=True)

@@ -164,13 +164,12 @@ def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None):
     return _link(f, opp, int(num_vertices), f.shape[0])
 
 
-@numba.njit(cache=True)
-def _match_twins(faces, num_vertices):
-    """``opp[d]``: the twin of dart ``d`` among the face darts, or -1 (a border side). The darts
-    of each undirected edge, in increasing id, are paired two by two (one counting sort by the
-    smaller endpoint, each bucket sorted by the other endpoint:
-    :func:`jaxcds._mesh_kernels.match_twins`; a vertex of degree k costs k log k)."""
-    return _kernels.match_twins(faces, num_vertices)
+# ``_match_twins(faces, num_vertices)`` -> ``opp[d]``: the twin of dart ``d`` among the face darts,
+# or -1 (a border side). The darts of each undirected edge, in increasing id, are paired two by
+# two (one counting sort by the smaller endpoint, each bucket sorted by the other endpoint; a
+# vertex of degree k costs k log k). The kernel itself, not a jitted wrapper: numba's on-disk
+# cache of a wrapper would keep calling an old version of a callee from another module.
+_match_twins = _kernels.match_twins
 
 
 @numba.njit(cache=True)

@@ -55,3 +55,19 @@ def test_halfedge_from_validation_twins(name):
     a, b = HalfEdge.from_mesh(m), HalfEdge.from_faces(m.faces, m.num_vertices)  # twins / matched
     for field in ("next_", "opposite", "vertex", "vertex_edge", "border_prev"):
         np.testing.assert_array_equal(np.asarray(getattr(a, field)), np.asarray(getattr(b, field)))
+
+
+def test_corner_table_of_a_hub_of_high_degree_in_random_face_order():
+    # a bipyramid: hubs 0 and k+1 of degree k, faces shuffled (the former first-unpaired scan
+    # was quadratic in the hub's degree here); c.o against the geometry of the construction
+    k = 3000
+    ring, nxt = 1 + np.arange(k), 1 + (np.arange(k) + 1) % k
+    f = np.concatenate([np.stack([np.zeros(k, int), ring, nxt], 1),
+                        np.stack([np.full(k, k + 1), nxt, ring], 1)]).astype(np.int32)
+    f = f[np.random.default_rng(0).permutation(f.shape[0])]
+    m = M.TriMesh(vertices=np.zeros((k + 2, 3)), faces=f)
+    for ct in (CornerTable.from_mesh(m), CornerTable.from_faces(f, k + 2)):
+        V, O = np.asarray(ct.V), np.asarray(ct.O)
+        hub = np.nonzero(V == 0)[0]  # corner at hub 0 faces ring edge (r, r+1): apex k+1 opposite
+        assert (V[O[hub]] == k + 1).all()
+        assert (O[O] == np.arange(O.size)).all()
