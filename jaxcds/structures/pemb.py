@@ -383,11 +383,14 @@ class PEMB(MeshStructure):
         return jnp.where(v == 0, 0, self.A.select1(q) + 1).astype(jnp.int32)
 
     def last(self, v: Int) -> Int:
-        """Last position of vertex ``v`` (its ``)`` back to the parent; ``2m - 1`` for the root)."""
+        """Last position of vertex ``v`` (its ``)`` back to the parent). For the root: ``2m - 1``
+        if that is a non-tree half-edge (the root's own), else the walk ended coming back up
+        from the root's last child and the root's last half-edge is the one going down to it,
+        ``mate(2m - 1)`` (that is ``prev_p(0)``)."""
         v = jnp.asarray(v, jnp.int32)
         q = self.P.select_open(jnp.maximum(v - 1, 0))
-        return jnp.where(v == 0, self.num_darts - 1, self.A.select1(self.P.find_close(q))).astype(
-            jnp.int32)
+        root = self.prev_p(jnp.zeros(jnp.shape(v), jnp.int32))
+        return jnp.where(v == 0, root, self.A.select1(self.P.find_close(q))).astype(jnp.int32)
 
     def next_p(self, i: Int) -> Int:
         """pemb ``next``: the next half-edge ccw around ``vertex(i)`` (cyclic)."""
@@ -441,11 +444,21 @@ class PEMB(MeshStructure):
 
     def first_dual(self, g: Int) -> Int:
         """First position (in walk order) with pemb face ``g`` on its left: the crossing that
-        enters ``g`` (slides' extra query ``first_dual``); ``2m - 1`` for the root face."""
+        enters ``g`` (slides' extra query ``first_dual``). The root face 0 is entered by no
+        crossing: for it, the crossing that comes back to it from face 1 (the ``)`` matching the
+        first ``(`` of ``B*``; the walk crosses a non-tree half-edge from its right to its left
+        face). (Position ``2m - 1`` holds a dart of the root face only when the walk ends on a
+        non-tree half-edge, as the ccw DFS tree's does; after a BFS tree's last subtree it ends
+        on a tree half-edge.)"""
         g = jnp.asarray(g, jnp.int32)
-        q = self.P.select_open(self.num_tree_parens // 2 + jnp.maximum(g - 1, 0))
-        pos = self.A.select0(q - self.num_tree_parens)
-        return jnp.where(g == 0, self.num_darts - 1, pos).astype(jnp.int32)
+        ntp = self.num_tree_parens
+        q = self.P.select_open(ntp // 2 + jnp.maximum(g - 1, 0))
+        pos = self.A.select0(q - ntp)
+        if self.P.size > ntp:
+            root = self.A.select0(self.P.match(jnp.full(jnp.shape(g), ntp, jnp.int32)) - ntp)
+        else:  # no dual parentheses (no face but the root)
+            root = jnp.full(jnp.shape(g), self.num_darts - 1, jnp.int32)
+        return jnp.where(g == 0, root, pos).astype(jnp.int32)
 
     # -------------------------------------------------------------- face renumbering
     def _to_mesh_face(self, g: Int) -> Int:

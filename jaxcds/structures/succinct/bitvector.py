@@ -36,8 +36,11 @@ SELECT_SAMPLE = 512
 #: lanes per chunk of the slow route of a two-stage query (:func:`compacted`; batches of at most
 #: this many queries run the slow route on every lane instead: no compaction)
 COMPACT_CHUNK = 1 << 15
-#: batches of at most this many lanes skip the compaction
+#: batches of at most this many lanes skip the first stage and the compaction (and use the loop
+#: forms that compile to smaller programs)
 SELECT_ALL_BELOW = 64
+#: batches of at least this many lanes use the unrolled (faster, larger) loop forms
+UNROLL_FROM = 256
 
 
 def popcount(w: jnp.ndarray) -> jnp.ndarray:
@@ -93,12 +96,16 @@ def compacted(slow, miss, fast, args, chunk: Optional[int] = None):
     them at a time in a ``while_loop`` (as many chunks as there are misses, so no cap on the miss
     rate; a chunk's loop state stays in cache), the answers scattered back. ``chunk`` defaults to
     :data:`COMPACT_CHUNK`, or a quarter of the batch (power of two) for smaller batches; a batch
-    of at most :data:`SELECT_ALL_BELOW` lanes runs ``slow`` on every lane and selects (one fixed
-    program: what ``vmap`` of a scalar query sees)."""
+    of at most :data:`SELECT_ALL_BELOW` lanes runs ``slow`` alone (one fixed program: what
+    ``vmap`` of a scalar query sees)."""
     n = miss.shape[0]
+    if n <= SELECT_ALL_BELOW:
+        # tiny batches (scalars under vmap, the verifier's compositions of dozens of operators):
+        # the slow route alone, so the first stage is dead code and the program stays small
+        return slow(*args).astype(fast.dtype)
     if chunk is None:
         chunk = min(COMPACT_CHUNK, max(16, 1 << max(n // 4 - 1, 0).bit_length()))
-    if n <= max(chunk, SELECT_ALL_BELOW):
+    if n <= chunk:
         return jnp.where(miss, slow(*args), fast)
     nch = -(-n // chunk)
     idx, count = _compact_indices(miss, nch * chunk)
@@ -264,9 +271,22 @@ class BitVector:
         lo0 = jnp.where(one, self.sel1[jnp.minimum(js, n1 - 1)], self.sel0[jnp.minimum(js, n0 - 1)])
         hi0 = jnp.where(one, self.sel1[jnp.minimum(js + 1, n1 - 1)],
                         self.sel0[jnp.minimum(js + 1, n0 - 1)]) + 1
+        big = k.size >= UNROLL_FROM
         lo, _ = jax.lax.fori_loop(0, self.select_steps, halve, (lo0, jnp.minimum(hi0, nb)),
-                                  unroll=True)
+                                  unroll=True if big else 1)
         r = k - count_before(lo)
+        if not big:  # small batches: the compact (..., 8) form, a smaller program
+            words = self._block_words(lo)
+            words = jnp.where(one[..., None], words, ~words)
+            cnt = popcount(words)
+            incl = jnp.cumsum(cnt, axis=-1)
+            j = jnp.minimum(jnp.sum((incl <= r[..., None]).astype(jnp.int32), axis=-1),
+                            BLOCK_WORDS - 1)
+            sel = jnp.arange(BLOCK_WORDS, dtype=jnp.int32) == j[..., None]  # one-hot pick
+            before = jnp.sum(jnp.where(sel, incl - cnt, 0), axis=-1)
+            w = jnp.max(jnp.where(sel, words, jnp.uint32(0)), axis=-1)
+            pos = BLOCK_BITS * lo + 32 * j + _select_in_word(w, jnp.clip(r - before, 0, 31))
+            return jnp.where((k >= 0) & (k < total), pos, self.size).astype(jnp.int32)
         # the word holding it: the block's 8 words one after the other, elementwise state only
         # (a (..., 8) gather with a cumsum over the last axis ran 2-3x slower: 104 vs 29-50 ns
         # per query on 2M queries, measured)
