@@ -4,8 +4,8 @@ table) and the Fig. 10 timings, for the CornerTable, ``lr`` and ``lr-bits``.
 
 * **Table 1**: every shared mesh that LR accepts (connected, manifold; holes closed by a dummy
   vertex each, Sec. 4.6, dummies never on the ring and not counted in ``n`` or ``m_i``): ``n``
-  real triangles, % valence-6 vertices, standard LR (``m_i``, % T0, % T0^w, % T^i -- irregular
-  ring slots, T1^i and T2^i together --, references per triangle ``rpt = (2 m_r + 6 n0 + 3 n^i +
+  real triangles, % valence-6 vertices, standard LR (``m_i``, % T0, % T0^w, % T1^i and % T2^i --
+  irregular ring slots holding a T1 / a T2 --, references per triangle ``rpt = (2 m_r + 6 n0 + 3 n^i +
   m_i) / n``), the Sec. 7 renderable index list (rpt), and ``lr-bits`` (chosen ``k``, % T0,
   % T^i, % long entries T^l, bits per triangle ``32 (m_r + 6 n0 + |VO*| + m_i) / n``). Median
   rpt / bpt over the closed (no dummy) meshes and over all of them.
@@ -126,10 +126,16 @@ def table1(names: Sequence[str], *, seeds: int = 4, ks=None) -> list:
         rows.append({
             "mesh": name, "n": n, "holes_closed": st["m_dummy"], "pct_v6": _valence6(mesh),
             "m_i": st["m_i"], "pct_T0": 100.0 * lr.num_t0 / n, "pct_T0w": 100.0 * st["T0w"] / n,
-            "pct_Ti": 100.0 * st["irregular"] / n, "rpt": lr.references / n,
+            "pct_Ti": 100.0 * st["irregular"] / n,
+            # T^i split (Sec. 4.3): T_2^i from the ring classification, the rest T_1^i (wart
+            # skipping absorbs every T_2 next to a T_0, so T_2^i is 0 unless skipping is off)
+            "pct_T1i": 100.0 * (st["irregular"] - st["T2i"]) / n, "pct_T2i": 100.0 * st["T2i"] / n,
+            "rpt": lr.references / n,
             "render_rpt": rst["rpt"], "build_s": lr_s,
             "bits_k": bits.k, "bits_m_i": sb["m_i"], "bits_pct_T0": 100.0 * bits.num_t0 / n,
             "bits_pct_T0w": 100.0 * sb["T0w"] / n, "bits_pct_Ti": 100.0 * sb["irregular"] / n,
+            "bits_pct_T1i": 100.0 * (sb["irregular"] - sb["T2i"]) / n,
+            "bits_pct_T2i": 100.0 * sb["T2i"] / n,
             "bits_pct_Tl": 100.0 * bits.num_long * 2 / n, "bpt": bits.bits / n,
             "bits_build_s": bits_s})
         _log(f"{name}: n={n} rpt={rows[-1]['rpt']:.3f} bpt={rows[-1]['bpt']:.2f}")
@@ -137,15 +143,16 @@ def table1(names: Sequence[str], *, seeds: int = 4, ks=None) -> list:
 
 
 def _table1_md(rows: list) -> str:
-    out = ["| mesh | n | holes closed | %v6 | m_i | %T0 | %T0^w | %T^i | rpt | render rpt | "
-           "bits k | bits m_i | bits %T0 | bits %T^i | bits %T^l | bpt |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = ["| mesh | n | holes closed | %v6 | m_i | %T0 | %T0^w | %T1^i | %T2^i | rpt | render rpt | "
+           "bits k | bits m_i | bits %T0 | bits %T1^i | bits %T2^i | bits %T^l | bpt |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         out.append(f"| {r['mesh']} | {r['n']:,} | {r['holes_closed']} | {r['pct_v6']:.1f} | "
-                   f"{r['m_i']} | {r['pct_T0']:.2f} | {r['pct_T0w']:.2f} | {r['pct_Ti']:.2f} | "
-                   f"{r['rpt']:.3f} | {r['render_rpt']:.3f} | {r['bits_k'] or 'DFS'} | "
-                   f"{r['bits_m_i']} | {r['bits_pct_T0']:.2f} | {r['bits_pct_Ti']:.2f} | "
-                   f"{r['bits_pct_Tl']:.2f} | {r['bpt']:.2f} |")
+                   f"{r['m_i']} | {r['pct_T0']:.2f} | {r['pct_T0w']:.2f} | {r['pct_T1i']:.2f} | "
+                   f"{r['pct_T2i']:.2f} | {r['rpt']:.3f} | {r['render_rpt']:.3f} | "
+                   f"{r['bits_k'] or 'DFS'} | {r['bits_m_i']} | {r['bits_pct_T0']:.2f} | "
+                   f"{r['bits_pct_T1i']:.2f} | {r['bits_pct_T2i']:.2f} | {r['bits_pct_Tl']:.2f} | "
+                   f"{r['bpt']:.2f} |")
     return "\n".join(out)
 
 
