@@ -12,7 +12,11 @@ import numpy as np
 import pytest
 
 from jaxcds.structures.succinct import BalancedParens, BitVector
+from jaxcds.structures.succinct import bitvector as bvmod
 from jaxcds.structures.succinct import bp as bpmod
+
+# batches must be larger than SELECT_ALL_BELOW to take the two stages and the compaction
+PAIRS = bvmod.SELECT_ALL_BELOW // 2 + 500
 
 
 def _balanced(seed: int, pairs: int, p_open: float) -> np.ndarray:
@@ -50,7 +54,7 @@ def _ops(bp, i, chunk):
 @pytest.mark.parametrize("p_open,seed", [(0.5, 0), (0.5, 1), (0.95, 2), (0.3, 3)])
 @pytest.mark.parametrize("chunk", [64, 1000])
 def test_two_stage_against_stack(p_open, seed, chunk):
-    b = _balanced(seed, 1500, p_open)
+    b = _balanced(seed, PAIRS, p_open)
     bp = BalancedParens.from_bits(b)
     match, enclose = _oracle(b)
     i = jnp.arange(b.size + 1, dtype=jnp.int32)
@@ -63,7 +67,7 @@ def test_first_stage_answers_are_exact_and_misses_are_flagged():
     """``_near`` alone: every answer it claims is the oracle's; on a near sequence it claims most,
     on a deep one few (so the slow route is really exercised by the test above)."""
     for p_open, lo, hi in ((0.5, 0.6, 1.0), (0.97, 0.0, 0.5)):
-        b = _balanced(5, 2000, p_open)
+        b = _balanced(5, PAIRS, p_open)
         bp = BalancedParens.from_bits(b)
         match, enclose = _oracle(b)
         i = jnp.arange(b.size, dtype=jnp.int32)
@@ -79,7 +83,7 @@ def test_first_stage_answers_are_exact_and_misses_are_flagged():
 
 def test_compacted_handles_every_miss_rate():
     rng = np.random.default_rng(0)
-    n = 1000
+    n = bvmod.SELECT_ALL_BELOW + 1000
     x = jnp.asarray(rng.integers(0, 100, n), jnp.int32)
     for rate in (0.0, 0.1, 0.5, 1.0):
         miss = jnp.asarray(rng.random(n) < rate)
@@ -96,7 +100,7 @@ def test_select_near_against_numpy(p):
     n = 3000
     b = (rng.random(n) < p).astype(np.uint8)
     bv = BitVector.from_bits(b)
-    q = 4000
+    q = bvmod.SELECT_ALL_BELOW + 1000
     bit = rng.integers(0, 2, q)
     pos = [np.nonzero(b == v)[0] for v in (0, 1)]
     cnt = np.array([pos[0].size, pos[1].size])

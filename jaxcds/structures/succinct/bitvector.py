@@ -37,10 +37,12 @@ SELECT_SAMPLE = 512
 #: this many queries run the slow route on every lane instead: no compaction)
 COMPACT_CHUNK = 1 << 15
 #: batches of at most this many lanes skip the first stage and the compaction (and use the loop
-#: forms that compile to smaller programs)
-SELECT_ALL_BELOW = 64
+#: forms that compile to smaller programs): the verifier composes ~30 operators (~60 searches) in
+#: one program over a small mesh's darts, and with both stages and the compaction loops in every
+#: search its compilation went past 5 GB
+SELECT_ALL_BELOW = 4096
 #: batches of at least this many lanes use the unrolled (faster, larger) loop forms
-UNROLL_FROM = 256
+UNROLL_FROM = 4096
 
 
 def popcount(w: jnp.ndarray) -> jnp.ndarray:
@@ -82,11 +84,11 @@ def _compact_indices(mask, size: int):
     m = jnp.pad(mask, (0, n32 - n)).reshape(-1, 32).astype(jnp.uint32)
     words = jnp.sum(m << jnp.arange(32, dtype=jnp.uint32), axis=1)  # distinct bits: sum = or
     cnt = popcount(words)
-    before = jnp.cumsum(cnt) - cnt
+    before = jnp.cumsum(cnt, dtype=jnp.int32) - cnt  # int32 also under enable_x64 (Polylla)
     lane = jnp.arange(n, dtype=jnp.int32)
     slot = before[lane >> 5] + popcount(words[lane >> 5] & _low_mask(lane & 31))
     idx = jnp.full((size,), n, jnp.int32).at[jnp.where(mask, slot, size)].set(lane, mode="drop")
-    return idx, jnp.sum(cnt)
+    return idx, jnp.sum(cnt, dtype=jnp.int32)
 
 
 def compacted(slow, miss, fast, args, chunk: Optional[int] = None):
@@ -231,7 +233,9 @@ class BitVector:
         # whole words before the word of i, then the low (i % 32) bits of that word
         r = jnp.where(k == wi[..., None], jnp.asarray(i & 31, jnp.int32)[..., None],
                       jnp.where(k < wi[..., None], 32, 0))
-        return self.block_rank[b] + jnp.sum(popcount(words & _low_mask(r)), axis=-1)
+        # dtype: int32 also under enable_x64 (Polylla's label phase), where a plain sum of int32
+        # would promote to int64 and carry every later index computation with it
+        return self.block_rank[b] + jnp.sum(popcount(words & _low_mask(r)), axis=-1, dtype=jnp.int32)
 
     def rank0(self, i) -> jnp.ndarray:
         """Number of zeros in ``[0, i)``."""
@@ -279,11 +283,11 @@ class BitVector:
             words = self._block_words(lo)
             words = jnp.where(one[..., None], words, ~words)
             cnt = popcount(words)
-            incl = jnp.cumsum(cnt, axis=-1)
-            j = jnp.minimum(jnp.sum((incl <= r[..., None]).astype(jnp.int32), axis=-1),
-                            BLOCK_WORDS - 1)
+            incl = jnp.cumsum(cnt, axis=-1, dtype=jnp.int32)
+            j = jnp.minimum(jnp.sum((incl <= r[..., None]).astype(jnp.int32), axis=-1,
+                                    dtype=jnp.int32), BLOCK_WORDS - 1)
             sel = jnp.arange(BLOCK_WORDS, dtype=jnp.int32) == j[..., None]  # one-hot pick
-            before = jnp.sum(jnp.where(sel, incl - cnt, 0), axis=-1)
+            before = jnp.sum(jnp.where(sel, incl - cnt, 0), axis=-1, dtype=jnp.int32)
             w = jnp.max(jnp.where(sel, words, jnp.uint32(0)), axis=-1)
             pos = BLOCK_BITS * lo + 32 * j + _select_in_word(w, jnp.clip(r - before, 0, 31))
             return jnp.where((k >= 0) & (k < total), pos, self.size).astype(jnp.int32)
