@@ -515,7 +515,10 @@ class PEMB(MeshStructure):
             return self.face(e) == self.num_faces
         i = jnp.asarray(e, jnp.int32)
         tree = self.A.access(i) == 1
-        x = jnp.where(tree, self.mate(i, where=tree), i)
+        # the mate of every lane, not only of tree lanes (where=tree): alone that costs more, but
+        # next to twin(e) on the same darts (Polylla's label phase) XLA computes the search once
+        # (CSE): twin + is_border 0.066 s instead of 0.081 s on 600K darts (100K points)
+        x = jnp.where(tree, self.mate(i), i)
         j = self.num_tree_parens + self.A.rank0(x + 1)
         return self.P.excess(j) == 0
 
