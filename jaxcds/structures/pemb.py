@@ -454,10 +454,10 @@ class PEMB(MeshStructure):
         ntp = self.num_tree_parens
         q = self.P.select_open(ntp // 2 + jnp.maximum(g - 1, 0))
         pos = self.A.select0(q - ntp)
-        if self.P.size > ntp:
-            root = self.A.select0(self.P.match(jnp.full(jnp.shape(g), ntp, jnp.int32)) - ntp)
+        if self.P.size > ntp:  # one scalar search (not one per lane: all lanes ask the same)
+            root = self.A.select0(self.P.match(jnp.int32(ntp)) - ntp)
         else:  # no dual parentheses (no face but the root)
-            root = jnp.full(jnp.shape(g), self.num_darts - 1, jnp.int32)
+            root = jnp.int32(self.num_darts - 1)
         return jnp.where(g == 0, root, pos).astype(jnp.int32)
 
     # -------------------------------------------------------------- face renumbering
