@@ -112,3 +112,14 @@ def pytest_runtest_protocol(item, nextitem):  # setup (fixtures) + call + teardo
     if _CPU_LOG:
         with open(_CPU_LOG, "a") as fh:
             fh.write(f"{time.process_time() - t0:.2f} {item.nodeid}\n")
+
+
+@pytest.fixture(autouse=True)
+def _drop_compiled_programs_after_slow_tests(request):
+    """Each mesh of the slow set compiles its own programs (shapes differ), and JAX keeps every
+    compiled executable: the slow pemb protocol run grew by ~1 GB per mesh (9.3 GB after 8 tests)
+    and would not fit a 24 GiB box. Slow tests drop them when done; the quick set keeps its cache
+    (its tests share shapes, and recompiling would cost CI minutes)."""
+    yield
+    if request.node.get_closest_marker("slow") is not None:
+        jax.clear_caches()
