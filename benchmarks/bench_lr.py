@@ -49,6 +49,11 @@ from typing import Optional, Sequence
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+if os.path.dirname(HERE) not in sys.path:  # run as a script from anywhere
+    sys.path.insert(0, os.path.dirname(HERE))
+
+from benchmarks.harness import time_wall_cpu  # noqa: E402
+
 SHARED = os.environ.get("JAXCDS_SHARED", os.path.join(HERE, "..", "..", "shared"))
 MESH_DIR = os.path.join(SHARED, "meshes")
 
@@ -69,19 +74,6 @@ def _load() -> list:
         return [round(x, 2) for x in os.getloadavg()]
     except OSError:  # pragma: no cover
         return []
-
-
-def _wall_cpu(fn, repeats: int) -> tuple:
-    """Median wall time and median CPU time (``process_time``, all threads of the process) of
-    ``repeats`` calls. The construction kernels are single-threaded numba: on a shared machine
-    the CPU time is the steadier figure (wall time includes waiting for a core)."""
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return statistics.median(wall), statistics.median(cpu)
 
 
 def _median_time(fn, repeats: int) -> float:
@@ -206,30 +198,30 @@ def construction(num_faces: int, repeats: int, mesh_spec: Optional[str] = None,
     seeds = [seed]
     load0 = _load()
     t = {}
-    t["ring_expander_s"] = _wall_cpu(lambda: ring_expander(V, O, mesh.num_vertices, seed), repeats)
-    t["lr_from_corner_table_s"] = _wall_cpu(
+    t["ring_expander_s"] = time_wall_cpu(lambda: ring_expander(V, O, mesh.num_vertices, seed), repeats)
+    t["lr_from_corner_table_s"] = time_wall_cpu(
         lambda: LR.from_corner_table(ct, seeds=seeds, check=False), repeats)
-    t["lr_from_corner_table_checked_s"] = _wall_cpu(
+    t["lr_from_corner_table_checked_s"] = time_wall_cpu(
         lambda: LR.from_corner_table(ct, seeds=seeds, check=True), repeats)
-    t["lr_from_corner_table_defaults_s"] = _wall_cpu(  # seeds=4, check=True
+    t["lr_from_corner_table_defaults_s"] = time_wall_cpu(  # seeds=4, check=True
         lambda: LR.from_corner_table(ct), repeats)
-    t["lr_bits_from_corner_table_s"] = _wall_cpu(
+    t["lr_bits_from_corner_table_s"] = time_wall_cpu(
         lambda: bits_from_ct(ct, k=bits_k, seeds=seeds, check=False), repeats)
-    t["lr_bits_from_corner_table_checked_s"] = _wall_cpu(
+    t["lr_bits_from_corner_table_checked_s"] = time_wall_cpu(
         lambda: bits_from_ct(ct, k=bits_k, seeds=seeds, check=True), repeats)
-    t["validation_s"] = _wall_cpu(lambda: lrmod._prepare(mesh), repeats)
-    t["corner_table_from_faces_s"] = _wall_cpu(
+    t["validation_s"] = time_wall_cpu(lambda: lrmod._prepare(mesh), repeats)
+    t["corner_table_from_faces_s"] = time_wall_cpu(
         lambda: CornerTable.from_faces(mesh.faces, mesh.num_vertices), repeats)
     prep = lrmod._prepare(mesh)
     if isinstance(prep, tuple) and prep[1] is not None:  # validation hands its twins over
         pm, twins = prep
-        t["corner_table_from_twins_s"] = _wall_cpu(
+        t["corner_table_from_twins_s"] = time_wall_cpu(
             lambda: CornerTable.from_faces(pm.faces, pm.num_vertices, twins=twins), repeats)
     del prep
-    t["lr_end_to_end_s"] = _wall_cpu(lambda: build_lr(mesh, seeds=seeds, check=False), repeats)
-    t["lr_end_to_end_checked_s"] = _wall_cpu(
+    t["lr_end_to_end_s"] = time_wall_cpu(lambda: build_lr(mesh, seeds=seeds, check=False), repeats)
+    t["lr_end_to_end_checked_s"] = time_wall_cpu(
         lambda: build_lr(mesh, seeds=seeds, check=True), repeats)
-    t["lr_bits_end_to_end_checked_s"] = _wall_cpu(
+    t["lr_bits_end_to_end_checked_s"] = time_wall_cpu(
         lambda: build_lr(mesh, bits=True, k=bits_k, seeds=seeds, check=True), repeats)
     s = LR.from_corner_table(ct, seeds=seeds, check=False)
     st = stats(s)

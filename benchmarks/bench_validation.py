@@ -26,12 +26,17 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import sys
 import time
 from typing import Optional, Sequence
 
 import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+if os.path.dirname(HERE) not in sys.path:  # run as a script from anywhere
+    sys.path.insert(0, os.path.dirname(HERE))
+
+from benchmarks.harness import time_wall_cpu  # noqa: E402
 
 
 def _peak_rss() -> Optional[int]:
@@ -43,16 +48,6 @@ def _peak_rss() -> Optional[int]:
     except OSError:  # pragma: no cover - not Linux
         pass
     return None
-
-
-def _wall_cpu(fn, repeats: int) -> tuple:
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return statistics.median(wall), statistics.median(cpu)
 
 
 def run(n: int, repeats: int, full: bool = True) -> dict:
@@ -75,17 +70,17 @@ def run(n: int, repeats: int, full: bool = True) -> dict:
            "load_before": list(os.getloadavg())}
     rows = {}
     _, twins = M.validate_and_close(mesh, return_twins=True)
-    rows["fast"] = _wall_cpu(lambda: M.validate_and_close(mesh, return_twins=True), repeats)
-    rows["corner_table_from_twins"] = _wall_cpu(
+    rows["fast"] = time_wall_cpu(lambda: M.validate_and_close(mesh, return_twins=True), repeats)
+    rows["corner_table_from_twins"] = time_wall_cpu(
         lambda: CornerTable.from_faces(f, n, twins=twins), repeats)
     del twins
-    rows["corner_table_from_faces"] = _wall_cpu(lambda: CornerTable.from_faces(f, n), repeats)
-    rows["edge_table"] = _wall_cpu(lambda: M.edge_table(f), repeats)
+    rows["corner_table_from_faces"] = time_wall_cpu(lambda: CornerTable.from_faces(f, n), repeats)
+    rows["edge_table"] = time_wall_cpu(lambda: M.edge_table(f), repeats)
     if full:
         keep = M._fast_check
         M._fast_check = lambda *a, **k: None  # the full checks, as a defective mesh takes them
         try:
-            rows["full"] = _wall_cpu(lambda: M.validate_and_close(mesh), repeats)
+            rows["full"] = time_wall_cpu(lambda: M.validate_and_close(mesh), repeats)
         finally:
             M._fast_check = keep
     for key, (w, c) in rows.items():

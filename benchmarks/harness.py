@@ -37,7 +37,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-__all__ = ["main", "run", "load_bench_mesh", "machine_info", "time_compiled", "time_call",
+__all__ = ["main", "run", "load_bench_mesh", "machine_info", "time_compiled", "time_call", "time_wall_cpu",
            "DEFAULT_MESHES", "QUICK_MESHES"]
 
 # smallest first: an op far too slow on the first mesh is skipped on the big ones (--max-call)
@@ -102,6 +102,19 @@ def time_call(fn: Callable[[], object], repeats: int, budget_s: Optional[float] 
     med = statistics.median(times)
     return {"compile_s": max(first - med, 0.0), "first_call_s": first, "median_s": med,
             "min_s": min(times), "times": times}
+
+
+def time_wall_cpu(fn: Callable[[], object], repeats: int) -> tuple:
+    """Median wall time and median CPU time (``process_time``, all threads of the process) of
+    ``repeats`` calls of ``fn``. For the single-threaded numba construction kernels: on a shared
+    machine the CPU time is the steadier figure (wall time includes waiting for a core)."""
+    wall, cpu = [], []
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return statistics.median(wall), statistics.median(cpu)
 
 
 def _proc_status() -> dict:
