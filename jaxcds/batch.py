@@ -77,7 +77,7 @@ OPERATOR_KINDS = {
 
 # protocol methods the batch forwards to its union structure (so a structure's faster
 # overrides, e.g. CDS Target in O(1), are the ones that run)
-_FORWARDED = tuple(OPERATOR_KINDS) + ("face_vertices",)
+_FORWARDED = tuple(OPERATOR_KINDS) + ("face_vertices", "face_vertices_padded")
 
 
 @pytree_dataclass
@@ -283,6 +283,8 @@ def _make_forward(op):
 for _op in _FORWARDED:
     if _op == "face_vertices":
         PackedBatch.face_vertices = lambda self: self.structure.face_vertices()  # type: ignore
+    elif _op == "face_vertices_padded":
+        PackedBatch.face_vertices_padded = lambda self: self.structure.face_vertices_padded()  # type: ignore
     else:
         setattr(PackedBatch, _op, _make_forward(_op))
 

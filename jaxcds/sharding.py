@@ -133,6 +133,11 @@ class ShardedStructure(MeshStructure):
         ``next`` is a ``LeftFront`` and a ``Target``: the sharded CDS normals were 60x slower)."""
         return self.unpadded().face_vertices()
 
+    def face_vertices_padded(self):
+        """The structure's own ``face_vertices_padded`` on the :meth:`unpadded` arrays (as
+        :meth:`face_vertices`: the padded arrays would add rows that are not faces)."""
+        return self.unpadded().face_vertices_padded()
+
     def __getattr__(self, attr):
         if attr.startswith("__") or attr == "structure":
             raise AttributeError(attr)

@@ -4,7 +4,8 @@ Two formulations, same result:
 
 * ``"scatter"`` — the face-list route: one cross product per face (its length is twice the area,
   so summing unnormalised face normals *is* area weighting), accumulated at the three corners with
-  ``segment_sum``. The structure only has to produce its ``face_vertices()``.
+  ``segment_sum``. The structure only has to produce its faces, in any order
+  (``face_vertices_padded()``, by default ``face_vertices()``).
 * ``"gather"`` — the navigation route of the CDS paper's Table 3: every vertex turns around its
   one-ring (``ccw_vertex_edge``) and sums the cross products of consecutive neighbours, no
   scatter at all. Cost: (max degree) rounds of gathers over all vertices.
@@ -76,8 +77,11 @@ def _check_positions(s, positions) -> None:
 
 
 def _scatter_sums(s, positions):
-    fv = s.face_vertices()
+    # any order and padding rows will do for a sum: structures with slotted faces skip compaction
+    fv, valid = s.face_vertices_padded()
     fn = face_normals(positions, fv)
+    if valid is not None:
+        fn = jnp.where(valid[:, None], fn, 0.0)
     return jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), fv.reshape(-1), num_segments=s.num_vertices)
 
 

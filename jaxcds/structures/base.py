@@ -207,6 +207,17 @@ class MeshStructure:
         e2 = self.next(e1)
         return jnp.stack([self.origin(e0), self.origin(e1), self.origin(e2)], axis=-1)
 
+    def face_vertices_padded(self):
+        """``(faces (R, 3) int32, valid (R,) bool or None)``: every face exactly once among the
+        rows where ``valid`` holds, in *any* order, plus padding rows (any ids in
+        ``[0, num_vertices)``) where it does not; ``valid`` None means every row is a face.
+
+        For whole-mesh sums (:func:`jaxcds.algorithms.vertex_normals`) that do not care about face
+        ids: a structure whose faces live in slots with holes (LR's redundant T2 slots, the CDS
+        face map's unused slots) answers here without compacting the slots into the dense face
+        order. The default is :meth:`face_vertices` itself."""
+        return self.face_vertices(), None
+
     def __repr__(self) -> str:  # short: printing arrays of millions of ids helps nobody
         return (f"{type(self).__name__}(num_vertices={self.num_vertices}, "
                 f"num_faces={self.num_faces}, references={self.references})")
