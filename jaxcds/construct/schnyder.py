@@ -49,7 +49,29 @@ COLOUR_NAMES = ("red", "blue", "black")
 
 
 @dataclasses.dataclass(frozen=True)
-class SchnyderWood:
+class _WoodFields:
+    """What :class:`SchnyderWood` and :class:`WoodOut` share: the outer vertices, the outgoing
+    edges, the ccw rotations (CSR) and the conquest order (see their docstrings)."""
+
+    num_vertices: int
+    v_red: int
+    v_blue: int
+    v_black: int
+    out: np.ndarray
+    offsets: np.ndarray
+    neighbors: np.ndarray
+    conquest_order: np.ndarray
+    root_face: int = -1
+    maximal: bool = True
+
+    @property
+    def outer(self) -> tuple[int, int, int]:
+        """``(V_red, V_blue, V_black)``."""
+        return (self.v_red, self.v_blue, self.v_black)
+
+
+@dataclasses.dataclass(frozen=True)
+class SchnyderWood(_WoodFields):
     """A Schnyder wood of a planar triangulation (numpy, host side).
 
     Attributes:
@@ -69,23 +91,9 @@ class SchnyderWood:
       maximal: whether it was built with the "closest to V_blue" rule (no cw cycle).
     """
 
-    num_vertices: int
-    v_red: int
-    v_blue: int
-    v_black: int
-    out: np.ndarray
-    offsets: np.ndarray
-    neighbors: np.ndarray
-    colour: np.ndarray
-    outgoing: np.ndarray
-    conquest_order: np.ndarray
-    root_face: int = -1
-    maximal: bool = True
-
-    @property
-    def outer(self) -> tuple[int, int, int]:
-        """``(V_red, V_blue, V_black)``."""
-        return (self.v_red, self.v_blue, self.v_black)
+    # keyword-only: they follow the defaulted fields of _WoodFields
+    colour: np.ndarray = dataclasses.field(kw_only=True)
+    outgoing: np.ndarray = dataclasses.field(kw_only=True)
 
     @property
     def num_edges(self) -> int:
@@ -656,7 +664,7 @@ def _default_root(faces: np.ndarray) -> int:
 
 
 @dataclasses.dataclass(frozen=True)
-class WoodOut:
+class WoodOut(_WoodFields):
     """The outgoing edges of a Schnyder wood and the unlabelled ccw rotations it was built on:
     what the 4n-bit encoder needs (Sec. 3.1), without the colour / orientation labels and the
     rotated neighbour lists of :class:`SchnyderWood` (one linear pass, :func:`label_wood`, away).
@@ -667,22 +675,6 @@ class WoodOut:
       neighbors: ``(6n - 12,)`` int32; ``neighbors[offsets[u]:offsets[u+1]]`` are the neighbours
         of ``u`` in ccw order, starting at an arbitrary one (the mesh's first corner at ``u``).
     """
-
-    num_vertices: int
-    v_red: int
-    v_blue: int
-    v_black: int
-    out: np.ndarray
-    offsets: np.ndarray
-    neighbors: np.ndarray
-    conquest_order: np.ndarray
-    root_face: int = -1
-    maximal: bool = True
-
-    @property
-    def outer(self) -> tuple[int, int, int]:
-        """``(V_red, V_blue, V_black)``."""
-        return (self.v_red, self.v_blue, self.v_black)
 
 
 def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
