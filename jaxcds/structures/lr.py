@@ -182,6 +182,37 @@ def _cheap_opposite(xp, dec, m, c):
                     xp.where(i == 4, o4, xp.where(i == 5, o5, o6)))))
 
 
+def _slot_triangles(xp, dec, m, nv, v):
+    """Both slot triangles of ring vertices ``v`` from ONE decode each (the whole-mesh face list,
+    Sec. 4.4 / Sec. 7: "the ring edges are implicit, one reference per slot"): ``(left, right,
+    ok_l, ok_r)``, rows in the corner order of Fig. 5 / :func:`_ring_vertex`, ``L(v)`` = corners
+    ``8v + 0, 1, 2`` = ``(v, v.l, v.n*)`` and ``R(v)`` = ``8v + 4, 5, 6`` = ``(v.n*, v.r, v)``
+    (``v.n* = v.n.n`` in a wart-skipping T0^w, Sec. 5). ``ok`` is False for the redundant copy
+    of a T2 (Sec. 4.4: it is kept in the slot of its second ring edge) and, when ``nv`` is given,
+    for a triangle across a border (Sec. 4.6: its apex is a dummy vertex, numbered from ``nv``
+    on; ring vertices are never dummies); such apexes are clamped to ``v`` so every row holds
+    vertex ids. ``m``, ``nv``: ints, or arrays broadcast with ``v`` (packed batches)."""
+    d = dec(v)
+    vn = _nx(xp, v, m)
+    vnn = _nx(xp, vn, m)
+    nl = xp.where(d.skl == 1, vnn, vn)
+    nr = xp.where(d.skr == 1, vnn, vn)
+    # a T0^w (skip bit set) is a face of its own even when v.l = v.n.n: only a plain T2 copy hides
+    ok_l = ~((d.skl == 0) & (d.l == vnn))
+    ok_r = ~((d.skr == 0) & (d.r == vnn))
+    al, ar = d.l, d.r
+    if nv is not None:
+        real_l = al < nv
+        real_r = ar < nv
+        ok_l = ok_l & real_l
+        ok_r = ok_r & real_r
+        al = xp.where(real_l, al, v)
+        ar = xp.where(real_r, ar, v)
+    left = xp.stack([v, al, nl], axis=-1)
+    right = xp.stack([nr, ar, v], axis=-1)
+    return left, right, ok_l, ok_r
+
+
 def _popcount32(x):
     return jax.lax.population_count(x)
 
@@ -336,14 +367,63 @@ class _LRNavigation(MeshStructure):
         e = jnp.asarray(e, jnp.int32)
         t = e >> 2
         two_m = 2 * self.num_ring
-        tr = jnp.clip(t, 0, two_m - 1)
-        word = jax.lax.bitcast_convert_type(self.slot_words[tr >> 5], jnp.uint32)
-        below = word & ((jnp.uint32(1) << (tr & 31).astype(jnp.uint32)) - jnp.uint32(1))
-        rank = self.slot_rank[tr >> 5] + _popcount32(below).astype(jnp.int32)
+        _, rank = self._slot_rank(jnp.clip(t, 0, two_m - 1))
         f = jnp.where(t < two_m, rank, t - two_m + self.num_ring_faces)
         if self.has_border:
             f = jnp.where(self._dummy_face(e), self.num_faces, f)
         return f.astype(jnp.int32)
+
+    def _slot_rank(self, t):
+        """``(bit, rank)`` of ring slots ``0 <= t < 2 m_r`` in the dense-face directory: ``bit``
+        True where the slot is a face of its own, ``rank`` = faces in the slots before it (the
+        dense face id of a face slot)."""
+        word = jax.lax.bitcast_convert_type(self.slot_words[t >> 5], jnp.uint32)
+        sh = (t & 31).astype(jnp.uint32)
+        below = word & ((jnp.uint32(1) << sh) - jnp.uint32(1))
+        bit = ((word >> sh) & jnp.uint32(1)) == 1
+        return bit, self.slot_rank[t >> 5] + _popcount32(below).astype(jnp.int32)
+
+    def _slot_rows(self):
+        """``(left, right, ok_l, ok_r)`` of :func:`_slot_triangles` over every ring vertex (one
+        decode each) and the T0 rows ``(n0, 3)`` of ``V0`` with their mask (dummy triangles of
+        Sec. 4.6 masked and clamped)."""
+        m, nv = self.num_ring, self.num_vertices
+        v = jnp.arange(m, dtype=jnp.int32)
+        left, right, ok_l, ok_r = _slot_triangles(jnp, self._dec, m,
+                                                  nv if self.has_border else None, v)
+        t0 = self.V0[: 3 * self.num_t0].reshape(self.num_t0, 3)
+        if self.has_border:
+            ok0 = jnp.all(t0 < nv, axis=1)
+            t0 = jnp.minimum(t0, nv - 1)
+        else:
+            ok0 = jnp.ones((self.num_t0,), bool)
+        return left, right, ok_l, ok_r, t0, ok0
+
+    def face_vertices_padded(self):
+        """Every face once, in slot order, no navigation (Sec. 4.4, Sec. 7): the ``2 m_r`` slot
+        triangles from one decode per ring vertex (left slots, then right slots), the redundant
+        T2 copies and border triangles masked, then the T0 triangles of ``V0``. Rows are
+        ``(R, 3)`` with ``R = 2 m_r + n0``; see :meth:`MeshStructure.face_vertices_padded`."""
+        left, right, ok_l, ok_r, t0, ok0 = self._slot_rows()
+        faces = jnp.concatenate([left, right, t0], axis=0).astype(jnp.int32)
+        return faces, jnp.concatenate([ok_l, ok_r, ok0])
+
+    def face_vertices(self) -> Int:
+        """``(num_faces, 3)`` in dense face-id order, equal to the protocol route
+        (``edge_of_face`` + ``next`` + ``origin``): the rows of :meth:`face_vertices_padded`
+        scattered to their face ids (a face slot's id is its directory rank; real T0 triangles
+        come first in ``V0`` and follow the ring faces), the others dropped."""
+        left, right, ok_l, ok_r, t0, ok0 = self._slot_rows()
+        m, nf = self.num_ring, self.num_faces
+        v = jnp.arange(m, dtype=jnp.int32)
+        bl, rl = self._slot_rank(2 * v)
+        br, rr = self._slot_rank(2 * v + 1)
+        j = jnp.arange(self.num_t0, dtype=jnp.int32)
+        dest = jnp.concatenate([jnp.where(bl, rl, nf), jnp.where(br, rr, nf),
+                                jnp.where(j < nf - self.num_ring_faces, self.num_ring_faces + j, nf)])
+        rows = jnp.concatenate([left, right, t0], axis=0).astype(jnp.int32)
+        out = jnp.zeros((nf, 3), jnp.int32)
+        return out.at[dest].set(rows, mode="drop", unique_indices=True)
 
     def edge_of_face(self, f: Int) -> Int:
         """Corner ``4t`` of the slot of dense face ``f`` (select by binary search on the rank
