@@ -37,6 +37,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
 from jaxcds.structures.base import parts_of_one_class
+from jaxcds.structures.lr import _slot_triangles
 
 __all__ = ["concatenate_lr", "packed_class"]
 
@@ -157,19 +158,56 @@ class _PackedMixin:
     def num_darts(self) -> int:
         return self.union_num_darts
 
-    def face_vertices(self):
-        """``(F, 3)`` per mesh, each face's three corners from its local ``edge_of_face``
-        (per-face mesh ids by one repeat: no search)."""
+    def _packed_rows(self):
+        """The slot plan of :meth:`jaxcds.structures.lr._LRNavigation.face_vertices_padded` on the
+        union: per ring vertex of the union (mesh ids by one repeat, no search) both slot triangles
+        from one mesh-local decode, per T0 of the union its ``V0`` row; local ids, masks for the
+        redundant T2 copies and border triangles (Sec. 4.4, 4.6), plus what the dense order needs.
+        Returns ``(rows (2 M_r + N0, 3) global ids, ok, mesh of each row, local slot ``t`` or T0
+        index)``, ring rows as left slots then right slots."""
         b = self.mesh_sizes.shape[0]
-        m = jnp.repeat(jnp.arange(b, dtype=jnp.int32), self.mesh_sizes[:, 1],
-                       total_repeat_length=self.num_faces)
-        f = jnp.arange(self.num_faces, dtype=jnp.int32) - self.mesh_face_offsets[m]
-        v = self._view_of(m)
-        e0 = v.edge_of_face(f)
-        e1 = v.next(e0)
-        e2 = v.next(e1)
-        vs = jnp.stack([v.origin(e0), v.origin(e1), v.origin(e2)], axis=-1)
-        return (vs + self.mesh_vertex_offsets[m][:, None]).astype(jnp.int32)
+        ids = jnp.arange(b, dtype=jnp.int32)
+        excl = lambda c: jnp.concatenate([jnp.zeros(1, jnp.int32), jnp.cumsum(c)[:-1]])  # noqa: E731
+        mr, n0 = self.mesh_sizes[:, 2], self.mesh_sizes[:, 3]
+        mesh = jnp.repeat(ids, mr, total_repeat_length=self.num_ring)
+        v = jnp.arange(self.num_ring, dtype=jnp.int32) - excl(mr)[mesh]
+        view = self._view_of(mesh)
+        left, right, ok_l, ok_r = _slot_triangles(
+            jnp, view._dec, view.num_ring, view.num_vertices if self.has_border else None, v)
+        mesh0 = jnp.repeat(ids, n0, total_repeat_length=self.num_t0)
+        j = jnp.arange(self.num_t0, dtype=jnp.int32) - excl(n0)[mesh0]
+        view0 = self._view_of(mesh0)
+        t0 = jnp.stack([view0.V0[3 * j + i] for i in range(3)], axis=-1)
+        nv0 = self.mesh_sizes[mesh0, 0][:, None]
+        ok0 = jnp.all(t0 < nv0, axis=1)
+        t0 = jnp.minimum(t0, nv0 - 1)
+        meshes = jnp.concatenate([mesh, mesh, mesh0])
+        rows = jnp.concatenate([left, right, t0], axis=0) + self.mesh_vertex_offsets[meshes][:, None]
+        ok = jnp.concatenate([ok_l, ok_r, ok0])
+        local = jnp.concatenate([2 * v, 2 * v + 1, j])
+        return rows.astype(jnp.int32), ok, meshes, local
+
+    def face_vertices_padded(self):
+        """Every face of every mesh once (any order; see
+        :meth:`jaxcds.structures.base.MeshStructure.face_vertices_padded`): one decode per ring
+        vertex of the union, no per-face navigation."""
+        rows, ok, _, _ = self._packed_rows()
+        return rows, ok
+
+    def face_vertices(self):
+        """``(F, 3)`` in the union's face order (mesh by mesh, each in its dense face order): the
+        rows of :meth:`face_vertices_padded` scattered to ``face_offsets[mesh]`` + their local
+        face id (directory rank of a ring slot; ring faces + index of a real T0)."""
+        rows, ok, meshes, local = self._packed_rows()
+        nf, nring = self.num_faces, 2 * self.num_ring
+        bit, rank = self._view_of(meshes[:nring])._slot_rank(local[:nring])
+        nrf = self.mesh_sizes[meshes, 5]
+        j = local[nring:]
+        real0 = j < self.mesh_sizes[meshes[nring:], 1] - nrf[nring:]
+        loc = jnp.concatenate([jnp.where(bit, rank, -1), jnp.where(real0, nrf[nring:] + j, -1)])
+        dest = jnp.where(loc >= 0, self.mesh_face_offsets[meshes] + loc, nf)
+        out = jnp.zeros((nf, 3), jnp.int32)
+        return out.at[dest].set(rows, mode="drop", unique_indices=True)
 
     @property
     def references(self) -> int:
