@@ -32,6 +32,7 @@ test-all: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m pip install -q -e '.[bench]' || echo "some benchmark peers failed to install; they will be skipped"
+	$(PY) -m pip install -q -e '.[openmesh]' || echo "OpenMesh (built from source with CMake) failed to install; it will be skipped"
 	$(VENV)/bin/jaxcds bench
 
 notebooks: $(STAMP)
