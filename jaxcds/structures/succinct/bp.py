@@ -413,6 +413,24 @@ class BalancedParens:
         # '(' at i: fwd(i, E(i)); ')' at i: bwd(i, E(i + 1)) = bwd(i, E(i) - 1), never at i itself
         return self._two_stage(i, jnp.where(op, 0, -1), op, self._match_slow, chunk, active)
 
+    def match_all(self, *, chunk: Optional[int] = None) -> jnp.ndarray:
+        """``(size,)`` int32: the match of every parenthesis, ``match(arange(size))``, in about
+        half the work of asking each one: only the ``(`` need a search (forward, relative to
+        ``E(i)``: :meth:`_near`, with ``fw`` a constant so the backward half of the first stage
+        compiles away), and each ``)`` is then written by one scatter from its ``(``. The first
+        stage misses a pair exactly when its ``)`` is more than one word past its ``(``'s word,
+        the same condition seen from either end, so only those ``(`` take the min-max tree route
+        (compacted, :func:`compacted`). Used by structures that build a per-phase table of all
+        matches (pemb's :meth:`~jaxcds.structures.pemb.PEMB.with_tables`)."""
+        n = self.size
+        i = jnp.arange(n, dtype=jnp.int32)
+        op = self.is_open(i)
+        found, res = self._near(i, jnp.zeros_like(i), True)
+        close = compacted(lambda i: self._search(i, self.excess(i), True), op & ~found, res, (i,),
+                          chunk)
+        # every ')' is the match of exactly one '(': one scatter fills them all
+        return close.at[jnp.where(op, close, n)].set(i, mode="drop")
+
     def _match_slow(self, i, d, op):
         r = self._search(i, self.excess(i) + d, op)
         # a ')' whose pair opens at 0: the backward scan covers prefix positions >= 1 only
