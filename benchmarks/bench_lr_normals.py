@@ -1,0 +1,163 @@
+"""LR / lr-bits vertex normals: the slot plan (``face_vertices_padded``: one decode per ring
+vertex) against the generic per-face route (``edge_of_face`` + two ``next`` + three ``origin``,
+what ``vertex_normals`` ran before) and the plain-JAX face-list normals, in one process.
+
+    .venv/bin/python benchmarks/bench_lr_normals.py --meshes armadillo.obj,bunny.off,random:200000
+    flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/bench_lr_normals.py --meshes random:2500000
+    .venv/bin/python benchmarks/bench_lr_normals.py --packed 1000      # packed batch, 500-5,000 v/mesh
+
+Columns (ns per vertex, medians of ``--repeat`` rounds; in each round every route runs once, in
+turn, so all see the same machine load):
+
+* ``face_list``: :func:`face_list_vertex_normals` on the input faces (the target's peer);
+* ``normals``: ``vertex_normals(s, positions)`` as the library runs it;
+* ``three_scatter``: the same rows (``face_vertices_padded``) summed with three scatter-adds, one
+  per corner column, instead of ``_scatter_sums``' one ``segment_sum`` over the repeated rows.
+  On XLA:CPU (jaxlib 0.10.2) a ``segment_sum`` whose indices are computed in the same program
+  (any structure's faces, unlike the face list's parameter) measured 2-4x slower than with the
+  same indices passed in; the three scatters are not;
+* ``generic``: the protocol route through ``MeshStructure.face_vertices`` (LR before the slot plan).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from jaxcds import batch as B  # noqa: E402
+from jaxcds.algorithms.normals import (face_list_vertex_normals, face_normals, normalize,  # noqa: E402
+                                       vertex_normals)
+from jaxcds.generators import random_planar_triangulation  # noqa: E402
+from jaxcds.mesh import load_mesh  # noqa: E402
+from jaxcds.structures.base import MeshStructure  # noqa: E402
+from jaxcds.structures.lr import build_lr  # noqa: E402
+
+SHARED = os.environ.get("JAXCDS_SHARED_MESHES", "/work/shared/meshes")
+
+
+@jax.jit
+def generic_normals(s, positions):
+    """``vertex_normals`` as it ran before the slot plan: the protocol's per-face route."""
+    fv = MeshStructure.face_vertices(s)
+    fn = face_normals(positions, fv)
+    acc = jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), fv.reshape(-1), num_segments=s.num_vertices)
+    return normalize(acc)
+
+
+@jax.jit
+def three_scatter_normals(s, positions):
+    """The proposed ``_scatter_sums``: one scatter-add per corner column of the padded rows."""
+    fv, ok = s.face_vertices_padded()
+    fn = face_normals(positions, fv)
+    if ok is not None:
+        fn = jnp.where(ok[:, None], fn, 0.0)
+    acc = jnp.zeros_like(positions)
+    for k in range(3):
+        acc = acc.at[fv[:, k]].add(fn)
+    return normalize(acc)
+
+
+def rounds(fns: dict, repeat: int) -> dict:
+    """Median seconds of each function, timed in turn ``repeat`` times after one warm-up."""
+    for f in fns.values():
+        jax.block_until_ready(f())
+    ts = {k: [] for k in fns}
+    for _ in range(repeat):
+        for k, f in fns.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(f())
+            ts[k].append(time.perf_counter() - t0)
+    return {k: statistics.median(v) for k, v in ts.items()}
+
+
+def _mesh(spec: str):
+    if spec.startswith("random:"):
+        return random_planar_triangulation(int(spec.split(":")[1]), seed=1)
+    return load_mesh(os.path.join(SHARED, spec))
+
+
+def _emit(label, name, nv, nf, t, err):
+    fl = t["face_list"]
+    row = {"mesh": label, "structure": name, "vertices": nv, "faces": nf}
+    for k, v in t.items():
+        row[f"{k}_ns_v"] = round(1e9 * v / nv, 1)
+        if k != "face_list":
+            row[f"{k}_ratio"] = round(v / fl, 3)
+    row["max_abs_diff"] = err
+    print(json.dumps(row), flush=True)
+
+
+def _build(name, mesh):
+    # lr-bits: one hybrid period (k=64) instead of "auto" (8 builds): construction is not timed
+    return build_lr(mesh, bits=name == "lr-bits", seeds=1, check=False,
+                    **({"k": 64} if name == "lr-bits" else {}))
+
+
+def single(args):
+    for spec in args.meshes.split(","):
+        mesh = _mesh(spec)
+        pos_in = jnp.asarray(mesh.vertices, jnp.float32)
+        faces = jnp.asarray(mesh.faces, jnp.int32)
+        for name in args.structures.split(","):
+            s = _build(name, mesh)
+            order = np.asarray(s.vertex_order)
+            pos = pos_in[order]
+            fns = {"face_list": lambda: face_list_vertex_normals(pos_in, faces),
+                   "normals": lambda: vertex_normals(s, pos),
+                   "three_scatter": lambda: three_scatter_normals(s, pos)}
+            if not args.no_generic:
+                fns["generic"] = lambda: generic_normals(s, pos)
+            want = np.asarray(face_list_vertex_normals(pos_in, faces))[order]
+            err = max(float(np.abs(np.asarray(fns[k]()) - want).max()) for k in fns if k != "face_list")
+            _emit(spec, name, mesh.num_vertices, mesh.num_faces, rounds(fns, args.repeat), err)
+            del s, fns
+
+
+def packed(args):
+    rng = np.random.default_rng(args.seed)
+    sizes = rng.integers(500, 5001, args.packed)
+    ms = [random_planar_triangulation(int(n), seed=args.seed * 100_003 + i) for i, n in enumerate(sizes)]
+    u = B._union(ms)
+    faces = jnp.asarray(u.faces)
+    upos = np.asarray(u.vertices)
+    fl_pos = jnp.asarray(upos, jnp.float32)
+    for name in args.structures.split(","):
+        b = B.concatenate([_build(name, m) for m in ms])
+        order = np.asarray(b.vertex_order)
+        pos = jnp.asarray(upos[order], jnp.float32)
+        fns = {"face_list": lambda: face_list_vertex_normals(fl_pos, faces),
+               "normals": lambda: vertex_normals(b, pos),
+               "three_scatter": lambda: three_scatter_normals(b, pos)}
+        if not args.no_generic:
+            fns["generic"] = lambda: generic_normals(b, pos)
+        want = np.asarray(face_list_vertex_normals(fl_pos, faces))[order]
+        err = max(float(np.abs(np.asarray(fns[k]()) - want).max()) for k in fns if k != "face_list")
+        _emit(f"packed:{args.packed}", name, u.num_vertices, u.num_faces, rounds(fns, args.repeat), err)
+        del b, fns
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--meshes", default="armadillo.obj,bunny.off,random:200000")
+    ap.add_argument("--structures", default="lr,lr-bits")
+    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--no-generic", action="store_true", help="skip the old per-face route")
+    ap.add_argument("--packed", type=int, default=0,
+                    help="instead: a packed batch of this many random meshes (500-5,000 vertices)")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    packed(args) if args.packed else single(args)
+
+
+if __name__ == "__main__":
+    main()
