@@ -496,6 +496,22 @@ def _dart(u, c, r=0):
     return (2 * (3 * u + c) + r).astype(jnp.int32)
 
 
+def _materialize(xs):
+    """The arrays ``xs`` (a tuple of ``(m, ...)`` arrays), written once to memory.
+
+    XLA:CPU fuses a producer into every consumer and re-evaluates it per consumer element, table
+    gathers included (``optimization_barrier`` is expanded away before fusion and does not stop
+    it): the Thm 6 targets fused into the face assembly's gathers cost 2-3x the targets
+    themselves. A scatter is never fused with the computation of its updates, so an identity
+    scatter (sorted, unique, in-bounds iota indices: one linear pass) is a materialisation point."""
+    out = []
+    for x in xs:
+        i = jnp.arange(x.shape[0], dtype=jnp.int32)
+        out.append(jnp.zeros_like(x).at[i].set(x, indices_are_sorted=True, unique_indices=True,
+                                                 mode="promise_in_bounds"))
+    return tuple(out)
+
+
 def _fld(x):
     """vertex index of a packed reference"""
     return x & _IDX
@@ -704,45 +720,61 @@ class _CDS(MeshStructure):
         return jnp.stack(self._targets_cols(), axis=1).reshape(-1).astype(jnp.int32)
 
     # ---- whole mesh: faces and degrees in O(1) per face / edge (Thm 7)
-    def face_vertices(self) -> Int:
-        """``(F, 3)`` vertices of every face, ccw, row ``f`` = face id ``f``, in O(1) per face
-        from the face map of Thm 7 (no navigation operator is called):
+    def _slot_faces(self):
+        """``(2n, 3)``: the vertices, ccw, of the face in every Thm 7 slot, in O(1) per face from
+        the face map (no navigation operator is called); garbage in the four unused slots:
 
         * slot ``u`` (red triangle of ``u``, left of ``u_red``): ``(u, Target(u_red), w)`` with
           ``w`` the origin of ``LeftFront(u_red)``: its source if it enters the target
           (``w_red``), else ``Target(LeftFront)``;
         * slot ``n + b``: ``b``'s black triangle when ``LeftFront(b_black)`` is black (``w_black``
           entering: ``(b, Target(b_black), w)``), else the blue triangle of ``o = F_blue[b]``,
-          whose ``LeftFront(o_blue)`` is blue (``w_blue`` entering): ``(o, Target(o_blue), w)``;
-        * the four unused slots (static) are cut out.
+          whose ``LeftFront(o_blue)`` is blue (``w_blue`` entering): ``(o, Target(o_blue), w)``.
         """
         n = self.num_vertices
         u = jnp.arange(n, dtype=jnp.int32)
-        # optimization_barrier: materialise the columns once (XLA would otherwise re-evaluate
-        # them, table gathers included, inside every gather that reads them)
-        lf_r, lf_b, lf_k = jax.lax.optimization_barrier(self._lf_cols())
+        # materialised once: XLA would otherwise re-evaluate them, table gathers included, inside
+        # every gather that reads them
+        lf_r, lf_b, lf_k = _materialize(self._lf_cols())
         # _EXTERIOR: LeftFront((V_blue, V_red)) = (V_red, V_black): the red slot of V_blue is the
         # outer face (V_blue, V_red, V_black)
         lf_r = jnp.where(u == self.v_blue, self._d1, lf_r)
-        t_r, t_b, t_k = jax.lax.optimization_barrier(self._targets_cols((lf_r, lf_b, lf_k)))
-        t_flat = jnp.stack([t_r, t_b, t_k], axis=1).reshape(-1)
+        t_r, t_b, t_k = _materialize(self._targets_cols((lf_r, lf_b, lf_k)))
         # red triangles: w = Source(LeftFront) when it is w_red entering v, else Target(v_blue)
-        w_r = jnp.where((lf_r & 1) == 1, _src(lf_r), t_flat[jnp.where((lf_r & 1) == 1, 0, lf_r >> 1)])
+        w_r = jnp.where((lf_r & 1) == 1, _src(lf_r), t_b[jnp.where((lf_r & 1) == 1, 0, _src(lf_r))])
         red = jnp.stack([u, t_r, w_r], axis=1)
-        # black triangle of b (LeftFront(b_black) black, entering) or blue triangle of F_blue[b]
+        # black triangle of b (LeftFront(b_black) black, entering) or blue triangle of F_blue[b]:
+        # the blue triangle of every vertex as one (n, 3) table, so F_blue costs one row gather
         black_matched = ((lf_k & 1) == 1) & self._valid_cols()[BLACK]
-        o = self.F_blue
-        blue_o = jnp.stack([o, t_b[o], _src(lf_b)[o]], axis=1)
+        blue_o = jnp.stack([u, t_b, _src(lf_b)], axis=1)[self.F_blue]
         black = jnp.stack([u, t_k, _src(lf_k)], axis=1)
         kb = jnp.where(black_matched[:, None], black, blue_o)
-        slots = jnp.concatenate([red, kb], axis=0)
+        return jnp.concatenate([red, kb], axis=0)
+
+    def _slot_valid(self):
+        """``(2n,)`` bool: the Thm 7 slot holds a face (all but the four unused ones)."""
+        i = jnp.arange(2 * self.num_vertices, dtype=jnp.int32)
+        ok = jnp.ones(i.shape, bool)
+        for x in self.unused_slots:
+            ok = ok & (i != x)
+        return ok
+
+    def face_vertices(self) -> Int:
+        """``(F, 3)`` vertices of every face, ccw, row ``f`` = face id ``f``: the Thm 7 slots
+        (:meth:`_slot_faces`, O(1) per face) with the four unused ones (static) cut out."""
+        slots = self._slot_faces()
         pieces, lo = [], 0
         for x in self.unused_slots:  # sorted, static
             pieces.append(slots[lo:x])
             lo = x + 1
         pieces.append(slots[lo:])
-        # materialised once: consumers (the normals' position gathers) would re-evaluate it
-        return jax.lax.optimization_barrier(jnp.concatenate(pieces, axis=0).astype(jnp.int32))
+        return jnp.concatenate(pieces, axis=0).astype(jnp.int32)
+
+    def face_vertices_padded(self):
+        """The ``2n`` Thm 7 slots as they are (:meth:`_slot_faces`), the four unused ones
+        masked and set to vertex 0: no compaction copy for whole-mesh sums (the normals)."""
+        valid = self._slot_valid()
+        return jnp.where(valid[:, None], self._slot_faces(), 0).astype(jnp.int32), valid
 
     def vertex_degrees(self) -> Int:
         """``(n,)`` degrees: the edges leaving ``u`` (3 for inner vertices, Definition 1) plus the

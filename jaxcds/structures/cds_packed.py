@@ -157,7 +157,7 @@ class _PackedMixin:
     def face_vertices(self):
         """``(F, 3)``: the class's O(1)-per-face route (Thm 7) on the union's slots, then each
         mesh's faces picked in its own dense order."""
-        full = type(self)._base.face_vertices(self._whole_view())  # (2N, 3): no slot cut
+        full = type(self)._base._slot_faces(self._whole_view())  # (2N, 3): union slots
         b = self.mesh_vertex_counts.shape[0]
         fc = 2 * self.mesh_vertex_counts - 4
         m = jnp.repeat(jnp.arange(b, dtype=jnp.int32), fc, total_repeat_length=self.num_faces)
@@ -165,7 +165,23 @@ class _PackedMixin:
         un = self.mesh_unused_slots[m]
         row = _expand_union(g - self.mesh_face_offsets[m], tuple(un[:, k] for k in range(4)),
                             self.mesh_vertex_offsets[m], self.mesh_vertex_counts[m], self.num_vertices)
-        return jax.lax.optimization_barrier(full[row])
+        return full[row]
+
+    def _slot_valid(self):
+        """``(2N,)`` bool over the union's slots: False at each mesh's four unused Thm 7 slots
+        (one scatter of ``4B`` entries)."""
+        n = self.num_vertices
+        loc = self.mesh_unused_slots  # (B, 4) local slots
+        nv, voff = self.mesh_vertex_counts[:, None], self.mesh_vertex_offsets[:, None]
+        at = jnp.where(loc < nv, voff + loc, n + voff + loc - nv).reshape(-1)
+        return jnp.ones(2 * n, bool).at[at].set(False)
+
+    def face_vertices_padded(self):
+        """The union's ``2N`` Thm 7 slots as they are, each mesh's four unused ones masked (set
+        to vertex 0): no per-face mesh lookup, no compaction gather (for the normals)."""
+        valid = self._slot_valid()
+        full = type(self)._base._slot_faces(self._whole_view())
+        return jnp.where(valid[:, None], full, 0).astype(jnp.int32), valid
 
     def vertex_degrees(self):
         return type(self)._base.vertex_degrees(self._whole_view())
