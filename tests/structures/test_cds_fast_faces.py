@@ -1,0 +1,103 @@
+"""The CDS family's whole-mesh routes (Castelli Aleardi & Devillers, Sec. 2, Thm 2/6/7) against
+independent oracles: every Target at once (``all_edge_targets``) == Thm 2's walk edge by edge
+(``_target_walk``, a masked while_loop of LeftFront steps), ``face_vertices`` == the protocol's
+generic route (``edge_of_face`` + ``next`` + ``origin``, row by row, same rotation), the padded
+slots of ``face_vertices_padded`` == the same faces once each, the normals and their gradients ==
+the plain face-list normals on those faces. Single structures on real meshes (holed ones after
+``close_boundaries``) and random triangulations, and a packed batch of three meshes.
+
+Cost: small meshes only, one jitted program per (structure, mesh).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxcds.algorithms import vertex_normals
+from jaxcds.algorithms.normals import face_list_vertex_normals
+from jaxcds.batch import pack, pack_positions
+from jaxcds.generators import random_planar_triangulation
+from jaxcds.mesh import close_boundaries
+from jaxcds.structures import registry
+from jaxcds.structures.base import MeshStructure
+from jaxcds.structures.cds import _CDS
+
+from conftest import load_shared
+
+CDS = ["cds6n", "cds5n", "cds4n", "cds5n-o1"]
+
+
+def _mesh(name):
+    if name.startswith("random:"):
+        n, seed = name[7:].split("/")
+        return random_planar_triangulation(int(n), seed=int(seed))
+    return close_boundaries(load_shared(name))
+
+
+@jax.jit
+def _fast(s):
+    fv, valid = s.face_vertices_padded()
+    return s.all_edge_targets(), s.face_vertices(), fv, valid
+
+
+@jax.jit
+def _oracle(s):
+    e = jnp.arange(3 * s.num_vertices, dtype=jnp.int32)
+    ok = s.edge_valid(e)
+    # Thm 2's walk (the per-query route), not the pointer jumping / Thm 6 of all_edge_targets
+    walk = _CDS._target_walk(s, jnp.where(ok, e, 0)) if not getattr(s, "packed", False) \
+        else s._target_walk(jnp.where(ok, e, 0))
+    return ok, walk, MeshStructure.face_vertices(s)
+
+
+def _check(s, positions):
+    t, fv, pad, valid = _fast(s)
+    ok, walk, fv_ref = _oracle(s)
+    ok = np.asarray(ok)
+    np.testing.assert_array_equal(np.asarray(t)[ok], np.asarray(walk)[ok])
+    np.testing.assert_array_equal(np.asarray(fv), np.asarray(fv_ref))
+    pad, valid = np.asarray(pad), np.asarray(valid)
+    assert pad.shape == (2 * s.num_vertices, 3) and valid.shape == (2 * s.num_vertices,)
+    assert int(valid.sum()) == s.num_faces
+    assert pad.min() >= 0 and pad.max() < s.num_vertices
+    key = lambda a: a[np.lexsort(a.T[::-1])]  # noqa: E731
+    np.testing.assert_array_equal(key(pad[valid]), key(np.asarray(fv_ref)))
+    # normals and gradients == the face list on the same faces
+    p = jnp.asarray(positions, jnp.float32)
+    faces = jnp.asarray(fv_ref)
+    np.testing.assert_allclose(np.asarray(vertex_normals(s, p)),
+                               np.asarray(face_list_vertex_normals(p, faces)), atol=2e-5)
+    w = jnp.linspace(-1.0, 1.0, 3 * s.num_vertices).reshape(-1, 3)
+    g = jax.grad(lambda q: jnp.sum(vertex_normals(s, q) * w))(p)
+    g_ref = jax.grad(lambda q: jnp.sum(face_list_vertex_normals(q, faces) * w))(p)
+    np.testing.assert_allclose(np.asarray(g), np.asarray(g_ref), atol=2e-4, rtol=1e-3)
+
+
+@pytest.mark.parametrize("mesh", ["cube.off", "grid.off", "random:2000/7",
+                                  pytest.param("decimated-knight.off", marks=pytest.mark.slow),
+                                  pytest.param("2triangles.off", marks=pytest.mark.slow),
+                                  pytest.param("random:500/1", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("name", CDS)
+def test_whole_mesh_routes_single(name, mesh):
+    m = _mesh(mesh)
+    s = registry.build(name, m)
+    pos = np.asarray(m.vertices, np.float64)
+    if s.vertex_order is not None:
+        pos = pos[np.asarray(s.vertex_order)]
+    _check(s, pos)
+
+
+@pytest.mark.parametrize("name", CDS)
+def test_whole_mesh_routes_packed(name):
+    meshes = [_mesh("decimated-knight.off"), _mesh("random:300/2"), _mesh("grid.off")]
+    b = pack(meshes, name)
+    s = b.structure
+    pos = np.asarray(pack_positions(b, meshes))
+    _check(s, pos)
+    # the batch forwards the padded faces: the batch normals == the face list's
+    np.testing.assert_allclose(np.asarray(vertex_normals(b, jnp.asarray(pos, jnp.float32))),
+                               np.asarray(face_list_vertex_normals(jnp.asarray(pos, jnp.float32),
+                                                                   s.face_vertices())), atol=2e-5)
