@@ -419,8 +419,10 @@ class _LRNavigation(MeshStructure):
         bl, rl = self._slot_rank(2 * v)
         br, rr = self._slot_rank(2 * v + 1)
         j = jnp.arange(self.num_t0, dtype=jnp.int32)
-        dest = jnp.concatenate([jnp.where(bl, rl, nf), jnp.where(br, rr, nf),
-                                jnp.where(j < nf - self.num_ring_faces, self.num_ring_faces + j, nf)])
+        loc = jnp.concatenate([jnp.where(bl, rl, -1), jnp.where(br, rr, -1),
+                               jnp.where(j < nf - self.num_ring_faces, self.num_ring_faces + j, -1)])
+        # rows that are no face go past the end, each to its own index (the indices stay unique)
+        dest = jnp.where(loc >= 0, loc, nf + jnp.arange(loc.shape[0], dtype=jnp.int32))
         rows = jnp.concatenate([left, right, t0], axis=0).astype(jnp.int32)
         out = jnp.zeros((nf, 3), jnp.int32)
         return out.at[dest].set(rows, mode="drop", unique_indices=True)

@@ -205,7 +205,9 @@ class _PackedMixin:
         j = local[nring:]
         real0 = j < self.mesh_sizes[meshes[nring:], 1] - nrf[nring:]
         loc = jnp.concatenate([jnp.where(bit, rank, -1), jnp.where(real0, nrf[nring:] + j, -1)])
-        dest = jnp.where(loc >= 0, self.mesh_face_offsets[meshes] + loc, nf)
+        # rows that are no face go past the end, each to its own index (the indices stay unique)
+        dest = jnp.where(loc >= 0, self.mesh_face_offsets[meshes] + loc,
+                         nf + jnp.arange(loc.shape[0], dtype=jnp.int32))
         out = jnp.zeros((nf, 3), jnp.int32)
         return out.at[dest].set(rows, mode="drop", unique_indices=True)
 
