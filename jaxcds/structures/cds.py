@@ -497,19 +497,19 @@ def _dart(u, c, r=0):
 
 
 def _materialize(xs):
-    """The arrays ``xs`` (a tuple of ``(m, ...)`` arrays), written once to memory.
+    """The ``(m,)`` arrays ``xs`` (a tuple), written once to memory.
 
     XLA:CPU fuses a producer into every consumer and re-evaluates it per consumer element, table
     gathers included (``optimization_barrier`` is expanded away before fusion and does not stop
     it): the Thm 6 targets fused into the face assembly's gathers cost 2-3x the targets
-    themselves. A scatter is never fused with the computation of its updates, so an identity
-    scatter (sorted, unique, in-bounds iota indices: one linear pass) is a materialisation point."""
-    out = []
-    for x in xs:
-        i = jnp.arange(x.shape[0], dtype=jnp.int32)
-        out.append(jnp.zeros_like(x).at[i].set(x, indices_are_sorted=True, unique_indices=True,
-                                                 mode="promise_in_bounds"))
-    return tuple(out)
+    themselves. A scatter is never fused with the computation of its updates, so one identity
+    scatter (sorted, unique, in-bounds iota indices) of the stacked columns is a materialisation
+    point: one linear pass."""
+    x = jnp.stack(xs, axis=1)
+    i = jnp.arange(x.shape[0], dtype=jnp.int32)
+    x = jnp.zeros_like(x).at[i].set(x, indices_are_sorted=True, unique_indices=True,
+                                    mode="promise_in_bounds")
+    return tuple(x[:, k] for k in range(len(xs)))
 
 
 def _fld(x):
@@ -551,6 +551,11 @@ class _CDS(MeshStructure):
 
     def _edge_target(self, e):
         return self._target_walk(e)
+
+    # _lf_cols reads other rows (a gather: Thm 4's S_red^toleft black case)
+    _gathered_lf = True
+    # _targets_cols is a loop-free expression XLA would fuse into its consumers (Thm 6)
+    _fusible_targets = False
 
     # ---- exterior darts
     @property
@@ -733,13 +738,15 @@ class _CDS(MeshStructure):
         """
         n = self.num_vertices
         u = jnp.arange(n, dtype=jnp.int32)
-        # materialised once: XLA would otherwise re-evaluate them, table gathers included, inside
-        # every gather that reads them
-        lf_r, lf_b, lf_k = _materialize(self._lf_cols())
+        lf_r, lf_b, lf_k = self._lf_cols()
+        if self._gathered_lf:  # materialised once: XLA would otherwise re-evaluate them, table
+            lf_r, lf_b, lf_k = _materialize((lf_r, lf_b, lf_k))  # gathers included, in every gather
         # _EXTERIOR: LeftFront((V_blue, V_red)) = (V_red, V_black): the red slot of V_blue is the
         # outer face (V_blue, V_red, V_black)
         lf_r = jnp.where(u == self.v_blue, self._d1, lf_r)
-        t_r, t_b, t_k = _materialize(self._targets_cols((lf_r, lf_b, lf_k)))
+        t_r, t_b, t_k = self._targets_cols((lf_r, lf_b, lf_k))
+        if self._fusible_targets:  # a while_loop's result is in memory already
+            t_r, t_b, t_k = _materialize((t_r, t_b, t_k))
         # red triangles: w = Source(LeftFront) when it is w_red entering v, else Target(v_blue)
         w_r = jnp.where((lf_r & 1) == 1, _src(lf_r), t_b[jnp.where((lf_r & 1) == 1, 0, _src(lf_r))])
         red = jnp.stack([u, t_r, w_r], axis=1)
@@ -1025,6 +1032,7 @@ class CDS6n(_CDS):
     boundaries_closed: bool = static_field(default=False)
 
     name = "cds6n"
+    _gathered_lf = False  # column slices of refs
 
     def _inc(self, u, c):
         return _bit31(jnp.take_along_axis(self.refs[u], (2 * c)[..., None], axis=-1)[..., 0])
@@ -1364,6 +1372,7 @@ class CDS5nO1(CDS4n):
     """
 
     name = "cds5n-o1"
+    _fusible_targets = True
 
     def _lf_red_r(self, u, row):
         s, ctl = self._toleft_r(row)
