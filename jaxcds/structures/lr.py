@@ -213,6 +213,11 @@ def _slot_triangles(xp, dec, m, nv, v):
     return left, right, ok_l, ok_r
 
 
+def _wrap(x, m):
+    """``x mod m`` for ``-m <= x < 2m``."""
+    return jnp.where(x < 0, x + m, jnp.where(x >= m, x - m, x))
+
+
 def _popcount32(x):
     return jax.lax.population_count(x)
 
@@ -226,6 +231,11 @@ class _LRNavigation(MeshStructure):
     # ---------------------------------------------------------------- paper operators (Fig. 2)
     def _dec(self, v) -> _Slot:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    def _dec_all(self) -> _Slot:
+        """:meth:`_dec` of every ring vertex ``0 .. m_r - 1`` (subclasses read their tables
+        whole instead of gathering them through an ``arange``)."""
+        return self._dec(jnp.arange(self.num_ring, dtype=jnp.int32))
 
     def _t0_index(self, c):
         # "i = c - floor(c/4) - 6 m_r restores the base to six" (Sec. 4.7)
@@ -389,7 +399,7 @@ class _LRNavigation(MeshStructure):
         Sec. 4.6 masked and clamped)."""
         m, nv = self.num_ring, self.num_vertices
         v = jnp.arange(m, dtype=jnp.int32)
-        left, right, ok_l, ok_r = _slot_triangles(jnp, self._dec, m,
+        left, right, ok_l, ok_r = _slot_triangles(jnp, lambda _: self._dec_all(), m,
                                                   nv if self.has_border else None, v)
         t0 = self.V0[: 3 * self.num_t0].reshape(self.num_t0, 3)
         if self.has_border:
@@ -530,8 +540,13 @@ class LR(_LRNavigation):
     name = "lr"
 
     def _dec(self, v) -> _Slot:
-        a = self.L[v]
-        b = self.R[v]
+        return self._dec_entries(self.L[v], self.R[v])
+
+    def _dec_all(self) -> _Slot:
+        # every ring vertex in order: the arrays themselves, no gather
+        return self._dec_entries(self.L[: self.num_ring], self.R[: self.num_ring])
+
+    def _dec_entries(self, a, b) -> _Slot:
         skl = (a >> _SKIP_BIT) & 1
         skr = (b >> _SKIP_BIT) & 1
         irl = (a >> _IRR_BIT) & 1
@@ -605,9 +620,18 @@ class LRBits(_LRNavigation):
     name = "lr-bits"
 
     def _dec(self, v) -> _Slot:
+        return self._dec_entries(v, self.LR16[2 * v].astype(jnp.int32),
+                                 self.LR16[2 * v + 1].astype(jnp.int32))
+
+    def _dec_all(self) -> _Slot:
+        # every ring vertex in order: the two strided halves of LR16, no gather
         m = self.num_ring
-        el = self.LR16[2 * v].astype(jnp.int32)
-        er = self.LR16[2 * v + 1].astype(jnp.int32)
+        return self._dec_entries(jnp.arange(m, dtype=jnp.int32),
+                                 self.LR16[0:2 * m:2].astype(jnp.int32),
+                                 self.LR16[1:2 * m:2].astype(jnp.int32))
+
+    def _dec_entries(self, v, el, er) -> _Slot:
+        m = self.num_ring
         fl = el & 1
         fr = er & 1
         long_ = (fl & fr) == 1
@@ -617,9 +641,12 @@ class LRBits(_LRNavigation):
         one = jnp.int32(1)
         irl = jnp.where(long_, (payload >> 2) & 1, 0)
         irr = jnp.where(long_, (payload >> 3) & 1, 0)
-        # 15-bit signed offsets modulo m_r (Sec. 6.1)
-        lv = jnp.where(long_, self.VOs[a], (v + (el >> 1)) % m)
-        rv = jnp.where(long_, self.VOs[a + 1], (v + (er >> 1)) % m)
+        # 15-bit signed offsets modulo m_r (Sec. 6.1); packing keeps them in (-m_r/2, m_r/2], so
+        # v + offset is at most one ring length off: one conditional wrap instead of a floor
+        # modulo (a division when m_r is per element, as in a packed batch). Long entries compute
+        # garbage here and take VO* below.
+        lv = jnp.where(long_, self.VOs[a], _wrap(v + (el >> 1), m))
+        rv = jnp.where(long_, self.VOs[a + 1], _wrap(v + (er >> 1), m))
         return _Slot(l=lv, r=rv,
                      skl=jnp.where(long_, payload & 1, fl & (one - fr)),
                      skr=jnp.where(long_, (payload >> 1) & 1, fr & (one - fl)),
