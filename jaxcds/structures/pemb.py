@@ -465,39 +465,55 @@ class PEMB(MeshStructure):
     def with_tables(self, *, twin: bool = True, origin: bool = True,
                     tables: Optional[dict] = None) -> "PEMBTables":
         """This structure with ``mate`` (``twin``) and/or ``vertex`` (``origin``) tabulated for
-        every dart, as :class:`PEMBTables` (jittable; call it inside the jitted phase so the
-        tables are temporaries of that phase). Every other operator (``next``, ``prev``,
-        ``cw``/``ccw``, ``face``, ``is_border``...) is composed from ``mate`` and ``vertex`` and
-        becomes rank-and-gather work.
+        every dart, as :class:`PEMBTables` (jittable; an algorithm calls it inside a jitted
+        phase, which may return :attr:`PEMBTables.tables` for its later phases). Every other
+        operator (``next``, ``prev``, ``cw``/``ccw``, ``face``, ``is_border``...) is composed
+        from ``mate`` and ``vertex`` and becomes rank-and-gather work; ``rank`` itself reads
+        per-word counters (:meth:`BitVector.with_word_rank`, 1 bit per bit, also temporary).
 
         Cost: the twin table is one :meth:`~BalancedParens.match_all` (a search from every ``(``
         only, then a scatter) plus a scatter inverting ``position -> parenthesis`` (so no
-        ``select`` per dart); the vertex table is one ``enclose`` per parenthesis of ``B``
-        (``2(n-1)`` searches instead of one per dart, ``2m``: a third as many). An algorithm
-        that asks each of ``twin``, ``next``, ``prev``, ``cw`` of all darts (Polylla's label and
-        traversal) otherwise pays one to two ``mate`` searches per operator and dart.
+        ``select`` per dart), and gives ``first_dual`` of every face by one more scatter; the
+        vertex table is one ``enclose`` per parenthesis of ``B`` (``2(n-1)`` searches instead of
+        one per dart, ``2m``: a third as many). An algorithm that asks ``twin``, ``next``,
+        ``prev``, ``cw`` of all darts (Polylla's label and traversal) otherwise pays one to two
+        ``mate`` searches per operator and dart.
 
         ``tables``: the :attr:`PEMBTables.tables` of an earlier call on this structure (a later
         phase of the same run reuses them: nothing is computed)."""
-        tw = vb = None
-        if tables is not None:
-            tw, vb = tables.get("tw"), tables.get("vb")
-            twin = twin and tw is None
-            origin = origin and vb is None
-        if twin:
+        tables = dict(tables or {})
+        A, P = self.A, self.P
+        A = A if A.word_rank is not None else dataclasses.replace(A, word_rank=tables.get("ra"))
+        if A.word_rank is None:
+            A = A.with_word_rank()
+        if P.bits.word_rank is None:
+            rp = tables.get("rp")
+            P = dataclasses.replace(P, bits=(P.bits.with_word_rank() if rp is None else
+                                             dataclasses.replace(P.bits, word_rank=rp)))
+        tw, vb, fe = tables.get("tw"), tables.get("vb"), tables.get("fe")
+        if twin and tw is None:
             n = self.num_darts
             i = jnp.arange(n, dtype=jnp.int32)
-            a = self.A.access(i) == 1
-            t1 = self.A.rank1(i)
+            a = A.access(i) == 1
+            t1 = A.rank1(i)
             j = jnp.where(a, t1, self.num_tree_parens + i - t1)  # parenthesis of every position
-            pos_of = jnp.zeros((self.P.size,), jnp.int32).at[j].set(i)  # its inverse
-            tw = pos_of[self.P.match_all()[j]]
-        if origin:
+            pos_of = jnp.zeros((P.size,), jnp.int32).at[j].set(i)  # its inverse
+            tw = pos_of[P.match_all()[j]]
+            # first_dual(g) for every face g: the crossing that enters g is the position of g's
+            # '(' in B*, and g - 1 is the rank of that '(' among B*'s (one scatter; the root
+            # face, entered by no crossing, as first_dual says)
+            q = jnp.arange(self.num_tree_parens, P.size, dtype=jnp.int32)
+            g = P.rank_open(q) - self.num_tree_parens // 2 + 1
+            fe = jnp.zeros(((P.size - self.num_tree_parens) // 2 + 1,), jnp.int32)
+            fe = fe.at[jnp.where(P.is_open(q), g, fe.shape[0])].set(pos_of[q], mode="drop")
+            fe = fe.at[0].set(PEMB.first_dual(self, jnp.int32(0)))
+        if origin and vb is None:
             q = jnp.arange(self.num_tree_parens + 1, dtype=jnp.int32)
-            e = self.P.enclose(q)
-            vb = jnp.where(e >= self.P.size, 0, self.P.rank_open(e) + 1).astype(jnp.int32)
+            e = P.enclose(q)
+            vb = jnp.where(e >= P.size, 0, P.rank_open(e) + 1).astype(jnp.int32)
         kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(PEMB)}
-        return PEMBTables(**kw, tw=tw, vb=vb)
+        kw.update(A=A, P=P)
+        return PEMBTables(**kw, tw=tw, vb=vb, fe=fe)
 
     # -------------------------------------------------------------- face renumbering
     def _to_mesh_face(self, g: Int) -> Int:
@@ -583,6 +599,7 @@ class PEMBTables(PEMB):
       tw: ``(2m,)`` int32, ``mate`` of every position (``twin`` of every dart).
       vb: ``(2(n-1) + 1,)`` int32, for every prefix length ``r`` of ``B``, the vertex whose
         parenthesis is the innermost open one after ``r`` symbols (``vertex(i) = vb[rank1(A, i)]``).
+      fe: ``(f,)`` int32, ``first_dual`` of every pemb face (``edge_of_face`` without selects).
 
     Meant to live inside one jitted phase of an algorithm that asks the same operators of every
     dart (Polylla): built there, dropped with the phase's other temporaries. ``tw`` is 32 bits per
@@ -591,17 +608,20 @@ class PEMBTables(PEMB):
 
     tw: Optional[jnp.ndarray] = None
     vb: Optional[jnp.ndarray] = None
+    fe: Optional[jnp.ndarray] = None
 
     @property
     def tables(self) -> dict:
         """The tables held (``{"tw": ..., "vb": ...}``, those that are set): a jitted phase
         returns them so a later phase can reuse them (:meth:`PEMB.with_tables`)."""
-        return {k: v for k, v in (("tw", self.tw), ("vb", self.vb)) if v is not None}
+        out = {"ra": self.A.word_rank, "rp": self.P.bits.word_rank, "tw": self.tw,
+               "vb": self.vb, "fe": self.fe}
+        return {k: v for k, v in out.items() if v is not None}
 
     def with_tables(self, *, twin: bool = True, origin: bool = True,
                     tables: Optional[dict] = None) -> "PEMBTables":
         """Itself when it holds the tables asked for, else the missing ones added."""
-        if tables is None and (not twin or self.tw is not None) and (not origin or self.vb is not None):
+        if not tables and (not twin or self.tw is not None) and (not origin or self.vb is not None):
             return self
         return PEMB.with_tables(self, twin=twin, origin=origin,
                                 tables=dict(self.tables, **(tables or {})))
@@ -610,6 +630,11 @@ class PEMBTables(PEMB):
         if self.tw is None:
             return super().mate(i, where)
         return self.tw[jnp.asarray(i, jnp.int32)]
+
+    def first_dual(self, g: Int) -> Int:
+        if self.fe is None:
+            return super().first_dual(g)
+        return self.fe[jnp.asarray(g, jnp.int32)]
 
     def vertex(self, i: Int) -> Int:
         if self.vb is None:

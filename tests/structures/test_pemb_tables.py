@@ -1,0 +1,181 @@
+"""pemb's per-run navigation tables (issue 7): ``BalancedParens.match_all``, ``BitVector``
+word ranks and ``PEMB.with_tables`` against independent oracles.
+
+``match_all`` (a search from every ``(`` only, then a scatter) against a stack matching, on
+sequences with near and far matches and chunks small enough to loop; ``rank1`` with word ranks
+against a prefix sum; the tabulated structure's operators (twin, origin, next, prev, cw, ccw,
+is_border, face, edge_of_face, target) against the searching structure's on all darts, for a
+mesh with a border (root border loop: the ``is_border`` excess shortcut), one with a hole (a
+border loop that is not the root face: ``face`` renumbering) and a closed one: quick, against the
+HalfEdge arrays of the same faces mapped through the walk's positions; slow, against the
+searching structure's operators (their programs take ~40 s to compile). Reusing the tables
+(``tables=``) gives the same structure.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.spatial import Delaunay
+
+from jaxcds.structures.pemb import PEMB, PEMBTables
+from jaxcds.structures.succinct import BalancedParens, BitVector
+from jaxcds.structures.succinct import bitvector as bvmod
+
+
+def _balanced(seed: int, pairs: int, p_open: float) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    out = np.empty(2 * pairs, np.uint8)
+    d = o = 0
+    for k in range(2 * pairs):
+        if o < pairs and (d == 0 or rng.random() < p_open):
+            out[k], d, o = 1, d + 1, o + 1
+        else:
+            out[k], d = 0, d - 1
+    return out
+
+
+def _stack_match(b: np.ndarray) -> np.ndarray:
+    match = np.full(b.size, -1)
+    stack = []
+    for i, x in enumerate(b):
+        if x:
+            stack.append(i)
+        else:
+            j = stack.pop()
+            match[i], match[j] = j, i
+    return match
+
+
+@functools.partial(jax.jit, static_argnames=("chunk",))
+def _match_all(bp, chunk):
+    return bp.match_all(chunk=chunk)
+
+
+# two-stage + compaction (pairs above SELECT_ALL_BELOW, chunk 64: many loop trips; p_open 0.95:
+# deep nesting, most matches far) and the small-batch route (100 pairs: the slow route alone)
+@pytest.mark.parametrize("pairs,p_open,seed,chunk", [
+    (bvmod.SELECT_ALL_BELOW // 2 + 700, 0.5, 0, 64),
+    (bvmod.SELECT_ALL_BELOW // 2 + 700, 0.95, 1, 64),
+    (bvmod.SELECT_ALL_BELOW // 2 + 700, 0.3, 2, None),
+    (100, 0.6, 3, None),
+])
+def test_match_all_against_stack(pairs, p_open, seed, chunk):
+    b = _balanced(seed, pairs, p_open)
+    got = np.asarray(_match_all(BalancedParens.from_bits(b), chunk))
+    np.testing.assert_array_equal(got, _stack_match(b))
+
+
+def test_word_rank_against_prefix_sum():
+    bits = (np.random.default_rng(4).random(5000) < 0.3).astype(np.uint8)
+    bv = BitVector.from_bits(bits)
+    i = jnp.arange(bits.size + 1, dtype=jnp.int32)
+    want = np.concatenate([[0], np.cumsum(bits)])
+    got = jax.jit(lambda bv, i: bv.with_word_rank().rank1(i))(bv, i)
+    np.testing.assert_array_equal(np.asarray(got), want)
+    np.testing.assert_array_equal(np.asarray(jax.jit(lambda bv, i: bv.rank1(i))(bv, i)), want)
+
+
+def _delaunay(n: int, seed: int, hole: bool = False):
+    pts = np.random.default_rng(seed).random((n, 2))
+    faces = Delaunay(pts).simplices.astype(np.int32)
+    c = pts[faces].mean(axis=1)
+    if hole:  # drop the triangles whose centroid is near the middle: one inner border loop
+        faces = faces[np.linalg.norm(c - 0.5, axis=1) > 0.2]
+    a, b_, c_ = (pts[faces[:, k]] for k in range(3))
+    ccw = (b_[:, 0] - a[:, 0]) * (c_[:, 1] - a[:, 1]) - (b_[:, 1] - a[:, 1]) * (c_[:, 0] - a[:, 0]) > 0
+    faces[~ccw] = faces[~ccw][:, [0, 2, 1]]
+    used = np.unique(faces)
+    remap = np.full(n, -1)
+    remap[used] = np.arange(used.size)
+    return remap[faces].astype(np.int32), int(used.size)
+
+
+def _cube():
+    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]], np.int32)
+    return faces, 8
+
+
+def _ops(t, e, f):
+    return (t.twin(e), t.origin(e), t.next(e), t.prev(e), t.cw_vertex_edge(e), t.ccw_vertex_edge(e),
+            t.is_border(e), t.face(e), t.edge_of_face(f), t.target(e))
+
+
+@jax.jit
+def _both(s, e, f):
+    return _ops(s, e, f), _ops(s.with_tables(), e, f)
+
+
+def _mesh(name):
+    return {"border": lambda: _delaunay(300, 5), "hole": lambda: _delaunay(300, 6, hole=True),
+            "closed": _cube}[name]()
+
+
+@jax.jit
+def _tab_ops(s, e, f):
+    t = s.with_tables()
+    return (t.twin(e), t.origin(e), t.next(e), t.prev(e), t.is_border(e), t.face(e),
+            t.face(t.edge_of_face(f)))
+
+
+@pytest.mark.parametrize("mesh", ["hole", pytest.param("border", marks=pytest.mark.slow),
+                                  pytest.param("closed", marks=pytest.mark.slow)])
+def test_tables_against_halfedge(mesh):
+    """The tabulated operators against the HalfEdge arrays of the same faces, mapped through
+    the walk's dart -> position map (recomputed here from the encoder). Quick on the holed mesh
+    (~12 s on a loaded box: the table programs' searches compile once per shape); the root-border
+    mesh (Polylla's case, also covered by its pemb-vs-HalfEdge tests) and the closed cube are
+    slow."""
+    from jaxcds.structures.halfedge import halfedge_arrays
+    from jaxcds.structures.pemb import _bfs_tree, encode_rotation_system, rotation_system_from_faces
+
+    faces, nv = _mesh(mesh)
+    s = PEMB.from_faces(faces, nv)
+    opp, ccw, vert, border = rotation_system_from_faces(faces, nv)
+    start = int(ccw[int(np.argmax(border))]) if border.any() else 0
+    enc = encode_rotation_system(opp, ccw, vert, nv, start, _bfs_tree(opp, ccw, vert, start, nv))
+    pos, order = enc["position"], enc["order"]
+    nxt = halfedge_arrays(faces, nv)[0]
+    inner = np.arange(opp.size) < 3 * faces.shape[0]
+    e = jnp.arange(s.num_darts, dtype=jnp.int32)
+    f = jnp.arange(s.num_faces, dtype=jnp.int32)
+    tw, org, nx, pv, isb, face, back = (np.asarray(x) for x in _tab_ops(s, e, f))
+    np.testing.assert_array_equal(tw[pos], pos[opp])
+    np.testing.assert_array_equal(order[org[pos]], vert)
+    np.testing.assert_array_equal(nx[pos[inner]], pos[nxt[inner]])
+    np.testing.assert_array_equal(pv[pos[nxt[inner]]], pos[inner])
+    np.testing.assert_array_equal(isb[pos], ~inner)
+    tri = face[pos[inner]].reshape(-1, 3)  # the three darts of a triangle share its face id
+    assert (tri == tri[:, :1]).all() and np.unique(tri[:, 0]).size == faces.shape[0]
+    assert (face[pos[~inner]] == s.num_faces).all() and tri.max() < s.num_faces
+    np.testing.assert_array_equal(back, np.arange(s.num_faces))  # face(edge_of_face(f)) == f
+    # a later phase rebuilds the same tabulated structure from the returned tables
+    t = jax.jit(lambda s: s.with_tables().tables)(s)
+    assert set(t) == {"ra", "rp", "tw", "vb", "fe"}
+    u = s.with_tables(tables=t)
+    assert isinstance(u, PEMBTables) and u.with_tables() is u
+    np.testing.assert_array_equal(np.asarray(u.tw), tw)
+    assert u.bits == s.bits  # the tables are not part of the compact structure's count
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mesh", ["border", "hole", "closed"])
+def test_tables_against_searches(mesh):
+    """Slow (~45 s each: the searching operators' programs): every tabulated operator equals
+    the searching structure's on all darts."""
+    faces, nv = _mesh(mesh)
+    s = PEMB.from_faces(faces, nv)
+    if mesh == "hole":
+        assert int(s.holes.shape[0]) == 2 and not s.root_border
+    e = jnp.arange(s.num_darts, dtype=jnp.int32)
+    f = jnp.arange(s.num_faces, dtype=jnp.int32)
+    plain, tab = _both(s, e, f)
+    names = ("twin", "origin", "next", "prev", "cw", "ccw", "is_border", "face", "edge_of_face",
+             "target")
+    for name, a, b in zip(names, plain, tab):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b), err_msg=name)
