@@ -474,8 +474,8 @@ class PEMB(MeshStructure):
         Cost: the twin table is one :meth:`~BalancedParens.match_all` (a search from every ``(``
         only, then a scatter) plus a scatter inverting ``position -> parenthesis`` (so no
         ``select`` per dart), and gives ``first_dual`` of every face by one more scatter; the
-        vertex table is one ``enclose`` per parenthesis of ``B`` (``2(n-1)`` searches instead of
-        one per dart, ``2m``: a third as many). An algorithm that asks ``twin``, ``next``,
+        vertex table is read off the same matches by pointer doubling over ``B`` (no search at
+        all: a few gather rounds over ``2(n-1)`` entries). An algorithm that asks ``twin``, ``next``,
         ``prev``, ``cw`` of all darts (Polylla's label and traversal) otherwise pays one to two
         ``mate`` searches per operator and dart.
 
@@ -491,14 +491,16 @@ class PEMB(MeshStructure):
             P = dataclasses.replace(P, bits=(P.bits.with_word_rank() if rp is None else
                                              dataclasses.replace(P.bits, word_rank=rp)))
         tw, vb, fe = tables.get("tw"), tables.get("vb"), tables.get("fe")
-        if twin and tw is None:
+        twin, origin = twin and tw is None, origin and vb is None
+        M = P.match_all() if twin or origin else None  # the match of every parenthesis
+        if twin:
             n = self.num_darts
             i = jnp.arange(n, dtype=jnp.int32)
             a = A.access(i) == 1
             t1 = A.rank1(i)
             j = jnp.where(a, t1, self.num_tree_parens + i - t1)  # parenthesis of every position
             pos_of = jnp.zeros((P.size,), jnp.int32).at[j].set(i)  # its inverse
-            tw = pos_of[P.match_all()[j]]
+            tw = pos_of[M[j]]
             # first_dual(g) for every face g: the crossing that enters g is the position of g's
             # '(' in B*, and g - 1 is the rank of that '(' among B*'s (one scatter; the root
             # face, entered by no crossing, as first_dual says)
@@ -507,10 +509,22 @@ class PEMB(MeshStructure):
             fe = jnp.zeros(((P.size - self.num_tree_parens) // 2 + 1,), jnp.int32)
             fe = fe.at[jnp.where(P.is_open(q), g, fe.shape[0])].set(pos_of[q], mode="drop")
             fe = fe.at[0].set(PEMB.first_dual(self, jnp.int32(0)))
-        if origin and vb is None:
-            q = jnp.arange(self.num_tree_parens + 1, dtype=jnp.int32)
-            e = P.enclose(q)
-            vb = jnp.where(e >= P.size, 0, P.rank_open(e) + 1).astype(jnp.int32)
+        if origin:
+            # vb[q], the innermost node open before q, without enclose searches: after a '(' it
+            # is that node; after a ')' it is the same as before the matching '(' (the closed
+            # subtree is a child of it): vb[q] = vb[M[q - 1]]. Those pointers go back over the
+            # earlier siblings only, so pointer doubling ends in log2(most children) rounds.
+            ntp = self.num_tree_parens
+            q = jnp.arange(ntp + 1, dtype=jnp.int32)
+            prev_open = P.is_open(jnp.maximum(q - 1, 0)) & (q > 0)
+            val = jnp.where(prev_open, P.rank_open(jnp.maximum(q - 1, 0)) + 1, 0).astype(jnp.int32)
+            ptr = jnp.where((q > 0) & ~prev_open, M[jnp.clip(q - 1, 0, max(ntp - 1, 0))], q)
+
+            def more(p):
+                return jnp.any(p[p] != p)
+
+            ptr = jax.lax.while_loop(more, lambda p: p[p], ptr.astype(jnp.int32))
+            vb = val[ptr]
         kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(PEMB)}
         kw.update(A=A, P=P)
         return PEMBTables(**kw, tw=tw, vb=vb, fe=fe)
