@@ -7,7 +7,9 @@ For each size: uniform random points in the unit square (seed 0), Delaunay by sc
 part of the targets), the structure built from the face array (target for the HalfEdge: < 2 s at
 1M points), then Polylla: the first call (compilation included) and the median of ``repeats``
 further calls per phase (label, traversal, repair, polygons); compile time = first - median.
-Memory: bytes and references of the structure, bytes of the output, peak RSS of the process.
+Memory: bytes and references of the structure, bytes of the per-run navigation tables Polylla
+builds on it (``run_tables_bytes``: pemb's twin / first_dual / vertex tables and word ranks, held
+from the label phase to the end of the run), bytes of the output, peak RSS of the process.
 Every phase also reports its process CPU time (``cpu_*``, all threads): on a shared machine the
 wall time grows with the load, the CPU time much less.
 
@@ -37,6 +39,15 @@ PHASES = ("label", "traversal", "repair", "polygons")
 
 def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_tables_bytes(s) -> int:
+    """Bytes of the navigation tables :func:`jaxcds.algorithms.polylla.polylla` builds for ``s``
+    (``s.with_tables()``, kept from the label phase to the end of the run; 0 if it has none)."""
+    if getattr(s, "with_tables", None) is None:
+        return 0
+    t = jax.jit(lambda s: s.with_tables().tables)(s)
+    return int(sum(np.asarray(x).nbytes for x in t.values()))
 
 
 def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
@@ -81,6 +92,9 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
             "polygons": mesh.num_polygons, "barrier_edge_tips": mesh.barrier_edge_tips,
             "repaired_polygons": mesh.repaired_polygons, "regions": mesh.regions,
             "structure_bytes": int(s.nbytes), "structure_references": int(s.references),
+            # per-run navigation tables Polylla builds in its label phase and keeps until it
+            # returns (pemb: twin/first_dual/vertex tables, word ranks; 0: none)
+            "run_tables_bytes": run_tables_bytes(s),
             "bits_per_edge": 8.0 * s.nbytes / (3 * tri.num_faces / 2),
             "output_bytes": int(mesh.offsets.nbytes + mesh.indices.nbytes),
             "peak_rss_mb": peak_rss_mb(), "identical_to_first_structure": identical,
