@@ -15,7 +15,10 @@ the same region); a *barrier-edge tip* is the end of a barrier edge with no othe
 Every phase is a set of elementwise or gather operations on dart arrays, jitted, and calls only
 the protocol operators (``origin``, ``target``, ``twin``, ``next``, ``prev``, ``is_border``,
 ``cw_vertex_edge``, ``ccw_vertex_edge``, ``dart_valid``), so it runs unchanged on every structure
-that accepts borders (HalfEdge, pemb):
+that accepts borders (HalfEdge, pemb). A structure whose operators are searches may offer
+per-run navigation tables (``with_tables``: pemb tabulates ``twin``, ``origin`` and
+``edge_of_face`` of every dart / face once, in the label phase, and the later phases navigate the
+tabulated structure through the same protocol; :func:`_tabulated`):
 
 1. :func:`label_phase` (Alg. 1 lines 1-9, elementwise): longest edge of each triangle, frontier
    edges, seed edges (one dart per terminal / border terminal edge).

@@ -39,6 +39,15 @@ around the target), ``prev(e) = mate(next_p(e))``, ``ccw_vertex_edge = next_p``,
 (The slides orient a half-edge towards ``vertex(i)``; orienting it away is the same data and
 saves a ``mate`` in ``origin``.)
 
+Batch work over every dart (Polylla's phases ask ``twin``, ``next``, ``prev``, ``cw``,
+``origin`` of all darts) can first call :meth:`PEMB.with_tables`: one
+:meth:`~jaxcds.structures.succinct.BalancedParens.match_all` (a search from each ``(`` only) gives
+the twin of every dart, ``first_dual`` of every face and, by pointer doubling over ``B``, the
+vertex before every tree parenthesis; the returned :class:`PEMBTables` answers the same protocol
+with gathers. The tables are temporaries of that work (about 110 bits per edge, 41 bytes per
+vertex on a triangulation; the HalfEdge keeps 76 bytes per vertex all the time), never part of
+the structure.
+
 Memory: ``A`` ``2m`` bits, ``B`` + ``B*`` ``2(n - 1) + 2(f - 1) = 2m`` bits (Euler), stored as one
 balanced sequence ``B B*`` so ``mate`` needs a single search; support: rank directories (1/8 bit
 per bit) and the min-max tree (about 1/4 bit per parenthesis). :attr:`PEMB.bits_per_edge` counts
