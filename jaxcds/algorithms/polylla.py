@@ -83,8 +83,9 @@ def _tabulated(s, **tables):
     the protocol operators, of the structure this returns.
 
     :func:`polylla` tabulates once, in the label phase (which returns the tables), and runs the
-    later phases on the tabulated structure; a structure that already holds the tables asked for
-    returns itself, so the public phase functions tabulate only when called on a bare structure.
+    later phases on the tabulated structure (a structure that already holds the tables asked for
+    returns itself). The public :func:`traversal_phase`, :func:`middle_edges`... navigate the
+    structure they are given: pass them ``s.with_tables()`` for table speed.
     The tables are temporaries of one run (pemb: 32 bits per dart and 64 per vertex, against
     the structure's 5.25 bits per edge; they go when the run returns)."""
     f = getattr(s, "with_tables", None)
