@@ -172,8 +172,15 @@ class _PackedMixin:
         mesh = jnp.repeat(ids, mr, total_repeat_length=self.num_ring)
         v = jnp.arange(self.num_ring, dtype=jnp.int32) - excl(mr)[mesh]
         view = self._view_of(mesh)
+        # the ring tables are the meshes' own, m_r (LR16: 2 m_r) entries each, in mesh order
+        # (checked by concatenate_lr): ring vertex g of the union reads entry g, no gather
+        if "LR16" in self._arrays:
+            dec = lambda _: view._dec_entries(  # noqa: E731
+                v, self.LR16[0::2].astype(jnp.int32), self.LR16[1::2].astype(jnp.int32))
+        else:
+            dec = lambda _: view._dec_entries(self.L, self.R)  # noqa: E731
         left, right, ok_l, ok_r = _slot_triangles(
-            jnp, view._dec, view.num_ring, view.num_vertices if self.has_border else None, v)
+            jnp, dec, view.num_ring, view.num_vertices if self.has_border else None, v)
         mesh0 = jnp.repeat(ids, n0, total_repeat_length=self.num_t0)
         j = jnp.arange(self.num_t0, dtype=jnp.int32) - excl(n0)[mesh0]
         view0 = self._view_of(mesh0)
@@ -277,6 +284,11 @@ def concatenate_lr(cls, parts: Sequence) -> object:
     if max(int(nd.sum()), int(sizes[:, 7].sum()) * 3, int(lens.sum(axis=0).max())) >= 2**31 - 1:
         raise errors.UnsupportedTopologyError(
             f"{cls.__name__}.concatenate: ids over int32; pack fewer meshes per batch")
+    ring = [a for a in ("L", "R", "LR16") if a in P._arrays]
+    per_ring = 2 if ring == ["LR16"] else 1
+    for a in ring:  # the slot plan of face_vertices_padded reads these by union ring index
+        if np.any(lens[:, P._arrays.index(a)] != per_ring * sizes[:, 2]):
+            raise errors.StructureError(f"{cls.__name__}.concatenate: {a} is not {per_ring} m_r long")
     kw = {f.name: getattr(parts[0], f.name) for f in dataclasses.fields(cls)}
     for a in P._arrays:
         kw[a] = jnp.asarray(np.concatenate([np.asarray(getattr(p, a)) for p in parts]))
