@@ -64,7 +64,9 @@ CDS5nO1: O(1) (Thm 6), two table-row reads. Whole-mesh queries (``face_vertices`
 normals, and ``vertex_degrees``) read the tables column by column (slices, no gather), compute all
 ``3n`` targets at once -- by pointer jumping along the same ``LeftFront`` chains (one gather per
 round, ``ceil(log2(longest fan))`` rounds) or, for CDS5nO1, by Thm 6 in O(1) per edge -- and
-assemble every face from its Thm 7 slot in O(1) (no navigation operator is called).
+assemble every face from its Thm 7 slot in O(1) (no navigation operator is called). The normals
+read the ``2n`` slots as they are (``face_vertices_padded``: the four unused slots masked), with
+no compaction into dense face ids; ``face_vertices`` cuts the unused slots out.
 
 Construction
 ------------
