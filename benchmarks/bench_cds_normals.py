@@ -85,7 +85,7 @@ def packed(args):
     fl_pos = jnp.asarray(upos, jnp.float32)
     for name in args.structures.split(","):
         b = B.pack(ms, name, check=False)
-        order = np.asarray(b.vertex_order)
+        order = np.arange(u.num_vertices) if b.vertex_order is None else np.asarray(b.vertex_order)
         fns = _routes(b, jnp.asarray(upos[order], jnp.float32), fl_pos, faces)
         want = np.asarray(face_list_vertex_normals(fl_pos, faces))[order]
         _emit(f"packed:{args.packed}", name, u.num_vertices, u.num_faces, rounds(fns, args.repeat, stat), _err(fns, want))
