@@ -50,7 +50,7 @@ def run_tables_bytes(s) -> int:
     return int(sum(np.asarray(x).nbytes for x in t.values()))
 
 
-def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
+def bench_one(n: int, structures, repeats: int, seed: int = 0, tables: bool = True) -> list[dict]:
     rng = np.random.default_rng(seed)
     pts = rng.random((n, 2))
     t0 = time.perf_counter()
@@ -69,8 +69,8 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
             s = P.build_structure(tri, name, check=False)
             jax.block_until_ready(jax.tree_util.tree_leaves(s))
             builds.append(time.perf_counter() - t0)
-        first = P.polylla(s, tri.points)
-        runs = [P.polylla(s, tri.points) for _ in range(repeats)]
+        first = P.polylla(s, tri.points, tables=tables)
+        runs = [P.polylla(s, tri.points, tables=tables) for _ in range(repeats)]
         med = {k: statistics.median(r.timings[k] for r in runs) for k in PHASES}
         med_cpu = {k: statistics.median(r.timings["cpu_" + k] for r in runs) for k in PHASES}
         total = sum(med[k] for k in ("label", "traversal", "repair"))
@@ -80,7 +80,7 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
         identical = bool(np.array_equal(ref_out[0], mesh.offsets)
                          and np.array_equal(ref_out[1], mesh.indices))
         rows.append({
-            "points": n, "triangles": tri.num_faces, "structure": name,
+            "points": n, "triangles": tri.num_faces, "structure": name, "tables": tables,
             "delaunay_s": t_delaunay,
             "build_s": statistics.median(builds), "build_first_s": t_build_first,
             **{f"{k}_s": med[k] for k in PHASES},
@@ -94,7 +94,7 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0) -> list[dict]:
             "structure_bytes": int(s.nbytes), "structure_references": int(s.references),
             # per-run navigation tables Polylla builds in its label phase and keeps until it
             # returns (pemb: twin/first_dual/vertex tables, word ranks; 0: none)
-            "run_tables_bytes": run_tables_bytes(s),
+            "run_tables_bytes": run_tables_bytes(s) if tables else 0,
             "bits_per_edge": 8.0 * s.nbytes / (3 * tri.num_faces / 2),
             "output_bytes": int(mesh.offsets.nbytes + mesh.indices.nbytes),
             "peak_rss_mb": peak_rss_mb(), "identical_to_first_structure": identical,
@@ -110,6 +110,8 @@ def main(argv=None) -> int:
     ap.add_argument("--structures", nargs="+", default=["halfedge", "pemb"])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", default=None, help="write all rows to this file")
+    ap.add_argument("--no-tables", action="store_true",
+                    help="run Polylla without per-run navigation tables (pemb searches per operator)")
     args = ap.parse_args(argv)
     from jaxcds.structures import registry
 
@@ -124,7 +126,7 @@ def main(argv=None) -> int:
     rows = []
     for n in args.sizes:
         try:
-            rows += bench_one(n, structures, args.repeats)
+            rows += bench_one(n, structures, args.repeats, tables=not args.no_tables)
         except Exception as exc:  # report and go on with the next size
             print(f"size {n}: {type(exc).__name__}: {exc}", file=sys.stderr)
     if args.json:

@@ -179,7 +179,8 @@ def cmd_polylla(args) -> int:
         _check_output(args.output, (".off",), "the polygon mesh")
     t0 = time.perf_counter()
     with _writing(args.output or ""):
-        rep = polylla.run(args.input, args.output, structure=args.structure)
+        rep = polylla.run(args.input, args.output, structure=args.structure,
+                          tables=not args.no_tables)
     rep["seconds"] = round(time.perf_counter() - t0, 4)
     _emit(args, rep)
     return 0
@@ -216,5 +217,8 @@ def add_commands(sub) -> None:
     p.add_argument("--structure", "-s", default="halfedge", choices=["halfedge", "pemb"],
                    help="half-edge structure to run on: the array half-edge (default) or pemb "
                         "(succinct planar embedding); the polygons are identical")
+    p.add_argument("--no-tables", action="store_true",
+                   help="navigate the structure as it is, without per-run navigation tables "
+                        "(pemb: a parenthesis search per operator; slower, smaller peak memory)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_polylla)

@@ -91,12 +91,24 @@ def test_other_inputs_give_the_same_file(capsys, tmp_path, halfedge_run):
 
 
 @pytest.mark.slow  # pemb compiles every phase for its own shape (~12-18 s CPU)
-def test_pemb_writes_the_same_file(capsys, tmp_path, halfedge_run):
+@pytest.mark.parametrize("flags", [[], ["--no-tables"]])
+def test_pemb_writes_the_same_file(capsys, tmp_path, halfedge_run, flags):
     _, ref_bytes = halfedge_run
     out = tmp_path / "pemb.off"
     d = run_json(capsys, ["polylla", _need("points50.1.node"), "-o", str(out), "-s", "pemb",
-                          "--json"])
+                          "--json", *flags])
     assert d["structure"] == "pemb" and d["polygons"] == 17
+    assert d["tables"] is (not flags)
+    assert out.read_bytes() == ref_bytes
+
+
+def test_no_tables_flag_reaches_the_run(capsys, tmp_path, halfedge_run):
+    """``--no-tables`` on the half-edge (whose arrays are its tables): same file, reported."""
+    _, ref_bytes = halfedge_run
+    out = tmp_path / "he.off"
+    d = run_json(capsys, ["polylla", _need("points50.1.node"), "-o", str(out), "--no-tables",
+                          "--json"])
+    assert d["tables"] is False and d["polygons"] == 17
     assert out.read_bytes() == ref_bytes
 
 

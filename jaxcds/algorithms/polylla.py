@@ -93,11 +93,14 @@ def _tabulated(s, **tables):
 
 
 # ------------------------------------------------------------------------------ 1. label
-@jax.jit
-def _label_phase(s, positions, vertex_ids):
+@functools.partial(jax.jit, static_argnames=("tabulate",))
+def _label_phase(s, positions, vertex_ids, tabulate: bool = True):
     """:func:`label_phase` plus ``is_border`` of every dart (the traversal reuses it instead of
     asking the structure again: a parenthesis search per dart on pemb) and the navigation tables
-    of :func:`_tabulated` (None on a structure without them), for the later phases."""
+    of :func:`_tabulated` (None on a structure without them, or with ``tabulate=False``), for
+    the later phases."""
+    if not tabulate:  # the structure's own operators only (pemb: a search per query)
+        return _label_body(s, positions, vertex_ids) + (None,)
     # every dart's twin and origin are asked (most several times): tabulate them once
     t = _tabulated(s, twin=True, origin=True)
     return _label_body(t, positions, vertex_ids) + (getattr(t, "tables", None),)
@@ -199,11 +202,13 @@ def _turn_to_frontier(s, frontier, queries, inner, max_rounds):
     return p, ok
 
 
-@jax.jit
-def _traversal_and_tips(s, frontier, border):
+@functools.partial(jax.jit, static_argnames=("tabulate",))
+def _traversal_and_tips(s, frontier, border, tabulate: bool = True):
     """:func:`traversal_phase` and :func:`barrier_tips` on one tabulated structure (both ask
-    ``twin`` of every dart, the traversal ``next`` and ``cw_vertex_edge`` of every dart too)."""
-    s = _tabulated(s, twin=True, origin=False)
+    ``twin`` of every dart, the traversal ``next`` and ``cw_vertex_edge`` of every dart too;
+    ``tabulate=False``: on ``s`` as it is)."""
+    if tabulate:
+        s = _tabulated(s, twin=True, origin=False)
     succ, ok = traversal_phase(s, frontier, border)
     return succ, ok, barrier_tips(s, succ)
 
@@ -478,13 +483,20 @@ def _pad(x: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     return out, mask
 
 
-def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) -> PolyllaMesh:
+def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True,
+            tables: bool = True) -> PolyllaMesh:
     """Run Polylla on structure ``s`` (any structure with borders) and 2D ``positions``.
 
     Args:
       s: e.g. ``HalfEdge.from_faces(faces, V)`` or the ``pemb`` structure of the same mesh.
       positions: ``(V, 2)`` or ``(V, 3)`` coordinates in the *input* numbering (permuted here
         through ``s.vertex_order`` when the structure renumbers vertices).
+
+    ``tables``: let the structure build per-run navigation tables (:func:`_tabulated`; pemb:
+    twin, origin and first dart of every face, 41.5 bytes per vertex while the run lasts, its
+    stored 5.25 bits per edge unchanged). ``False`` navigates the structure as it is (pemb: one
+    or two parenthesis searches per operator; slower, no O(darts) int32 table at any time).
+    Same polygons either way.
 
     Lengths are compared in float64 (``jax.enable_x64`` around the label phase). Returns a
     :class:`PolyllaMesh`; raises :class:`~jaxcds.errors.StructureError` if the successor map
@@ -513,17 +525,17 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True) 
 
     t0 = marks[0][0]
     with jax.enable_x64(True):
-        max_edge, frontier, seed, border, tables = _label_phase(
-            s, jnp.asarray(pos_s, jnp.float64), vids_j)
+        max_edge, frontier, seed, border, nav_tables = _label_phase(
+            s, jnp.asarray(pos_s, jnp.float64), vids_j, tabulate=bool(tables))
         t1 = done(seed)
     # the later phases navigate the same structure with the label phase's tables (pemb: twin and
     # origin of every dart, 32 bits per dart and 64 per vertex, alive until the run ends)
-    nav = s if tables is None else s.with_tables(tables=tables)
+    nav = s if nav_tables is None else s.with_tables(tables=nav_tables)
     t["label"] = t1 - t0
 
     n_frontier = int(jnp.sum(frontier)) // 2  # undirected, before repair
     regions = int(jnp.sum(seed))
-    succ, ok, tips = _traversal_and_tips(nav, frontier, border)
+    succ, ok, tips = _traversal_and_tips(nav, frontier, border, tabulate=bool(tables))
     del border
     tip_darts = np.nonzero(np.asarray(tips))[0].astype(np.int32)
     if not bool(ok):
@@ -626,7 +638,7 @@ def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
 
 
 def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
-        check: bool = True) -> dict:
+        check: bool = True, tables: bool = True) -> dict:
     """Read ``source``, run Polylla on ``structure``, write ``output`` (OFF, atomically).
 
     Args:
@@ -635,6 +647,8 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
         array of points, or a :class:`~jaxcds.polylla_io.Triangulation2D`.
       output: OFF path for the polygons, or None.
       structure: ``halfedge`` (default) or ``pemb`` (or any registered structure with borders).
+      tables: per-run navigation tables (see :func:`polylla`); ``False`` for the structure's
+        own operators only.
 
     Returns a dict: ``polygons``, ``barrier_edge_tips``, ``repaired_polygons``, ``regions``,
     ``frontier_edges``, ``vertices``, ``triangles``, ``structure``, ``input``, ``output``,
@@ -656,10 +670,11 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     t0 = time.perf_counter()
     s = build_structure(tri, structure, check=check)
     t_build = time.perf_counter() - t0
-    mesh = polylla(s, tri.points)
+    mesh = polylla(s, tri.points, tables=tables)
     if output is not None:
         polylla_io.write_polygon_off(str(output), tri.points, mesh.offsets, mesh.indices)
     out = mesh.summary()
-    out.update(structure=structure, input=name, output=None if output is None else str(output),
+    out.update(structure=structure, tables=bool(tables), input=name,
+               output=None if output is None else str(output),
                timings={"build": t_build, **mesh.timings})
     return out

@@ -197,3 +197,15 @@ def test_pemb_refuses_vertex_in_no_triangle_by_name():
     assert P.build_structure(holed, "halfedge").num_vertices == 25
     with pytest.raises(errors.UnsupportedTopologyError, match="vertex 12 is in no triangle"):
         P.build_structure(holed, "pemb")
+
+
+# ------------------------------------------------------------------------ without run tables
+def test_pemb_without_navigation_tables_same_polygons():
+    """``tables=False``: Polylla on pemb's own searching operators (no per-run twin / origin /
+    face tables at any time) gives the tabulated run's polygons, repair included."""
+    tri = holed_domain(HOLED_WITH_TIPS)
+    s = P.build_structure(tri, "pemb")
+    with_tables = P.polylla(s, tri.points)
+    searching = P.polylla(s, tri.points, tables=False)
+    assert searching.barrier_edge_tips > 0 and searching.repaired_polygons > 0
+    assert_same(with_tables, searching)
