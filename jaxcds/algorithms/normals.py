@@ -3,15 +3,15 @@
 Two formulations, same result:
 
 * ``"scatter"`` — the face-list route: one cross product per face (its length is twice the area,
-  so summing unnormalised face normals *is* area weighting), accumulated at the three corners with
-  ``segment_sum``. The structure only has to produce its faces, in any order
-  (``face_vertices_padded()``, by default ``face_vertices()``).
+  so summing unnormalised face normals *is* area weighting), accumulated at the three corners
+  (:func:`corner_sums`: one scatter-add per corner column). The structure only has to produce
+  its faces, in any order (``face_vertices_padded()``, by default ``face_vertices()``).
 * ``"gather"`` — the navigation route of the CDS paper's Table 3: every vertex turns around its
   one-ring (``ccw_vertex_edge``) and sums the cross products of consecutive neighbours, no
   scatter at all. Cost: (max degree) rounds of gathers over all vertices.
 
 Scatter-add is the known slow spot of XLA:CPU (jax-ml/jax#39959); ``benchmarks/`` measures both
-and ``method="auto"`` picks the one measured faster (see benchmarks/RESULTS.md).
+routes, and ``"scatter"`` (the default) measured faster on every mesh there (RESULTS.md).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 
 from jaxcds import errors
 
-__all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals"]
+__all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums"]
 
 
 def normalize(x, axis: int = -1, eps: float = 0.0):
@@ -42,13 +42,28 @@ def face_normals(positions, faces):
     return jnp.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
 
 
+def corner_sums(face_values, faces, num_vertices: int):
+    """``(num_vertices, k)``: every face's value added at its three corners.
+
+    One scatter-add per corner column rather than one ``segment_sum`` over the values repeated
+    three times: the repeat costs an extra ``(3F, k)`` buffer (168 against 72 bytes of scratch
+    per vertex for normals: past glibc's 32 MiB reuse threshold from about 200K vertices, every
+    call then pays fresh zeroed pages), and on XLA:CPU (jaxlib 0.10.2) the ``segment_sum`` ran
+    2-4x slower when its indices are computed in the same program (any structure's faces) than
+    when passed in. Measured in ``benchmarks/bench_cds_normals.py`` / ``bench_lr_normals.py``
+    (column ``three_scatter``); the face-list baseline below sums the same way (same speed or
+    faster for it too: armadillo 33 -> 27 ns/vertex, 200K and 1M equal)."""
+    acc = jnp.zeros((num_vertices,) + face_values.shape[1:], face_values.dtype)
+    for k in range(3):
+        acc = acc.at[faces[:, k]].add(face_values)
+    return acc
+
+
 @jax.jit
 def face_list_vertex_normals(positions, faces):
     """The plain-JAX baseline on an ``(F, 3)`` face list (the peer in every benchmark)."""
     fn = face_normals(positions, faces)
-    acc = jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), faces.reshape(-1),
-                              num_segments=positions.shape[0])
-    return normalize(acc)
+    return normalize(corner_sums(fn, faces, positions.shape[0]))
 
 
 @functools.partial(jax.jit, static_argnames=("method",))
@@ -82,7 +97,7 @@ def _scatter_sums(s, positions):
     fn = face_normals(positions, fv)
     if valid is not None:
         fn = jnp.where(valid[:, None], fn, 0.0)
-    return jax.ops.segment_sum(jnp.repeat(fn, 3, axis=0), fv.reshape(-1), num_segments=s.num_vertices)
+    return corner_sums(fn, fv, s.num_vertices)
 
 
 # The gather route turns around vertices with a while_loop (its trip count is the largest degree,
