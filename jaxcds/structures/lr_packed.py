@@ -163,8 +163,8 @@ class _PackedMixin:
         union: per ring vertex of the union (mesh ids by one repeat, no search) both slot triangles
         from one mesh-local decode, per T0 of the union its ``V0`` row; local ids, masks for the
         redundant T2 copies and border triangles (Sec. 4.4, 4.6), plus what the dense order needs.
-        Returns ``(rows (2 M_r + N0, 3) global ids, ok, mesh of each row, local slot ``t`` or T0
-        index)``, ring rows as left slots then right slots."""
+        Returns ``(rows (2 M_r + N0, 3) global ids, ok, (mesh and local index of each ring vertex,
+        mesh and local index of each T0))``, ring rows as left slots then right slots."""
         b = self.mesh_sizes.shape[0]
         ids = jnp.arange(b, dtype=jnp.int32)
         excl = lambda c: jnp.concatenate([jnp.zeros(1, jnp.int32), jnp.cumsum(c)[:-1]])  # noqa: E731
@@ -181,31 +181,33 @@ class _PackedMixin:
             dec = lambda _: view._dec_entries(self.L, self.R)  # noqa: E731
         left, right, ok_l, ok_r = _slot_triangles(
             jnp, dec, view.num_ring, view.num_vertices if self.has_border else None, v)
+        voff = self.mesh_vertex_offsets[mesh][:, None]  # one gather, shared by both slots
         mesh0 = jnp.repeat(ids, n0, total_repeat_length=self.num_t0)
         j = jnp.arange(self.num_t0, dtype=jnp.int32) - excl(n0)[mesh0]
-        view0 = self._view_of(mesh0)
-        t0 = jnp.stack([view0.V0[3 * j + i] for i in range(3)], axis=-1)
+        # T0 rows: one gather of the union's V0 at the mesh's V0 start + 3j + (0, 1, 2)
+        v0_start = self.mesh_array_offsets[mesh0, self._arrays.index("V0")]
+        t0 = self.V0[(v0_start + 3 * j)[:, None] + jnp.arange(3, dtype=jnp.int32)]
         nv0 = self.mesh_sizes[mesh0, 0][:, None]
         ok0 = jnp.all(t0 < nv0, axis=1)
-        t0 = jnp.minimum(t0, nv0 - 1)
-        meshes = jnp.concatenate([mesh, mesh, mesh0])
-        rows = jnp.concatenate([left, right, t0], axis=0) + self.mesh_vertex_offsets[meshes][:, None]
+        t0 = jnp.minimum(t0, nv0 - 1) + self.mesh_vertex_offsets[mesh0][:, None]
+        rows = jnp.concatenate([left + voff, right + voff, t0], axis=0).astype(jnp.int32)
         ok = jnp.concatenate([ok_l, ok_r, ok0])
-        local = jnp.concatenate([2 * v, 2 * v + 1, j])
-        return rows.astype(jnp.int32), ok, meshes, local
+        return rows, ok, (mesh, v, mesh0, j)
 
     def face_vertices_padded(self):
         """Every face of every mesh once (any order; see
         :meth:`jaxcds.structures.base.MeshStructure.face_vertices_padded`): one decode per ring
         vertex of the union, no per-face navigation."""
-        rows, ok, _, _ = self._packed_rows()
+        rows, ok, _ = self._packed_rows()
         return rows, ok
 
     def face_vertices(self):
         """``(F, 3)`` in the union's face order (mesh by mesh, each in its dense face order): the
         rows of :meth:`face_vertices_padded` scattered to ``face_offsets[mesh]`` + their local
         face id (directory rank of a ring slot; ring faces + index of a real T0)."""
-        rows, ok, meshes, local = self._packed_rows()
+        rows, ok, (mesh, v, mesh0, j) = self._packed_rows()
+        meshes = jnp.concatenate([mesh, mesh, mesh0])
+        local = jnp.concatenate([2 * v, 2 * v + 1, j])
         nf, nring = self.num_faces, 2 * self.num_ring
         bit, rank = self._view_of(meshes[:nring])._slot_rank(local[:nring])
         nrf = self.mesh_sizes[meshes, 5]
