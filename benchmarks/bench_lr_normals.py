@@ -12,10 +12,11 @@ round every route runs once, in turn, so all see the same machine load):
 * ``face_list``: :func:`face_list_vertex_normals` on the input faces (the target's peer);
 * ``normals``: ``vertex_normals(s, positions)`` as the library runs it;
 * ``three_scatter``: the same rows (``face_vertices_padded``) summed with three scatter-adds, one
-  per corner column, instead of ``_scatter_sums``' one ``segment_sum`` over the repeated rows.
-  On XLA:CPU (jaxlib 0.10.2) a ``segment_sum`` whose indices are computed in the same program
-  (any structure's faces, unlike the face list's parameter) measured 2-4x slower than with the
-  same indices passed in; the three scatters are not;
+  per corner column, instead of one ``segment_sum`` over the repeated rows: on XLA:CPU (jaxlib
+  0.10.2) a ``segment_sum`` whose indices are computed in the same program (any structure's
+  faces, unlike the face list's parameter) measured 2-4x slower than with the same indices passed
+  in. ``normals.corner_sums`` sums this way since 46e600a (face list included), so this column
+  now equals ``normals`` and is kept as a check;
 * ``generic``: the protocol route through ``MeshStructure.face_vertices`` (LR before the slot plan).
 """
 
