@@ -46,7 +46,7 @@ import numpy as np
 
 from jaxcds import errors
 
-__all__ = ["MeshStructure", "Int", "as_ids"]
+__all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
 
@@ -221,6 +221,28 @@ class MeshStructure:
     def __repr__(self) -> str:  # short: printing arrays of millions of ids helps nobody
         return (f"{type(self).__name__}(num_vertices={self.num_vertices}, "
                 f"num_faces={self.num_faces}, references={self.references})")
+
+
+SUM_BLOCKS = 16
+
+
+def interleave_rows(x, blocks: int = SUM_BLOCKS):
+    """Rows of ``x`` reordered ``0, n/b, 2n/b, ..., 1, n/b + 1, ...`` (``b = blocks`` contiguous
+    blocks read in turn; the ``n mod b`` last rows stay last), for the rows of
+    :meth:`MeshStructure.face_vertices_padded`, whose order is free.
+
+    Why: a structure's slot rows come in its own order (LR's ring order, the CDS slots in vertex
+    order), where consecutive rows often share a vertex (a fan of T1s around one apex, Sec. 4.2
+    of the LR paper; siblings of one red parent in cwBFS order). Summed by a scatter-add, a run of
+    one vertex is a chain of dependent read-modify-writes on one address. Measured with
+    ``normals.corner_sums``: armadillo LR normals 55 -> 27 ns per vertex, CDS 10-30% faster;
+    each block is still read sequentially."""
+    n = x.shape[0] - x.shape[0] % blocks
+    if n == 0:
+        return x
+    head = jnp.swapaxes(x[:n].reshape((blocks, n // blocks) + x.shape[1:]), 0, 1)
+    head = head.reshape((n,) + x.shape[1:])
+    return jnp.concatenate([head, x[n:]]) if n < x.shape[0] else head
 
 
 def parts_of_one_class(cls, parts) -> list:

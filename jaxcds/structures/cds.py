@@ -93,7 +93,7 @@ from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
 from jaxcds.structures import registry
-from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.base import Int, MeshStructure, interleave_rows
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
            "edge_fronts", "face_slots", "tables_reference"]
@@ -780,10 +780,13 @@ class _CDS(MeshStructure):
         return jnp.concatenate(pieces, axis=0).astype(jnp.int32)
 
     def face_vertices_padded(self):
-        """The ``2n`` Thm 7 slots as they are (:meth:`_slot_faces`), the four unused ones
-        masked and set to vertex 0: no compaction copy for whole-mesh sums (the normals)."""
+        """The ``2n`` Thm 7 slots (:meth:`_slot_faces`), the four unused ones masked and set to
+        vertex 0, read in interleaved blocks: no compaction copy for whole-mesh sums (normals)."""
         valid = self._slot_valid()
-        return jnp.where(valid[:, None], self._slot_faces(), 0).astype(jnp.int32), valid
+        # rows in interleaved blocks: siblings (consecutive labels) share a target, a chain of
+        # dependent scatter-adds in slot order (base.interleave_rows)
+        faces = jnp.where(valid[:, None], self._slot_faces(), 0).astype(jnp.int32)
+        return interleave_rows(faces), interleave_rows(valid)
 
     def vertex_degrees(self) -> Int:
         """``(n,)`` degrees: the edges leaving ``u`` (3 for inner vertices, Definition 1) plus the

@@ -40,7 +40,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import parts_of_one_class
+from jaxcds.structures.base import interleave_rows, parts_of_one_class
 
 __all__ = ["concatenate_cds", "packed_class"]
 
@@ -180,7 +180,8 @@ class _PackedMixin:
         to vertex 0): no per-face mesh lookup, no compaction gather (for the normals)."""
         valid = self._slot_valid()
         full = type(self)._base._slot_faces(self._whole_view())
-        return jnp.where(valid[:, None], full, 0).astype(jnp.int32), valid
+        faces = jnp.where(valid[:, None], full, 0).astype(jnp.int32)
+        return interleave_rows(faces), interleave_rows(valid)  # as the single CDS (base.py)
 
     def vertex_degrees(self):
         return type(self)._base.vertex_degrees(self._whole_view())

@@ -37,7 +37,7 @@ from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, lr_tables
 from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
-from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.base import Int, MeshStructure, interleave_rows
 from jaxcds.structures.corner_table import CornerTable
 
 __all__ = ["LR", "LRBits", "build_lr", "stats", "render_list", "expand_render_list",
@@ -211,23 +211,6 @@ def _slot_triangles(xp, dec, m, nv, v):
     left = xp.stack([v, al, nl], axis=-1)
     right = xp.stack([nr, ar, v], axis=-1)
     return left, right, ok_l, ok_r
-
-
-_BLOCKS = 16
-
-
-def _interleave_blocks(x, b: int = _BLOCKS):
-    """Rows of ``x`` reordered ``0, n/b, 2n/b, ..., 1, n/b + 1, ...`` (``b`` contiguous blocks
-    read in turn; the ``n mod b`` last rows stay last). Slot rows in ring order put runs of one
-    apex in a row (a fan of T1s around a vertex of the previous ring turn, Sec. 4.2): summed by a
-    scatter-add those are a chain of dependent read-modify-writes on one address. Measured with
-    three scatter-adds (``normals.corner_sums``) on the padded rows, armadillo: 51 ns/vertex in
-    ring order, 19 with 16 blocks (face list 24); each block is still read sequentially."""
-    n = x.shape[0] - x.shape[0] % b
-    if n == 0:
-        return x
-    head = jnp.swapaxes(x[:n].reshape((b, n // b) + x.shape[1:]), 0, 1).reshape((n,) + x.shape[1:])
-    return jnp.concatenate([head, x[n:]]) if n < x.shape[0] else head
 
 
 def _wrap(x, m):
@@ -430,13 +413,14 @@ class _LRNavigation(MeshStructure):
         """Every face once, in slot order, no navigation (Sec. 4.4, Sec. 7): the ``2 m_r`` slot
         triangles from one decode per ring vertex (left slots, then right slots), the redundant
         T2 copies and border triangles masked, then the T0 triangles of ``V0``, the rows read in
-        16 interleaved blocks (:func:`_interleave_blocks`: no run of one apex for the sums).
+        16 interleaved blocks (:func:`~jaxcds.structures.base.interleave_rows`: no run of one apex
+        for the sums).
         Rows are ``(R, 3)`` with ``R = 2 m_r + n0``; see
         :meth:`MeshStructure.face_vertices_padded`."""
         left, right, ok_l, ok_r, t0, ok0 = self._slot_rows()
         faces = jnp.concatenate([left, right, t0], axis=0).astype(jnp.int32)
         ok = jnp.concatenate([ok_l, ok_r, ok0])
-        return _interleave_blocks(faces), _interleave_blocks(ok)
+        return interleave_rows(faces), interleave_rows(ok)
 
     def face_vertices(self) -> Int:
         """``(num_faces, 3)`` in dense face-id order, equal to the protocol route

@@ -37,7 +37,8 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
 from jaxcds.structures.base import parts_of_one_class
-from jaxcds.structures.lr import _interleave_blocks, _slot_triangles
+from jaxcds.structures.base import interleave_rows
+from jaxcds.structures.lr import _slot_triangles
 
 __all__ = ["concatenate_lr", "packed_class"]
 
@@ -200,7 +201,7 @@ class _PackedMixin:
         vertex of the union, no per-face navigation."""
         rows, ok, _ = self._packed_rows()
         # 16 interleaved blocks: no run of one apex in a row for the scatter-adds of the sums
-        return _interleave_blocks(rows), _interleave_blocks(ok)
+        return interleave_rows(rows), interleave_rows(ok)
 
     def face_vertices(self):
         """``(F, 3)`` in the union's face order (mesh by mesh, each in its dense face order): the

@@ -23,7 +23,8 @@ import pytest
 from jaxcds import batch as B
 from jaxcds.algorithms import face_list_vertex_normals, vertex_normals
 from jaxcds.structures.base import MeshStructure
-from jaxcds.structures.lr import _interleave_blocks, build_lr
+from jaxcds.structures.base import interleave_rows
+from jaxcds.structures.lr import build_lr
 
 from conftest import load_shared
 
@@ -103,7 +104,7 @@ def test_slot_faces_equal_mesh_faces(key, bits, warts):
     assert (skips > 0) == warts
     # the padded rows are the slot rows (left slots, right slots, T0) in 16 interleaved blocks
     _, _, ok_l, ok_r, _, ok0 = jax.device_get(s._slot_rows())
-    np.testing.assert_array_equal(np.asarray(_interleave_blocks(jnp.concatenate([ok_l, ok_r, ok0]))), ok)
+    np.testing.assert_array_equal(np.asarray(interleave_rows(jnp.concatenate([ok_l, ok_r, ok0]))), ok)
     assert not (ok_l.all() and ok_r.all())
     # slot mask == the dense-face directory (bit set = a face of its own), slot t = 2v + side
     bit, _ = s._slot_rank(jnp.arange(2 * m, dtype=jnp.int32))
