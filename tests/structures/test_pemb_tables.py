@@ -26,17 +26,7 @@ from jaxcds.structures.pemb import PEMB, PEMBTables
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct import bitvector as bvmod
 
-
-def _balanced(seed: int, pairs: int, p_open: float) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    out = np.empty(2 * pairs, np.uint8)
-    d = o = 0
-    for k in range(2 * pairs):
-        if o < pairs and (d == 0 or rng.random() < p_open):
-            out[k], d, o = 1, d + 1, o + 1
-        else:
-            out[k], d = 0, d - 1
-    return out
+from parens_helpers import random_balanced
 
 
 def _stack_match(b: np.ndarray) -> np.ndarray:
@@ -65,7 +55,7 @@ def _match_all(bp, chunk):
     (100, 0.6, 3, None),
 ])
 def test_match_all_against_stack(pairs, p_open, seed, chunk):
-    b = _balanced(seed, pairs, p_open)
+    b = random_balanced(seed, pairs, p_open)
     got = np.asarray(_match_all(BalancedParens.from_bits(b), chunk))
     np.testing.assert_array_equal(got, _stack_match(b))
 

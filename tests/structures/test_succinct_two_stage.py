@@ -15,20 +15,10 @@ from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct import bitvector as bvmod
 from jaxcds.structures.succinct import bp as bpmod
 
+from parens_helpers import random_balanced
+
 # batches must be larger than SELECT_ALL_BELOW to take the two stages and the compaction
 PAIRS = bvmod.SELECT_ALL_BELOW // 2 + 500
-
-
-def _balanced(seed: int, pairs: int, p_open: float) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    out = np.empty(2 * pairs, np.uint8)
-    d = o = 0
-    for k in range(2 * pairs):
-        if o < pairs and (d == 0 or rng.random() < p_open):
-            out[k], d, o = 1, d + 1, o + 1
-        else:
-            out[k], d = 0, d - 1
-    return out
 
 
 def _oracle(b: np.ndarray):
@@ -54,7 +44,7 @@ def _ops(bp, i, chunk):
 @pytest.mark.parametrize("p_open,seed", [(0.5, 0), (0.5, 1), (0.95, 2), (0.3, 3)])
 @pytest.mark.parametrize("chunk", [64, 1000])
 def test_two_stage_against_stack(p_open, seed, chunk):
-    b = _balanced(seed, PAIRS, p_open)
+    b = random_balanced(seed, PAIRS, p_open)
     bp = BalancedParens.from_bits(b)
     match, enclose = _oracle(b)
     i = jnp.arange(b.size + 1, dtype=jnp.int32)
@@ -67,7 +57,7 @@ def test_first_stage_answers_are_exact_and_misses_are_flagged():
     """``_near`` alone: every answer it claims is the oracle's; on a near sequence it claims most,
     on a deep one few (so the slow route is really exercised by the test above)."""
     for p_open, lo, hi in ((0.5, 0.6, 1.0), (0.97, 0.0, 0.5)):
-        b = _balanced(5, PAIRS, p_open)
+        b = random_balanced(5, PAIRS, p_open)
         bp = BalancedParens.from_bits(b)
         match, enclose = _oracle(b)
         i = jnp.arange(b.size, dtype=jnp.int32)
