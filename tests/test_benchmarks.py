@@ -61,8 +61,10 @@ def test_quick_mode_smoke(tmp_path, capsys):
                        "target", "face_left", "adjacent"}
     for r in rows:
         assert r["ns_per_item"] > 0 and r["median_s"] > 0 and r["per"] in ("vertex", "query")
-        if r["op"].startswith("vertex_normals") and r["impl"] != "trimesh":
-            assert r["max_err"] < 1e-4, r  # trimesh weights by angle: not comparable
+        # trimesh and OpenMesh weight faces their own way (angle / unit face normals): their
+        # max_err against the area-weighted reference is large by design
+        if r["op"].startswith("vertex_normals") and r["impl"] not in ("trimesh", "openmesh"):
+            assert r["max_err"] < 1e-4, r
         if r["op"] == "vertex_degrees" and r["kind"] == "structure":
             assert r["max_err"] == 0
     mem = {r["structure"]: r for r in res["memory"]}
@@ -73,6 +75,9 @@ def test_quick_mode_smoke(tmp_path, capsys):
     assert all(r["bytes"] > 0 for r in res["memory"])
     if "openmesh" not in impls:
         assert any(s["impl"] == "openmesh" and "openmesh" in s["reason"] for s in res["skipped"])
+    else:  # installed: it answers unit normals, one per vertex
+        om = [r for r in rows if r["impl"] == "openmesh"]
+        assert om and all(r["max_err"] < 2.5 for r in om)
     for name in ("RESULTS.md", "normals.png", "queries.png", "memory.png"):
         assert (tmp_path / name).stat().st_size > 0
     md = (tmp_path / "RESULTS.md").read_text()
