@@ -231,6 +231,9 @@ class Ring:
         triangle ``v.t_R`` (its vertex is ``v.r``).
       seed: seed corner; k: hybrid period (None: the stackless RING-EXPANDER, 0: depth-first deque).
       num_isolated: ``m_i = m - m_r`` (dummy vertices included).
+      invaded: ``(n,)`` uint8 the invaded triangles the ring bounds (for
+        :func:`jaxcds.construct.ring_search.improve_ring`).
+      search_gain: references the ring search saved against RING-EXPANDER's ring (0: none ran).
     """
 
     order: np.ndarray
@@ -238,6 +241,8 @@ class Ring:
     seed: int
     k: Optional[int]
     num_isolated: int
+    invaded: Optional[np.ndarray] = dataclasses.field(default=None, repr=False)
+    search_gain: int = 0
 
 
 def extract_ring(V, O, tm, num_vertices: int, seed: int = -1, k=None) -> Ring:
@@ -250,7 +255,8 @@ def extract_ring(V, O, tm, num_vertices: int, seed: int = -1, k=None) -> Ring:
             "small for LR (use corner-table)" if order.size else
             f"the invaded region from seed corner {seed} is not bounded by one simple loop")
     return Ring(order=order, right_corner=corners, seed=int(seed), k=k,
-                num_isolated=int(num_vertices) - int(order.size))
+                num_isolated=int(num_vertices) - int(order.size),
+                invaded=np.asarray(tm, np.uint8))
 
 
 def best_ring(V, O, num_vertices: int, *, seeds=4, k=None, dummy=None, rng_seed: int = 0) -> Ring:

@@ -48,6 +48,11 @@ CONFIGS = {
     "3holes-bits-k16": ("3holes.off", lambda m: LRBits.from_mesh(m, k=16, check=False)),
     "rocker-arm-bits-dfs": ("rocker-arm.obj", lambda m: LRBits.from_mesh(m, k=0, check=False)),
     "camelhead-bits-auto": ("camelhead.off", lambda m: LRBits.from_mesh(m, check=False)),
+    # rings moved by the local search (jaxcds.construct.ring_search): genus 3, holes
+    "3holes-searched": ("3holes.off", lambda m: LR.from_mesh(m, check=False, ring_sweeps=20)),
+    "camelhead-bits-searched": ("camelhead.off",
+                                lambda m: LRBits.from_mesh(m, k=0, check=False, ring_sweeps=20)),
+    "bunny-searched": ("bunny.off", lambda m: LR.from_mesh(m, check=False, ring_sweeps=20)),
 }
 
 
@@ -289,6 +294,15 @@ def test_verify_icosphere():
     assert rep.mismatches == 0 and rep.checked > 10 * 1280, str(rep)
 
 
+def test_verify_searched_ring():
+    """Protocol vs HalfEdge on every dart of an LR whose ring the local search moved (the decimated
+    bunny: the search changes most of its T0 / T^i triangles)."""
+    s = _built("bunny-searched")
+    assert stats(s)["ring_search_gain"] > 0
+    rep = verify(s, _mesh("bunny.off"))
+    assert rep.mismatches == 0 and rep.checked > 10 * 6966, str(rep)
+
+
 @pytest.mark.slow
 def test_verify_wart_skipping_off():
     g = _mesh("grid.off")
@@ -365,7 +379,7 @@ def test_refusals_are_typed():
 @pytest.mark.parametrize("key", ["stanford-bunny.obj", "face.obj", "armadillo.obj"])
 def test_large_meshes_corner_operators(key):
     m = load_shared(key)
-    for s in (LR.from_mesh(m), LRBits.from_mesh(m, k=(64, 256))):
+    for s in (LR.from_mesh(m), LRBits.from_mesh(m, k=(64, 256)), LR.from_mesh(m, ring_sweeps=20)):
         check_corner_operators(s, m)
         idx, _ = renderable_index_list(s)
         tri = expand_renderable_index_list(idx, s.num_ring)
