@@ -65,8 +65,10 @@ def cmd_info(args) -> int:
 
 
 # ------------------------------------------------------------------------------ build
-def build_report(structure_name: str, mesh, verify: bool = False) -> dict:
-    """Build ``structure_name`` on ``mesh``; the dict ``jaxcds build --json`` prints."""
+def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: int = 0) -> dict:
+    """Build ``structure_name`` on ``mesh``; the dict ``jaxcds build --json`` prints.
+    ``ring_sweeps``: the LR ring search (``lr`` / ``lr-bits`` only, see
+    :func:`jaxcds.structures.lr.build_lr`)."""
     from jaxcds.mesh import close_boundaries, load_mesh
     from jaxcds.structures import registry
 
@@ -76,6 +78,17 @@ def build_report(structure_name: str, mesh, verify: bool = False) -> dict:
     if info is None:
         raise errors.JaxcdsError(
             f"unknown structure {structure_name!r}; available: {', '.join(registry.names())}")
+    builder = info.builder
+    if ring_sweeps:
+        if structure_name not in ("lr", "lr-bits"):
+            raise errors.JaxcdsError(
+                f"--ring-sweeps applies to lr and lr-bits, not {structure_name!r}")
+        if ring_sweeps < 0:
+            raise errors.JaxcdsError(f"--ring-sweeps must be >= 0, got {ring_sweeps}")
+        from jaxcds.structures.lr import build_lr
+
+        def builder(m):
+            return build_lr(m, bits=structure_name == "lr-bits", ring_sweeps=ring_sweeps)
     closed = False
     if info.name not in ("halfedge", "pemb") and not info.closes_boundaries:
         from jaxcds.mesh import validate_and_close
@@ -84,7 +97,7 @@ def build_report(structure_name: str, mesh, verify: bool = False) -> dict:
         closed = closed_mesh is not mesh
         mesh = closed_mesh
     t0 = time.perf_counter()
-    s = info.builder(mesh)
+    s = builder(mesh)
     build_s = time.perf_counter() - t0
     out = {
         "structure": structure_name,
@@ -103,6 +116,12 @@ def build_report(structure_name: str, mesh, verify: bool = False) -> dict:
         "build_seconds": round(build_s, 4),
         "vertex_permutation": s.vertex_order is not None,
     }
+    if structure_name in ("lr", "lr-bits"):
+        from jaxcds.structures.lr import stats
+
+        st = stats(s)
+        out.update(references_per_triangle=round(s.references / max(s.num_faces, 1), 4),
+                   isolated_vertices=int(st["m_i"]), ring_search_gain=int(st["ring_search_gain"]))
     if verify:
         from jaxcds.verify import verify as run_verify
 
@@ -114,7 +133,8 @@ def build_report(structure_name: str, mesh, verify: bool = False) -> dict:
 
 
 def cmd_build(args) -> int:
-    out = build_report(args.structure, args.mesh, verify=args.verify)
+    out = build_report(args.structure, args.mesh, verify=args.verify,
+                       ring_sweeps=args.ring_sweeps)
     if args.json:
         _print_json(out)
     else:
@@ -211,6 +231,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--verify", action="store_true",
                    help="check every operator on every edge against the half-edge")
     b.add_argument("--json", action="store_true")
+    b.add_argument("--ring-sweeps", type=int, default=0, metavar="N",
+                   help="lr / lr-bits: anneal the ring for N sweeps towards fewer references "
+                        "(beyond the paper; 0 = RING-EXPANDER's ring)")
     b.set_defaults(func=cmd_build)
 
     bench = sub.add_parser("bench", help="benchmarks (options: see `jaxcds bench -- --help`)",

@@ -53,6 +53,19 @@ def test_unknown_structure(capsys):
     assert "unknown structure" in capsys.readouterr().err
 
 
+def test_build_lr_ring_sweeps(capsys):
+    """``--ring-sweeps``: the LR ring search, its gain reported; refused for other structures."""
+    rc, plain = run_json(capsys, ["build", mesh_path("bunny.off"), "-s", "lr", "--json"])
+    rc2, searched = run_json(capsys, ["build", mesh_path("bunny.off"), "-s", "lr", "--json",
+                                      "--ring-sweeps", "20"])
+    assert rc == rc2 == 0 and plain["ring_search_gain"] == 0
+    assert searched["ring_search_gain"] > 0
+    assert searched["references"] == plain["references"] - searched["ring_search_gain"]
+    assert searched["references_per_triangle"] < plain["references_per_triangle"]
+    assert main(["build", mesh_path("cube.off"), "-s", "cds6n", "--ring-sweeps", "5"]) == 2
+    assert "--ring-sweeps applies to lr and lr-bits" in capsys.readouterr().err
+
+
 def test_demo_on_a_small_mesh(capsys):
     """The demo's whole job (every structure built, verified, degrees and normals compared) on
     the cube; the bundled bunny is `make demo` itself and the slow test below."""
