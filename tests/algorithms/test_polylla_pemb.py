@@ -200,6 +200,7 @@ def test_pemb_refuses_vertex_in_no_triangle_by_name():
 
 
 # ------------------------------------------------------------------------ without run tables
+@pytest.mark.slow  # ~31 s of pemb compilations; pemb's searching operators stay in the quick set
 def test_pemb_without_navigation_tables_same_polygons():
     """``tables=False``: Polylla on pemb's own searching operators (no per-run twin / origin /
     face tables at any time) gives the tabulated run's polygons, repair included."""
