@@ -750,6 +750,9 @@ def _from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, k=None, che
                  k=0 if k is None else int(k), dummy=dummy if borders else None)
 
 
+_SPARE_SEEDS = 28  # at most this many more seeds when every ring is trapped (m_i > m / 4)
+
+
 def _best_tables(V, O, nv, *, seeds, k, dummy, wart_skipping, ring_sweeps=0) -> LRTables:
     """Sec. 4.2: several seeds, keep the fewest isolated vertices; ties broken by the Sec. 8
     reference count ``2 m_r + 6 n0 + 3 n^i + m_i`` (Sec. 8: "explore several k values and seed
@@ -764,7 +767,18 @@ def _best_tables(V, O, nv, *, seeds, k, dummy, wart_skipping, ring_sweeps=0) -> 
         if cand.size == 0:
             raise errors.UnsupportedTopologyError("no triangle without a dummy vertex to seed the ring")
         seeds = [int(3 * t) for t in rng.choice(cand, size=min(int(seeds), cand.size), replace=False)]
+        spare = [int(3 * t) for t in rng.choice(cand, size=min(_SPARE_SEEDS, cand.size),
+                                                  replace=False) if int(3 * t) not in seeds]
+    else:
+        spare = []  # the caller's seeds, as given
     rings = [best_ring(V, O, nv, seeds=[sd], k=k, dummy=dummy) for sd in seeds]
+    # Sec. 4.2 expects few isolated vertices. On meshes with many separating triangles (uniform
+    # random planar triangulations) an unlucky seed traps the invasion inside one, leaving most
+    # vertices isolated (rpt 4-5): draw more seeds while every ring is trapped.
+    ndummy = 0 if dummy is None else int(np.sum(dummy))
+    trapped = ndummy + (nv - ndummy) // 4
+    while spare and min(r.num_isolated for r in rings) > trapped:
+        rings.append(best_ring(V, O, nv, seeds=[spare.pop(0)], k=k, dummy=dummy))
     fewest = min(r.num_isolated for r in rings)
     best, key = None, None
     for ring in rings:

@@ -205,6 +205,21 @@ def test_wart_skipping_lowers_the_reference_count():
     assert with_.references < without.references
 
 
+def test_a_trapped_seed_draws_more_seeds():
+    """Sec. 4.2 keeps the seed with the fewest isolated vertices; on a uniform random planar
+    triangulation the one default seed here traps RING-EXPANDER inside a separating triangle
+    (975 of 1,000 vertices isolated), so the builder draws more seeds until one is not trapped."""
+    m = random_planar_triangulation(1000, seed=1)
+    ct = CornerTable.from_faces(m.faces, m.num_vertices)
+    V, O = np.asarray(ct.V), np.asarray(ct.O)
+    first = int(3 * np.random.default_rng(0).choice(np.arange(m.num_faces), size=1, replace=False)[0])
+    assert best_ring(V, O, m.num_vertices, seeds=[first]).num_isolated > 900
+    s = LR.from_mesh(m, seeds=1, check=False)
+    assert stats(s)["m_i"] <= m.num_vertices // 4 and stats(s)["seed"] != first
+    # the caller's own seed list is used as given
+    assert stats(LR.from_mesh(m, seeds=[first], check=False))["m_i"] > 900
+
+
 def test_lr_bits_periods_and_auto_choice():
     """Sec. 6.1/8: the hybrid period changes the ring; ``k="auto"`` keeps the fewest bits."""
     m = _mesh("3holes.off")
