@@ -38,9 +38,10 @@ from typing import Optional
 import numba
 import numpy as np
 
+from jaxcds import errors
 from jaxcds.construct.ring_expander import _extract_ring, _n, _p, _tables
 
-__all__ = ["improve_ring", "ring_cost"]
+__all__ = ["improve_ring", "ring_cost", "check_sweeps"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -274,6 +275,13 @@ def ring_cost(V, O, tm, num_vertices: int, dummy: Optional[np.ndarray] = None) -
                           np.asarray(tm, np.uint8), int(num_vertices), nd))
 
 
+def check_sweeps(sweeps) -> int:
+    """``sweeps`` as an int, or the typed error (booleans, floats, strings, negatives refused)."""
+    if isinstance(sweeps, bool) or not isinstance(sweeps, (int, np.integer)) or sweeps < 0:
+        raise errors.StructureError(f"ring_sweeps must be an integer >= 0, got {sweeps!r}")
+    return int(sweeps)
+
+
 def improve_ring(V, O, tm, num_vertices: int, *, dummy: Optional[np.ndarray] = None,
                  sweeps: int = 50, t_hi: float = 3.0, t_lo: float = 0.05, seed: int = 0):
     """Anneal the invaded triangles ``tm`` (RING-EXPANDER's output) towards fewer LR references.
@@ -281,6 +289,9 @@ def improve_ring(V, O, tm, num_vertices: int, *, dummy: Optional[np.ndarray] = N
     ``sweeps * n`` random moves (see the module doc), temperature ``t_hi -> t_lo`` references.
     Returns ``(tm, delta)``: a new ``(n,)`` uint8 array and the change of the Sec. 8 count
     (``<= 0``: the input comes back unchanged if the search ends worse)."""
+    sweeps = check_sweeps(sweeps)
+    if not (0 < t_lo <= t_hi):
+        raise errors.StructureError(f"temperatures must satisfy 0 < t_lo <= t_hi, got {t_lo}, {t_hi}")
     V = np.asarray(V, np.int32)
     O = np.asarray(O, np.int32)
     tm0 = np.asarray(tm, np.uint8)

@@ -37,7 +37,7 @@ from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, extract_ring, lr_tables
-from jaxcds.construct.ring_search import improve_ring
+from jaxcds.construct.ring_search import check_sweeps, improve_ring
 from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
 from jaxcds.structures.base import Int, MeshStructure, interleave_rows
 from jaxcds.structures.corner_table import CornerTable
@@ -715,6 +715,7 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     ``ring_sweeps``: after RING-EXPANDER, anneal the ring for ``ring_sweeps * n`` local moves
     towards fewer references (:mod:`jaxcds.construct.ring_search`; beyond the paper, 0 = the
     paper's ring; about 0.2 us per triangle per sweep)."""
+    ring_sweeps = check_sweeps(ring_sweeps)
     mesh, twins = _prepare(mesh)
     ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
     dummy = mesh.dummy_vertices
@@ -725,7 +726,7 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     ks = _AUTO_K if k == "auto" else ([k] if np.isscalar(k) else list(k))
     best = None
     # the ring search counts references, not bits: keep the unsearched ring where it packs smaller
-    sweeps = (0, int(ring_sweeps)) if ring_sweeps else (0,)
+    sweeps = (0, ring_sweeps) if ring_sweeps else (0,)
     for kk in ks:
         for sw in sweeps:
             s = _from_corner_table(LRBits, ct, dummy=dummy, seeds=seeds, k=int(kk), check=False,
@@ -790,7 +791,7 @@ def _best_tables(V, O, nv, *, seeds, k, dummy, wart_skipping, ring_sweeps=0) -> 
         if key is None or kk < key:
             best, key = tb, kk
     if ring_sweeps and wart_skipping:
-        best = _searched(V, O, nv, best, dummy=dummy, sweeps=int(ring_sweeps))
+        best = _searched(V, O, nv, best, dummy=dummy, sweeps=ring_sweeps)
     return best
 
 

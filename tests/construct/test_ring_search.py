@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+from jaxcds import errors
 from jaxcds.construct import ring_search
 from jaxcds.construct.ring_expander import extract_ring, ring_expander
 from jaxcds.construct.ring_search import improve_ring, ring_cost
@@ -117,3 +118,11 @@ def test_lr_from_a_searched_ring(name):
     assert st_["unexpected_irregular"] == 0
     bits = LRBits.from_mesh(m, k=(16, 0), check=True, ring_sweeps=20)
     assert bits.bits <= LRBits.from_mesh(m, k=(16, 0), check=False).bits
+
+
+@pytest.mark.parametrize("sweeps", [-1, 2.5, "10", True])
+def test_bad_sweeps_are_refused(sweeps):
+    m = load_shared("cube.off")
+    for build in (LR.from_mesh, LRBits.from_mesh):
+        with pytest.raises(errors.StructureError, match="ring_sweeps must be an integer"):
+            build(m, check=False, ring_sweeps=sweeps)
