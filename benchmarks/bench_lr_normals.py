@@ -10,14 +10,19 @@ Columns (ns per vertex, medians of ``--repeat`` rounds, or the fastest with ``--
 round every route runs once, in turn, so all see the same machine load):
 
 * ``face_list``: :func:`face_list_vertex_normals` on the input faces (the target's peer);
-* ``normals``: ``vertex_normals(s, positions)`` as the library runs it;
-* ``three_scatter``: the same rows (``face_vertices_padded``) summed with three scatter-adds, one
-  per corner column, instead of one ``segment_sum`` over the repeated rows: on XLA:CPU (jaxlib
-  0.10.2) a ``segment_sum`` whose indices are computed in the same program (any structure's
-  faces, unlike the face list's parameter) measured 2-4x slower than with the same indices passed
-  in. ``normals.corner_sums`` sums this way since 46e600a (face list included), so this column
-  now equals ``normals`` and is kept as a check;
-* ``generic``: the protocol route through ``MeshStructure.face_vertices`` (LR before the slot plan).
+* ``normals``: ``vertex_normals(s, positions)`` as the library runs it: the rows of
+  ``face_vertices_padded`` summed by ``normals.corner_sums``, one scatter-add per corner column;
+* ``generic``: the protocol route through ``MeshStructure.face_vertices`` (LR before the slot
+  plan), summed with one ``segment_sum`` over the rows repeated three times.
+
+A ``three_scatter`` column (the padded rows summed with three scatter-adds instead of one
+``segment_sum``: on XLA:CPU, jaxlib 0.10.2, a ``segment_sum`` whose indices are computed in the
+same program measured 2-4x slower than with the same indices passed in) was dropped: since
+46e600a ``normals.corner_sums`` sums that way, so it timed the very program ``normals`` times.
+``segment_sum`` stays measured in ``generic`` here and ``dense`` in :mod:`bench_cds_normals`.
+
+:func:`bench_main` is the command line of this script and of :mod:`bench_cds_normals` (each
+passes its own default structures, builder and extra routes).
 """
 
 from __future__ import annotations
@@ -55,19 +60,6 @@ def generic_normals(s, positions):
     return normalize(acc)
 
 
-@jax.jit
-def three_scatter_normals(s, positions):
-    """The proposed ``_scatter_sums``: one scatter-add per corner column of the padded rows."""
-    fv, ok = s.face_vertices_padded()
-    fn = face_normals(positions, fv)
-    if ok is not None:
-        fn = jnp.where(ok[:, None], fn, 0.0)
-    acc = jnp.zeros_like(positions)
-    for k in range(3):
-        acc = acc.at[fv[:, k]].add(fn)
-    return normalize(acc)
-
-
 def rounds(fns: dict, repeat: int, stat=statistics.median) -> dict:
     """``stat`` (median; ``min`` with ``--min``: on a box shared with other jobs the fastest round
     is the least disturbed one) of each function's seconds, timed in turn ``repeat`` times after
@@ -100,67 +92,75 @@ def _emit(label, name, nv, nf, t, err):
     print(json.dumps(row), flush=True)
 
 
+def _time_routes(label, name, s, fl_pos, faces, args, routes: dict):
+    """Time ``face_list`` (on ``fl_pos`` / ``faces``, the input order), ``normals`` and every
+    ``routes`` entry (column -> jitted ``f(s, positions)``) on structure ``s``, in turn; print the
+    row with the largest difference from the face-list normals over the structure's routes."""
+    nv = fl_pos.shape[0]
+    order = np.arange(nv) if s.vertex_order is None else np.asarray(s.vertex_order)
+    pos = fl_pos[order]
+    fns = {"face_list": lambda: face_list_vertex_normals(fl_pos, faces),
+           "normals": lambda: vertex_normals(s, pos)}
+    fns.update({k: (lambda f=f: f(s, pos)) for k, f in routes.items()})
+    want = np.asarray(face_list_vertex_normals(fl_pos, faces))[order]
+    err = max(float(np.abs(np.asarray(fns[k]()) - want).max()) for k in fns if k != "face_list")
+    stat = min if args.min else statistics.median
+    _emit(label, name, nv, faces.shape[0], rounds(fns, args.repeat, stat), err)
+
+
+def single(args, build, routes: dict):
+    for spec in args.meshes.split(","):
+        mesh = _mesh(spec)
+        pos_in = jnp.asarray(mesh.vertices, jnp.float32)
+        faces = jnp.asarray(mesh.faces, jnp.int32)
+        for name in args.structures.split(","):
+            _time_routes(spec, name, build(name, mesh), pos_in, faces, args, routes)
+
+
+def packed(args, pack, routes: dict):
+    rng = np.random.default_rng(args.seed)
+    sizes = rng.integers(500, 5001, args.packed)
+    ms = [random_planar_triangulation(int(n), seed=args.seed * 100_003 + i) for i, n in enumerate(sizes)]
+    u = B._union(ms)
+    faces = jnp.asarray(u.faces)
+    fl_pos = jnp.asarray(np.asarray(u.vertices), jnp.float32)
+    for name in args.structures.split(","):
+        _time_routes(f"packed:{args.packed}", name, pack(ms, name), fl_pos, faces, args, routes)
+
+
+def bench_main(argv, *, description: str, structures: str, build, pack, routes,
+               no_generic: bool = False):
+    """The command line shared by the normals benchmarks: ``build(name, mesh)`` and
+    ``pack(meshes, name)`` make the structures, ``routes(args)`` the extra columns (column ->
+    jitted ``f(s, positions)``); ``no_generic`` adds the ``--no-generic`` flag."""
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--meshes", default="armadillo.obj,bunny.off,random:200000")
+    ap.add_argument("--structures", default=structures)
+    ap.add_argument("--repeat", type=int, default=7)
+    if no_generic:
+        ap.add_argument("--no-generic", action="store_true", help="skip the old per-face route")
+    ap.add_argument("--packed", type=int, default=0,
+                    help="instead: a packed batch of this many random meshes (500-5,000 vertices)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--min", action="store_true", help="fastest round instead of the median")
+    args = ap.parse_args(argv)
+    packed(args, pack, routes(args)) if args.packed else single(args, build, routes(args))
+
+
 def _build(name, mesh):
     # lr-bits: one hybrid period (k=64) instead of "auto" (8 builds): construction is not timed
     return build_lr(mesh, bits=name == "lr-bits", seeds=1, check=False,
                     **({"k": 64} if name == "lr-bits" else {}))
 
 
-def single(args):
-    for spec in args.meshes.split(","):
-        mesh = _mesh(spec)
-        pos_in = jnp.asarray(mesh.vertices, jnp.float32)
-        faces = jnp.asarray(mesh.faces, jnp.int32)
-        for name in args.structures.split(","):
-            s = _build(name, mesh)
-            order = np.asarray(s.vertex_order)
-            pos = pos_in[order]
-            fns = {"face_list": lambda: face_list_vertex_normals(pos_in, faces),
-                   "normals": lambda: vertex_normals(s, pos),
-                   "three_scatter": lambda: three_scatter_normals(s, pos)}
-            if not args.no_generic:
-                fns["generic"] = lambda: generic_normals(s, pos)
-            want = np.asarray(face_list_vertex_normals(pos_in, faces))[order]
-            err = max(float(np.abs(np.asarray(fns[k]()) - want).max()) for k in fns if k != "face_list")
-            _emit(spec, name, mesh.num_vertices, mesh.num_faces, rounds(fns, args.repeat, min if args.min else statistics.median), err)
-            del s, fns
-
-
-def packed(args):
-    rng = np.random.default_rng(args.seed)
-    sizes = rng.integers(500, 5001, args.packed)
-    ms = [random_planar_triangulation(int(n), seed=args.seed * 100_003 + i) for i, n in enumerate(sizes)]
-    u = B._union(ms)
-    faces = jnp.asarray(u.faces)
-    upos = np.asarray(u.vertices)
-    fl_pos = jnp.asarray(upos, jnp.float32)
-    for name in args.structures.split(","):
-        b = B.concatenate([_build(name, m) for m in ms])
-        order = np.asarray(b.vertex_order)
-        pos = jnp.asarray(upos[order], jnp.float32)
-        fns = {"face_list": lambda: face_list_vertex_normals(fl_pos, faces),
-               "normals": lambda: vertex_normals(b, pos),
-               "three_scatter": lambda: three_scatter_normals(b, pos)}
-        if not args.no_generic:
-            fns["generic"] = lambda: generic_normals(b, pos)
-        want = np.asarray(face_list_vertex_normals(fl_pos, faces))[order]
-        err = max(float(np.abs(np.asarray(fns[k]()) - want).max()) for k in fns if k != "face_list")
-        _emit(f"packed:{args.packed}", name, u.num_vertices, u.num_faces, rounds(fns, args.repeat, min if args.min else statistics.median), err)
-        del b, fns
+def _pack(ms, name):
+    return B.concatenate([_build(name, m) for m in ms])
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--meshes", default="armadillo.obj,bunny.off,random:200000")
-    ap.add_argument("--structures", default="lr,lr-bits")
-    ap.add_argument("--repeat", type=int, default=7)
-    ap.add_argument("--no-generic", action="store_true", help="skip the old per-face route")
-    ap.add_argument("--packed", type=int, default=0,
-                    help="instead: a packed batch of this many random meshes (500-5,000 vertices)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--min", action="store_true", help="fastest round instead of the median")
-    args = ap.parse_args(argv)
-    packed(args) if args.packed else single(args)
+    bench_main(argv, description=__doc__.splitlines()[0], structures="lr,lr-bits", build=_build,
+               pack=_pack, routes=lambda a: {} if a.no_generic else {"generic": generic_normals},
+               no_generic=True)
 
 
 if __name__ == "__main__":
