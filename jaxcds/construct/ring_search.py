@@ -24,9 +24,15 @@ So toggling one triangle changes the terms of the triangles within three edge-ad
   the ring (RING-EXPANDER's own step; it puts an isolated vertex back on the ring);
 * *relocate*: un-invade an ear (an invaded triangle with two ring edges: its tip leaves the ring)
   and, nine times out of ten, invade another triangle at the tip across a ring edge (the tip
-  rejoins the ring there); otherwise the tip stays isolated (``m_i`` grows, which can pay off).
+  rejoins the ring there); otherwise the tip stays isolated (``m_i`` grows, which can pay off);
+* *relocate on the other side*: the mirror image for an ear of the non-invaded side (a
+  non-invaded triangle with two ring edges whose tip has no other non-invaded triangle): invade
+  it, which puts its tip inside the disk, and give back another triangle at the tip that faces
+  the non-invaded side, which puts the tip back on the ring. Without this move the search only
+  reshapes the invaded side's triangle tree and stalls about halfway (decimated bunny: 1.17 rpt
+  instead of 1.05).
 
-Both keep the invaded region a disk with no interior vertex and never invade a dummy triangle
+All three keep the invaded region a disk with no interior vertex and never invade a dummy triangle
 (Sec. 4.6). The result is a valid ring for :func:`jaxcds.construct.ring_expander.lr_tables`;
 :func:`ring_cost` recomputes the count from scratch (tests compare the two).
 """
