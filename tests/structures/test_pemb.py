@@ -18,9 +18,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy.spatial import Delaunay
 
 from jaxcds.structures.pemb import PEMB
+
+from pemb_helpers import delaunay_faces, stack_match
 
 SHARED = pathlib.Path(os.environ.get("JAXCDS_SHARED",
                                      pathlib.Path(__file__).resolve().parents[2].parent / "shared"))
@@ -28,15 +29,7 @@ SHARED = pathlib.Path(os.environ.get("JAXCDS_SHARED",
 
 def _mate_oracle(A, P, ntp):
     """``mate`` from the bits alone: stack matching in ``B`` and ``B*``, mapped through ``A``."""
-    n = P.size
-    match = np.empty(n, np.int64)
-    st = []
-    for k, x in enumerate(P):
-        if x:
-            st.append(k)
-        else:
-            j = st.pop()
-            match[k], match[j] = j, k
+    match = stack_match(P)
     ones, zeros = np.nonzero(A == 1)[0], np.nonzero(A == 0)[0]
     r1 = np.cumsum(A) - A
     r0 = np.cumsum(1 - A) - (1 - A)
@@ -82,8 +75,7 @@ def _meshes():
 
         m = jaxcds.load_mesh(str(cube))
         out.append(("cube", m.faces, m.num_vertices))
-    pts = np.random.default_rng(3).random((60, 2))
-    out.append(("random60", Delaunay(pts).simplices.astype(np.int32), 60))
+    out.append(("random60",) + delaunay_faces(60, 3))  # 60 points, all used, already ccw
     return out
 
 

@@ -20,25 +20,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy.spatial import Delaunay
 
 from jaxcds.structures.pemb import PEMB, PEMBTables
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct import bitvector as bvmod
 
 from parens_helpers import random_balanced
-
-
-def _stack_match(b: np.ndarray) -> np.ndarray:
-    match = np.full(b.size, -1)
-    stack = []
-    for i, x in enumerate(b):
-        if x:
-            stack.append(i)
-        else:
-            j = stack.pop()
-            match[i], match[j] = j, i
-    return match
+from pemb_helpers import delaunay_faces, stack_match
 
 
 @functools.partial(jax.jit, static_argnames=("chunk",))
@@ -57,7 +45,7 @@ def _match_all(bp, chunk):
 def test_match_all_against_stack(pairs, p_open, seed, chunk):
     b = random_balanced(seed, pairs, p_open)
     got = np.asarray(_match_all(BalancedParens.from_bits(b), chunk))
-    np.testing.assert_array_equal(got, _stack_match(b))
+    np.testing.assert_array_equal(got, stack_match(b))
 
 
 def test_word_rank_against_prefix_sum():
@@ -68,21 +56,6 @@ def test_word_rank_against_prefix_sum():
     got = jax.jit(lambda bv, i: bv.with_word_rank().rank1(i))(bv, i)
     np.testing.assert_array_equal(np.asarray(got), want)
     np.testing.assert_array_equal(np.asarray(jax.jit(lambda bv, i: bv.rank1(i))(bv, i)), want)
-
-
-def _delaunay(n: int, seed: int, hole: bool = False):
-    pts = np.random.default_rng(seed).random((n, 2))
-    faces = Delaunay(pts).simplices.astype(np.int32)
-    c = pts[faces].mean(axis=1)
-    if hole:  # drop the triangles whose centroid is near the middle: one inner border loop
-        faces = faces[np.linalg.norm(c - 0.5, axis=1) > 0.2]
-    a, b_, c_ = (pts[faces[:, k]] for k in range(3))
-    ccw = (b_[:, 0] - a[:, 0]) * (c_[:, 1] - a[:, 1]) - (b_[:, 1] - a[:, 1]) * (c_[:, 0] - a[:, 0]) > 0
-    faces[~ccw] = faces[~ccw][:, [0, 2, 1]]
-    used = np.unique(faces)
-    remap = np.full(n, -1)
-    remap[used] = np.arange(used.size)
-    return remap[faces].astype(np.int32), int(used.size)
 
 
 def _cube():
@@ -102,7 +75,8 @@ def _both(s, e, f):
 
 
 def _mesh(name):
-    return {"border": lambda: _delaunay(300, 5), "hole": lambda: _delaunay(300, 6, hole=True),
+    return {"border": lambda: delaunay_faces(300, 5),
+            "hole": lambda: delaunay_faces(300, 6, hole=True),
             "closed": _cube}[name]()
 
 
