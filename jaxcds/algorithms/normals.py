@@ -51,7 +51,7 @@ def corner_sums(face_values, faces, num_vertices: int):
     call then pays fresh zeroed pages), and on XLA:CPU (jaxlib 0.10.2) the ``segment_sum`` ran
     2-4x slower when its indices are computed in the same program (any structure's faces) than
     when passed in. Measured in ``benchmarks/bench_cds_normals.py`` / ``bench_lr_normals.py``
-    (column ``three_scatter``); the face-list baseline below sums the same way (same speed or
+    (column ``normals`` against ``dense`` / ``generic``, the ``segment_sum`` routes); the face-list baseline below sums the same way (same speed or
     faster for it too: armadillo 33 -> 27 ns/vertex, 200K and 1M equal)."""
     acc = jnp.zeros((num_vertices,) + face_values.shape[1:], face_values.dtype)
     for k in range(3):
