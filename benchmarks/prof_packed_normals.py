@@ -12,7 +12,10 @@ Stages (ns per union vertex, medians of ``--repeat`` rounds, every stage once pe
 * ``sums_given_rows``: the normals on those rows passed in as parameters (cross products, mask,
   three scatter-adds, normalisation): what the rows cost downstream;
 * ``face_list_rows``: the face-list normals on ``rows`` (no mask): the face list's cost on this
-  many rows.
+  many rows;
+* ``normals_before`` (with ``--baseline REV``): the normals with the packed rows of
+  ``lr_packed.py`` / ``cds_packed.py`` as they were at git revision ``REV`` (loaded from git into
+  a scratch module and run on the same batch): before/after in one process.
 """
 
 from __future__ import annotations
@@ -20,8 +23,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
+import subprocess
 import sys
+import types
 
 import jax
 import jax.numpy as jnp
@@ -51,6 +55,25 @@ def sums_given_rows(pos, fv, ok):
     return normalize(corner_sums(fn, fv, pos.shape[0]))
 
 
+def _before_rows(rev, name):
+    """``face_vertices_padded`` of the packed class as it was at ``rev`` (a function of the
+    batch's union structure), or None when that file did not change the rows."""
+    path = "jaxcds/structures/" + ("lr_packed.py" if name.startswith("lr") else "cds_packed.py")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    src = subprocess.check_output(["git", "show", f"{rev}:{path}"], cwd=root).decode()
+    mod = types.ModuleType(f"before_{rev}_{os.path.basename(path)[:-3]}")
+    exec(compile(src, f"{rev}:{path}", "exec"), mod.__dict__)
+    mix = mod._PackedMixin
+    if name.startswith("lr"):
+        from jaxcds.structures.base import interleave_rows
+
+        def rows(s):
+            r, ok, _ = mix._packed_rows(s)
+            return interleave_rows(r), interleave_rows(ok)
+        return rows
+    return lambda s: mix.face_vertices_padded(s)
+
+
 def _pack(name, ms):
     if name in ("lr", "lr-bits"):
         return B.concatenate([build_lr(m, bits=name == "lr-bits", seeds=1, check=False,
@@ -64,6 +87,7 @@ def main(argv=None):
     ap.add_argument("--structures", default="lr,lr-bits,cds6n,cds5n,cds4n,cds5n-o1")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--baseline", default="", help="git revision whose packed rows run as normals_before")
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     sizes = rng.integers(500, 5001, args.packed)
@@ -83,6 +107,10 @@ def main(argv=None):
                "rows": lambda: rows_only(b),
                "sums_given_rows": lambda: sums_given_rows(pos, fv, ok),
                "face_list_rows": lambda: face_list_vertex_normals(pos, fv)}
+        if args.baseline:
+            before = _before_rows(args.baseline, name)
+            f_before = jax.jit(lambda s, p: sums_given_rows(p, *before(s)))
+            fns["normals_before"] = lambda: f_before(b.structure, pos)
         want = np.asarray(face_list_vertex_normals(fl_pos, faces))[order]
         err = float(np.abs(np.asarray(vertex_normals(b, pos)) - want).max())
         t = rounds(fns, args.repeat)
@@ -90,6 +118,10 @@ def main(argv=None):
                "rows": int(fv.shape[0]), "masked_rows": int((~np.asarray(ok)).sum())}
         row.update({f"{k}_ns_v": round(1e9 * v / nv, 1) for k, v in t.items()})
         row["normals_ratio"] = round(t["normals"] / t["face_list"], 3)
+        if args.baseline:
+            row["normals_before_ratio"] = round(t["normals_before"] / t["face_list"], 3)
+            row["baseline"] = args.baseline
+            row["max_abs_diff_before"] = float(np.abs(np.asarray(fns["normals_before"]()) - want).max())
         row["max_abs_diff"] = err
         print(json.dumps(row), flush=True)
         del b, fns, fv, ok
