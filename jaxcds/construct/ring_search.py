@@ -45,6 +45,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._progress import Progress, want_progress
 from jaxcds.construct.ring_expander import _extract_ring, _n, _p, _tables
 
 __all__ = ["improve_ring", "ring_cost", "check_sweeps"]
@@ -181,15 +182,18 @@ def _accept(d, temp):
 
 
 @numba.njit(cache=True)
-def _anneal(V, O, tm, dummy, num_vertices, moves, t_hi, t_lo, seed):
-    """Simulated annealing on ``tm`` in place; returns the total change of the reference count.
-    Temperature falls geometrically from ``t_hi`` to ``t_lo`` references over ``moves`` random
-    triangle picks (most picks are not a legal move and cost a few reads)."""
+def _seed(seed):
     np.random.seed(seed)
+
+
+@numba.njit(cache=True)
+def _state(V, O, tm, num_vertices):
+    """``k`` (ring edges per triangle), ``cnt`` / ``deg`` (invaded / all triangles per vertex),
+    and the search's counters ``[invaded triangles, stamp mark]``."""
     nf = tm.shape[0]
     k = np.zeros(nf, np.int8)
-    cnt = np.zeros(num_vertices, np.int32)  # invaded triangles at each vertex
-    deg = np.zeros(num_vertices, np.int32)  # triangles at each vertex
+    cnt = np.zeros(num_vertices, np.int32)
+    deg = np.zeros(num_vertices, np.int32)
     inv = 0
     for t in range(nf):
         k[t] = _ring_edges(O, tm, t)
@@ -199,12 +203,22 @@ def _anneal(V, O, tm, dummy, num_vertices, moves, t_hi, t_lo, seed):
             inv += 1
             for q in range(3):
                 cnt[V[3 * t + q]] += 1
-    stamp = np.zeros(nf, np.int64)
+    ctr = np.zeros(2, np.int64)
+    ctr[0] = inv
+    return k, cnt, deg, ctr
+
+
+@numba.njit(cache=True)
+def _anneal(V, O, tm, dummy, k, cnt, deg, stamp, ctr, moves, temp, ratio):
+    """``moves`` random triangle picks of simulated annealing on ``tm`` in place (most picks are
+    not a legal move and cost a few reads), the temperature multiplied by ``ratio`` per pick.
+    Returns ``(change of the reference count, final temperature)``; the state arrays and
+    counters carry over between calls (a long search runs in chunks, for the progress bar)."""
+    nf = tm.shape[0]
     buf = np.empty(32, np.int64)
-    mark = 0
+    inv = ctr[0]
+    mark = ctr[1]
     total = 0
-    ratio = (t_lo / t_hi) ** (1.0 / max(moves, 1))
-    temp = t_hi
     for _ in range(moves):
         temp *= ratio
         x = np.random.randint(nf)
@@ -258,6 +272,25 @@ def _anneal(V, O, tm, dummy, num_vertices, moves, t_hi, t_lo, seed):
             if u >= 0:
                 _flip(V, O, tm, k, cnt, u)
             _flip(V, O, tm, k, cnt, x)
+    ctr[0] = inv
+    ctr[1] = mark
+    return total, temp
+
+
+def _search(V, O, tm, dummy, num_vertices, moves, t_hi, t_lo, seed, chunks=1, bar=None) -> int:
+    """Anneal ``tm`` in place for ``moves`` picks, temperature ``t_hi -> t_lo``, in ``chunks``
+    calls (``bar.step()`` after each); returns the change of the reference count."""
+    _seed(seed)
+    k, cnt, deg, ctr = _state(V, O, tm, num_vertices)
+    stamp = np.zeros(tm.shape[0], np.int64)
+    ratio = (t_lo / t_hi) ** (1.0 / max(moves, 1))
+    temp, total = float(t_hi), 0
+    for i in range(chunks):
+        part = moves * (i + 1) // chunks - moves * i // chunks
+        d, temp = _anneal(V, O, tm, dummy, k, cnt, deg, stamp, ctr, part, temp, ratio)
+        total += int(d)
+        if bar is not None:
+            bar.step()
     return total
 
 
@@ -289,12 +322,14 @@ def check_sweeps(sweeps) -> int:
 
 
 def improve_ring(V, O, tm, num_vertices: int, *, dummy: Optional[np.ndarray] = None,
-                 sweeps: int = 50, t_hi: float = 3.0, t_lo: float = 0.05, seed: int = 0):
+                 sweeps: int = 50, t_hi: float = 3.0, t_lo: float = 0.05, seed: int = 0,
+                 progress: Optional[bool] = None):
     """Anneal the invaded triangles ``tm`` (RING-EXPANDER's output) towards fewer LR references.
 
     ``sweeps * n`` random moves (see the module doc), temperature ``t_hi -> t_lo`` references.
     Returns ``(tm, delta)``: a new ``(n,)`` uint8 array and the change of the Sec. 8 count
-    (``<= 0``: the input comes back unchanged if the search ends worse)."""
+    (``<= 0``: the input comes back unchanged if the search ends worse). ``progress``: a text
+    progress bar on stderr (``None``: for meshes of a million vertices or more on a terminal)."""
     sweeps = check_sweeps(sweeps)
     if not (0 < t_lo <= t_hi):
         raise errors.StructureError(f"temperatures must satisfy 0 < t_lo <= t_hi, got {t_lo}, {t_hi}")
@@ -305,7 +340,10 @@ def improve_ring(V, O, tm, num_vertices: int, *, dummy: Optional[np.ndarray] = N
     dm = np.zeros(nv, np.uint8) if dummy is None else np.asarray(dummy).astype(np.uint8)
     out = tm0.copy()
     moves = int(sweeps) * int(out.shape[0])
-    delta = int(_anneal(V, O, out, dm, nv, moves, float(t_hi), float(t_lo), int(seed)))
+    show = want_progress(progress, nv)
+    chunks = min(20, max(sweeps, 1)) if show else 1
+    bar = Progress([f"{sweeps} sweeps"] * chunks, "LR ring search", show) if show else None
+    delta = _search(V, O, out, dm, nv, moves, float(t_hi), float(t_lo), int(seed), chunks, bar)
     if delta > 0:
         return tm0.copy(), 0
     return out, delta

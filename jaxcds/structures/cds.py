@@ -91,6 +91,9 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds._progress import PROGRESS_MIN_VERTICES  # noqa: F401  (re-exported)
+from jaxcds._progress import Progress as _Progress
+from jaxcds._progress import want_progress as _want_progress
 from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
 from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure, interleave_rows
@@ -1509,44 +1512,6 @@ def _depths(par, n, root):
 
 
 # ====================================================================================== registry
-#: meshes with at least this many vertices show a progress bar when stderr is a terminal
-PROGRESS_MIN_VERTICES = 1_000_000
-
-
-class _Progress:
-    """A tiny text progress bar on stderr (no dependency): one line rewritten per stage."""
-
-    def __init__(self, stages, label, enabled):
-        import sys
-        import time
-
-        self.stages, self.label, self.enabled = list(stages), label, enabled
-        self.k, self.t0, self._time, self._err = 0, time.perf_counter(), time.perf_counter, sys.stderr
-        self._draw("")
-
-    def _draw(self, end):
-        if not self.enabled:
-            return
-        n = len(self.stages)
-        bar = "#" * (20 * self.k // n) + "." * (20 - 20 * self.k // n)
-        what = self.stages[self.k] if self.k < n else "done"
-        self._err.write(f"\r{self.label} [{bar}] {self.k}/{n} {what:<24} {self._time() - self.t0:7.1f} s{end}")
-        self._err.flush()
-
-    def step(self):
-        self.k += 1
-        self._draw("\n" if self.k == len(self.stages) else "")
-
-
-def _want_progress(progress, n) -> bool:
-    import sys
-
-    if progress is not None:
-        return bool(progress)
-    isatty = getattr(sys.stderr, "isatty", None)
-    return n >= PROGRESS_MIN_VERTICES and bool(isatty and isatty())
-
-
 def build_cds(cls, mesh, root_face: Optional[int] = None, progress: Optional[bool] = None):
     """Validate (closing holes if any), compute the maximal Schnyder wood, build ``cls``.
 

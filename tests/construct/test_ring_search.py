@@ -77,8 +77,7 @@ def test_hot_annealing_keeps_the_count_and_the_ring(name):
     cost = ring_cost(V, O, tm, nv, dummy)
     isolated_seen = 0
     for step in range(6):
-        d = ring_search._anneal(V, O, tm, dm, nv, 2 * tm.size, 40.0, 20.0, step)
-        cost += int(d)
+        cost += ring_search._search(V, O, tm, dm, nv, 2 * tm.size, 40.0, 20.0, step, chunks=3)
         assert ring_cost(V, O, tm, nv, dummy) == cost
         ring = _check_ring(V, O, tm, nv, dummy)
         isolated_seen += nv - ring.order.size - (0 if dummy is None else int(dummy.sum()))
@@ -126,3 +125,15 @@ def test_bad_sweeps_are_refused(sweeps):
     for build in (LR.from_mesh, LRBits.from_mesh):
         with pytest.raises(errors.StructureError, match="ring_sweeps must be an integer"):
             build(m, check=False, ring_sweeps=sweeps)
+
+
+def test_progress_bar_and_chunks_change_nothing(capsys):
+    """A search run in chunks (the progress bar's steps) is the same search as one call."""
+    V, O, dummy, nv = _shared("bunny.off")
+    tm0, _ = ring_expander(V, O, nv, 0, dummy)
+    one, d1 = improve_ring(V, O, tm0, nv, sweeps=5, progress=False)
+    assert capsys.readouterr().err == ""
+    chunked, d2 = improve_ring(V, O, tm0, nv, sweeps=5, progress=True)
+    err = capsys.readouterr().err
+    np.testing.assert_array_equal(one, chunked)
+    assert d1 == d2 and "LR ring search" in err and "5/5 done" in err and err.endswith("\n")
