@@ -137,3 +137,17 @@ def test_progress_bar_and_chunks_change_nothing(capsys):
     err = capsys.readouterr().err
     np.testing.assert_array_equal(one, chunked)
     assert d1 == d2 and "LR ring search" in err and "5/5 done" in err and err.endswith("\n")
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(8, 300), seed=st.integers(0, 2**31 - 1), bits=st.booleans())
+def test_searched_lr_passes_the_construction_check(n, seed, bits):
+    """The builder's linear check (``c.v`` and ``c.o`` of every canonical corner against the
+    corner table, decoded as the jitted operators decode) on searched rings of random
+    triangulations; no JAX compilation, so many examples are cheap."""
+    from jaxcds.generators import random_planar_triangulation
+
+    m = random_planar_triangulation(n, seed=seed)
+    build = LRBits.from_mesh if bits else LR.from_mesh
+    s = build(m, check=True, ring_sweeps=5)
+    assert stats(s)["ring_search_gain"] >= 0

@@ -234,12 +234,13 @@ def test_lr_bits_periods_and_auto_choice():
 
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(n=st.sampled_from([24, 60]), seed=st.integers(0, 2**31 - 1),
-       bits=st.booleans(), warts=st.booleans())
-def test_corner_operators_on_random_triangulations(n, seed, bits, warts):
+       bits=st.booleans(), warts=st.booleans(), sweeps=st.sampled_from([0, 10]))
+def test_corner_operators_on_random_triangulations(n, seed, bits, warts, sweeps):
     # two size buckets: the CornerTable side never recompiles; the LR's static sizes (m_r, n0)
-    # still depend on the ring found, so each example costs about one compilation
+    # still depend on the ring found, so each example costs about one compilation. ``sweeps``:
+    # the ring search (it runs only with wart skipping)
     m = random_planar_triangulation(n, seed=seed)
-    s = build_lr(m, bits=bits, k=4, wart_skipping=warts, check=False)
+    s = build_lr(m, bits=bits, k=4, wart_skipping=warts, check=False, ring_sweeps=sweeps)
     assert isinstance(s, LRBits if bits else LR)
     check_corner_operators(s, m)
 
