@@ -46,7 +46,7 @@ import numpy as np
 
 from jaxcds import errors
 
-__all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows"]
+__all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "materialize"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
 
@@ -243,6 +243,22 @@ def interleave_rows(x, blocks: int = SUM_BLOCKS):
     head = jnp.swapaxes(x[:n].reshape((blocks, n // blocks) + x.shape[1:]), 0, 1)
     head = head.reshape((n,) + x.shape[1:])
     return jnp.concatenate([head, x[n:]]) if n < x.shape[0] else head
+
+
+def materialize(xs):
+    """The ``(m,)`` arrays ``xs`` (a tuple), written once to memory.
+
+    XLA:CPU fuses a producer into every consumer and re-evaluates it per consumer element, table
+    gathers included (``optimization_barrier`` is expanded away before fusion and does not stop
+    it): the CDS Thm 6 targets fused into the face assembly's gathers cost 2-3x the targets
+    themselves, and the packed LR decode fused into the interleaved rows re-ran per column. A scatter is never fused with the computation of its updates, so one identity
+    scatter (sorted, unique, in-bounds iota indices) of the stacked columns is a materialisation
+    point: one linear pass."""
+    x = jnp.stack(xs, axis=1)
+    i = jnp.arange(x.shape[0], dtype=jnp.int32)
+    x = jnp.zeros_like(x).at[i].set(x, indices_are_sorted=True, unique_indices=True,
+                                    mode="promise_in_bounds")
+    return tuple(x[:, k] for k in range(len(xs)))
 
 
 def parts_of_one_class(cls, parts) -> list:

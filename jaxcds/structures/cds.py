@@ -97,6 +97,7 @@ from jaxcds._progress import want_progress as _want_progress
 from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
 from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure, interleave_rows
+from jaxcds.structures.base import materialize as _materialize
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
            "edge_fronts", "face_slots", "tables_reference"]
@@ -499,22 +500,6 @@ def _ids(x):
 
 def _dart(u, c, r=0):
     return (2 * (3 * u + c) + r).astype(jnp.int32)
-
-
-def _materialize(xs):
-    """The ``(m,)`` arrays ``xs`` (a tuple), written once to memory.
-
-    XLA:CPU fuses a producer into every consumer and re-evaluates it per consumer element, table
-    gathers included (``optimization_barrier`` is expanded away before fusion and does not stop
-    it): the Thm 6 targets fused into the face assembly's gathers cost 2-3x the targets
-    themselves. A scatter is never fused with the computation of its updates, so one identity
-    scatter (sorted, unique, in-bounds iota indices) of the stacked columns is a materialisation
-    point: one linear pass."""
-    x = jnp.stack(xs, axis=1)
-    i = jnp.arange(x.shape[0], dtype=jnp.int32)
-    x = jnp.zeros_like(x).at[i].set(x, indices_are_sorted=True, unique_indices=True,
-                                    mode="promise_in_bounds")
-    return tuple(x[:, k] for k in range(len(xs)))
 
 
 def _fld(x):

@@ -36,9 +36,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import parts_of_one_class
-from jaxcds.structures.base import interleave_rows
-from jaxcds.structures.cds import _materialize
+from jaxcds.structures.base import interleave_rows, materialize, parts_of_one_class
 from jaxcds.structures.lr import _slot_triangles
 
 __all__ = ["concatenate_lr", "packed_class"]
@@ -201,7 +199,7 @@ class _PackedMixin:
             kw[name] = _Seg(getattr(self, name), self.mesh_array_offsets[m, j],
                             self.mesh_array_lengths[m, j])
         v = type(self)._view_cls(**kw)
-        rf = jnp.concatenate([jnp.zeros(1, jnp.int32), jnp.cumsum(self.mesh_sizes[:, 5])[:-1]])
+        rf = _excl(self.mesh_sizes[:, 5])
         for name, val in (("_has_border", self.has_border), ("_rf_off", rf[m]),
                           ("_rank_glob", self.slot_rank_cumulative)):
             object.__setattr__(v, name, val)
@@ -227,7 +225,7 @@ class _PackedMixin:
         element comes from :func:`_segment_ids` (a chunked search, no cumsum over the rows), the
         per-mesh values (ring start, ``m_r``, vertex offset, ``VO*`` segment, ``n``) are ONE row
         gather of a small ``(B, 6)`` table, and the decoded ring block (five global ids, the two
-        masks in their sign bits) is written once (:func:`_materialize`) before the rows are
+        masks in their sign bits) is written once (:func:`~jaxcds.structures.base.materialize`) before the rows are
         assembled and interleaved: fused into the interleaved rows instead, every column of every
         row re-ran the mesh lookup and the decode (1.6-1.9x the face list before, 1.3x after)."""
         nvm, mr, n0 = self.mesh_sizes[:, 0], self.mesh_sizes[:, 2], self.mesh_sizes[:, 3]
@@ -250,7 +248,7 @@ class _PackedMixin:
             jnp, lambda _: d, view.num_ring, view.num_vertices if self.has_border else None, v)
         voff = meta[:, 2]
         sign = jnp.int32(-2**31)  # ids are < 2^31: the sign bit carries "masked" through the block
-        blk = _materialize((left[:, 0] + voff, jnp.where(ok_l, 0, sign) | (left[:, 1] + voff),
+        blk = materialize((left[:, 0] + voff, jnp.where(ok_l, 0, sign) | (left[:, 1] + voff),
                             left[:, 2] + voff, right[:, 0] + voff,
                             jnp.where(ok_r, 0, sign) | (right[:, 1] + voff)))
         low = jnp.int32(2**31 - 1)
@@ -258,8 +256,9 @@ class _PackedMixin:
         rrows = jnp.stack([blk[3], blk[4] & low, blk[0]], axis=1)
         # T0 rows: the union's V0 as it is plus the mesh's vertex offset when every mesh's V0 is
         # 3 n0 long (V0 has one dummy entry when n0 = 0: then a gather at the mesh's V0 start)
-        mesh0 = _segment_ids(_excl(n0), self.num_t0, plan[1])
-        j = jnp.arange(self.num_t0, dtype=jnp.int32) - _excl(n0)[mesh0]
+        t0start = _excl(n0)
+        mesh0 = _segment_ids(t0start, self.num_t0, plan[1])
+        j = jnp.arange(self.num_t0, dtype=jnp.int32) - t0start[mesh0]
         if self.V0.shape[0] == 3 * self.num_t0:
             t0 = self.V0.reshape(self.num_t0, 3)
         else:
