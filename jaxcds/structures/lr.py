@@ -724,13 +724,19 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
                                   wart_skipping=wart_skipping, borders=borders,
                                   ring_sweeps=ring_sweeps)
     ks = _AUTO_K if k == "auto" else ([k] if np.isscalar(k) else list(k))
+    V, O, nv = np.asarray(ct.V), np.asarray(ct.O), ct.num_vertices
     best = None
-    # the ring search counts references, not bits: keep the unsearched ring where it packs smaller
-    sweeps = (0, ring_sweeps) if ring_sweeps else (0,)
     for kk in ks:
-        for sw in sweeps:
-            s = _from_corner_table(LRBits, ct, dummy=dummy, seeds=seeds, k=int(kk), check=False,
-                                   wart_skipping=wart_skipping, borders=borders, ring_sweeps=sw)
+        tb = _best_tables(V, O, nv, seeds=seeds, k=int(kk), dummy=dummy,
+                          wart_skipping=wart_skipping)
+        # the ring search counts references, not bits: keep the unsearched ring where it packs
+        # smaller (both rings come from this period's seeds, RING-EXPANDER runs once)
+        rings = [tb]
+        if ring_sweeps and wart_skipping:
+            rings.append(_searched(V, O, nv, tb, dummy=dummy, sweeps=ring_sweeps))
+        for t in rings:
+            s = _from_corner_table(LRBits, ct, dummy=dummy, k=int(kk), check=False,
+                                   borders=borders, tables=t)
             if best is None or s.bits < best.bits:
                 best = s
     if check:
