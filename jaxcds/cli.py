@@ -83,9 +83,10 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
         if structure_name not in ("lr", "lr-bits"):
             raise errors.JaxcdsError(
                 f"--ring-sweeps applies to lr and lr-bits, not {structure_name!r}")
-        if ring_sweeps < 0:
-            raise errors.JaxcdsError(f"--ring-sweeps must be >= 0, got {ring_sweeps}")
+        from jaxcds.construct.ring_search import check_sweeps
         from jaxcds.structures.lr import build_lr
+
+        check_sweeps(ring_sweeps)
 
         def builder(m):
             return build_lr(m, bits=structure_name == "lr-bits", ring_sweeps=ring_sweeps)

@@ -25,17 +25,18 @@ MESHES = ["bunny.off", "decimated-knight.off", "rocker-arm.obj", "3holes.off", "
           "grid.off"]
 
 
-def _corner_table(faces, nv, dummy=None):
+def _corner_table(faces, nv):
     ct = CornerTable.from_faces(faces, nv)
-    return np.asarray(ct.V), np.asarray(ct.O), dummy
+    return np.asarray(ct.V), np.asarray(ct.O)
 
 
 def _shared(name):
+    """``(V, O, dummy mask or None, num_vertices)`` of a shared mesh, holes closed."""
     mesh = validate_and_close(load_shared(name), connected=True, structure="lr")
     dummy = None
     if mesh.dummy_vertices is not None and np.any(mesh.dummy_vertices):
         dummy = np.asarray(mesh.dummy_vertices, bool)
-    return _corner_table(mesh.faces, mesh.num_vertices, dummy) + (mesh.num_vertices,)
+    return _corner_table(mesh.faces, mesh.num_vertices) + (dummy, mesh.num_vertices)
 
 
 def _check_ring(V, O, tm, nv, dummy):
@@ -97,7 +98,7 @@ def test_search_lowers_the_count_on_an_irregular_mesh():
 @given(n=st.integers(6, 400), seed=st.integers(0, 2**31 - 1))
 def test_random_triangulations(n, seed):
     faces = random_planar_triangulation_faces(n, seed=seed)
-    V, O, _ = _corner_table(faces, n)
+    V, O = _corner_table(faces, n)
     tm0, _ = ring_expander(V, O, n, int(seed % V.size), None)
     tm, delta = improve_ring(V, O, tm0, n, sweeps=10, t_hi=8.0, seed=seed % 1000)
     _check_ring(V, O, tm, n, None)
