@@ -53,7 +53,30 @@ def _order(s, n):
 
 
 def _has_loop(fn, *args):
-    return "while" in str(jax.make_jaxpr(fn)(*args))
+    """A ``while`` anywhere in the traced program, except inside ``base.materialize_loop`` (a
+    nested jit of that name whose loop runs once: a materialisation point, not navigation)."""
+    def walk(jaxpr):
+        for eqn in jaxpr.eqns:
+            if eqn.primitive.name == "while":
+                return True
+            if eqn.params.get("name") == "materialize_loop":
+                continue
+            for v in eqn.params.values():
+                for sub in (v if isinstance(v, (tuple, list)) else (v,)):
+                    inner = getattr(sub, "jaxpr", sub)
+                    if hasattr(inner, "eqns") and walk(inner):
+                        return True
+        return False
+    return walk(jax.make_jaxpr(fn)(*args).jaxpr)
+
+
+def test_has_loop_sees_loops_but_not_the_materialisation_point():
+    from jaxcds.structures.base import materialize_loop
+    x = jnp.arange(5, dtype=jnp.int32)
+    assert _has_loop(lambda a: jax.lax.while_loop(lambda v: v[0] < 3, lambda v: v + 1, a), x)
+    assert _has_loop(lambda a: jax.jit(lambda b: jax.lax.fori_loop(0, b[0], lambda i, c: c + i, b))(a), x)
+    assert not _has_loop(lambda a: materialize_loop((a + 1,))[0] * 2, x)
+    np.testing.assert_array_equal(np.asarray(materialize_loop((x + 1, x * 2))[1]), np.arange(5) * 2)
 
 
 # ---------------------------------------------------------------- one structure, many claims
