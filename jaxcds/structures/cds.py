@@ -595,7 +595,9 @@ class _CDS(MeshStructure):
         e = _ids(e)
         u, c = e // 3, e % 3
         cn, cp = (c + 1) % 3, (c + 2) % 3
-        lf = self.left_front_edge(e)
+        # in memory before Case 3 reads through it (materialize_loop: fused, the second
+        # LeftFront would re-evaluate the first in every one of its reads)
+        lf, = _materialize_loop((self.left_front_edge(e),))
         # Case 1: no incoming edge of colour prev(c) at u: LeftBack is u_next(c), toward w
         case1 = _dart(u, cn, 1)
         # Case 2: LeftFront has colour c (w -> v): LeftBack is w_prev(c), w = Source(LeftFront)
@@ -612,7 +614,7 @@ class _CDS(MeshStructure):
         e = _ids(e)
         u, c = e // 3, e % 3
         cn, cp = (c + 1) % 3, (c + 2) % 3
-        rf = self.right_front_edge(e)
+        rf, = _materialize_loop((self.right_front_edge(e),))  # as in left_back_edge
         # Case 1: no incoming edge of colour next(c) at u: RightBack is u_prev(c)
         case1 = _dart(u, cp, 0)
         # Case 2: RightFront has colour c (z -> v): RightBack is z_next(c) entering u, reversed
@@ -878,11 +880,11 @@ class _CDS(MeshStructure):
         return hit & (u != v)
 
     # ---- faces (Thm 7)
-    def _face_left_slot(self, e):
+    def _face_left_slot(self, e, lf=None, lb=None):
         u, c = e // 3, e % 3
         n = self.num_vertices
-        lf = self.left_front_edge(e)
-        lb = self.left_back_edge(e)
+        lf = self.left_front_edge(e) if lf is None else lf
+        lb = self.left_back_edge(e) if lb is None else lb
         fb = self.F_blue
         # red: Face_left(u_red) is u_red^tri
         red = u
@@ -896,11 +898,11 @@ class _CDS(MeshStructure):
         # _EXTERIOR: left of (V_black, V_blue) is the outer face = left of (V_blue, V_red): slot V_blue
         return jnp.where(e == self._e_kb, self.v_blue, s)
 
-    def _face_right_slot(self, e):
+    def _face_right_slot(self, e, rf=None, rb=None):
         u, c = e // 3, e % 3
         n = self.num_vertices
-        rf = self.right_front_edge(e)
-        rb = self.right_back_edge(e)
+        rf = self.right_front_edge(e) if rf is None else rf
+        rb = self.right_back_edge(e) if rb is None else rb
         fb = self.F_blue
         # red: RightFront red -> Source(RightFront)_red^tri, else u_black^tri (no cw triangle)
         red = jnp.where(_col(rf) == RED, _src(rf), n + u)
@@ -926,7 +928,15 @@ class _CDS(MeshStructure):
         """Thm 7 slot (index into a size-``2n`` face array) of the left face of dart ``d``."""
         d = _ids(d)
         e = d >> 1
-        return jnp.where((d & 1) == 0, self._face_left_slot(e), self._face_right_slot(e)).astype(jnp.int32)
+        left = (d & 1) == 0
+        # one front and one back per dart, by side (the left face of the twin is the right
+        # face of the edge); written to memory before the slot rules read them twice each
+        # (materialize_loop: fused, XLA re-evaluated the front/back chains per use)
+        front = jnp.where(left, self.left_front_edge(e), self.right_front_edge(e))
+        back = jnp.where(left, self.left_back_edge(e), self.right_back_edge(e))
+        front, back = _materialize_loop((front, back))
+        return jnp.where(left, self._face_left_slot(e, front, back),
+                         self._face_right_slot(e, front, back)).astype(jnp.int32)
 
     def face(self, d: Int) -> Int:
         return self._compact(self.face_slot(d))
@@ -1262,6 +1272,7 @@ class CDS5n(_CDS):
         # w = Source(LeftFront(LeftFront(e))) if LeftFront(e) is black, else Source(LeftFront(e))
         lf = jnp.where(same, _dart(s, BLUE, 1), _dart(s, BLACK, 0))
         w = jnp.where(_col(lf) == BLACK, _src(self._lf_black_r(self.refs[_src(lf)])), _src(lf))
+        w, = _materialize_loop((w,))  # a chain of two row reads: see left_back_edge
         z, _ = self._toleft_r(self.refs[w])
         case2b = _dart(z, BLUE, 0)
         return jnp.where(~self._inc_r(row, RED), stored,
@@ -1327,7 +1338,10 @@ class CDS4n(CDS5n):
     def _rf_red_r(self, u, row):
         # RightFront(u_red) red => it is (u - 1)_red, which holds iff LeftFront((u-1)_red) = u_red
         um = jnp.maximum(u - 1, 0)
-        sib = (u >= 2) & (self.left_front_edge(3 * um + RED) == _dart(u, RED, 1))
+        # LeftFront((u-1)_red) by its red rule only (the colour is known here) and its one
+        # exterior case, (V_blue, V_red)
+        lf_prev = jnp.where(um == self.v_blue, self._d1, self._lf_red_r(um, self.refs[um]))
+        sib = (u >= 2) & (lf_prev == _dart(u, RED, 1))
         # otherwise {v, z} and {u, z} are black (no cw triangle): RightFront = LeftFront(u_black)
         return jnp.where(sib, _dart(um, RED, 0), self._lf_black_r(row))
 
