@@ -1456,7 +1456,11 @@ class CDS5nO1(CDS4n):
         u, c = e // 3, e % 3
         y, second = self._target_plan_r(u, c, self.refs[u])
         own = ((d & 1) == 0) != want_target  # the answer is the source u of the edge
-        y, second = _materialize_loop((jnp.where(own, u, y), jnp.where(own, 0, second)))
+        # one word per query (y < 2^30): one consumer of the row read, so XLA fuses the whole
+        # first read into one pass instead of writing the gathered rows out for two
+        word = jnp.where(own, u, y) | (jnp.where(own, 0, second) << 30)
+        word, = _materialize_loop((word,))
+        y, second = _fld(word), (word >> 30) & 3
         return self._target_finish_r(y, second, self._second_row(y, second))
 
     def _edge_target(self, e):
