@@ -1454,8 +1454,9 @@ class CDS5nO1(CDS4n):
         d = _ids(d)
         e = d >> 1
         u, c = e // 3, e % 3
-        y, second = self._target_plan_r(u, c, self.refs[u])
         own = ((d & 1) == 0) != want_target  # the answer is the source u of the edge
+        # ... which needs no row: those read row 0, which stays in cache
+        y, second = self._target_plan_r(u, c, self.refs[jnp.where(own, 0, u)])
         # two arrays, not one packed word: with two consumers XLA writes the gathered rows out
         # in a pure gather pass, which keeps many cache misses in flight; packed, the row read
         # fuses into the case analysis and stalls on each miss (2.5M vertices: 22 vs 52 ns;
