@@ -144,3 +144,15 @@ def test_fresh_process_probes(tmp_path, capsys):
     md = (tmp_path / "RESULTS.md").read_text()
     assert "fresh process" in md and "| 5,000 |" in md
     assert not (tmp_path / "normals.png").exists()
+
+
+def test_race_queries_times_every_route(capsys):
+    from benchmarks import race_queries
+
+    res = race_queries.race([("a", lambda x: x + 1, (np.arange(10, dtype=np.int32),)),
+                             ("b", lambda x: x * 2, (np.arange(10, dtype=np.int32),))], 10, rounds=3)
+    assert set(res) == {"a", "b"} and all(0 < lo <= med for lo, med in res.values())
+    assert race_queries.main(["--vertices", "300", "--queries", "1000", "--rounds", "1",
+                              "--structures", "halfedge", "cds5n-o1", "--ops", "target"]) == 0
+    out = capsys.readouterr().out
+    assert "halfedge target" in out and "cds5n-o1 target" in out

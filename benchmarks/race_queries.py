@@ -1,0 +1,76 @@
+"""Batched queries of several structures raced in turn: every compiled program runs once per
+round, rounds repeated, min and median reported (ns per query).
+
+Why a second query benchmark beside ``bench_cds``: ``bench_cds`` times each structure's ops in
+sequence, and on this shared 2-core box a program timed after others (other structures built,
+other buffers freed) can read 1.5x slower than the same program timed alone. Racing the routes in
+turn puts them under the same conditions. Example (the CDS5n-O(1) Target against the half-edge,
+``RESULTS.md``, "CDS: materialisation loop")::
+
+    flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/race_queries.py \\
+        --vertices 2500000 --queries 10000000 --structures halfedge cds5n-o1 --ops target
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from jaxcds.generators import random_planar_triangulation  # noqa: E402
+from jaxcds.structures import registry  # noqa: E402
+
+
+def race(items, n_items: int, rounds: int) -> dict:
+    """``items``: ``(name, fn, args)``. AOT-compile each, warm up once, then run every program
+    once per round for ``rounds`` rounds; returns ``{name: (min, median)}`` in ns per item."""
+    compiled = []
+    for name, fn, args in items:
+        c = jax.jit(fn).lower(*args).compile()
+        jax.block_until_ready(c(*args))
+        compiled.append((name, c, args))
+    times = {name: [] for name, _, _ in compiled}
+    for _ in range(rounds):
+        for name, c, args in compiled:
+            t0 = time.perf_counter()
+            jax.block_until_ready(c(*args))
+            times[name].append(time.perf_counter() - t0)
+    return {k: (min(v) / n_items * 1e9, float(np.median(v)) / n_items * 1e9) for k, v in times.items()}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--vertices", type=int, default=100_000)
+    ap.add_argument("--queries", type=int, default=1_000_000)
+    ap.add_argument("--structures", nargs="+", default=["halfedge", "cds5n-o1"])
+    ap.add_argument("--ops", nargs="+", default=["target"], help="dart operators: target, origin, "
+                    "face_left, next, ...")
+    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--seed", type=int, default=0)
+    a = ap.parse_args(argv)
+    mesh = random_planar_triangulation(a.vertices, seed=1)
+    rng = np.random.default_rng(a.seed)
+    items = []
+    for name in a.structures:
+        s = registry.build(name, mesh)
+        darts = np.asarray(s.all_darts())
+        d = jnp.asarray(darts[rng.integers(0, darts.size, a.queries)], jnp.int32)
+        for op in a.ops:
+            items.append((f"{name} {op}", (lambda op: lambda s, d: getattr(s, op)(d))(op), (s, d)))
+    res = race(items, a.queries, a.rounds)
+    print(f"random:{a.vertices}, {a.queries} random darts, {a.rounds} rounds, load average "
+          f"{os.getloadavg()[0]:.2f}")
+    for k, (lo, med) in res.items():
+        print(f"{k:32s} min {lo:8.2f}  median {med:8.2f} ns/query")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
