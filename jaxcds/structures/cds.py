@@ -60,7 +60,8 @@ Target
 ------
 CDS6n / CDS5n / CDS4n: ``Target(u_c)`` turns cw around the target with ``LeftFront`` until an
 edge leaving it shows up (Thm 2, "Operator Target"), a masked ``while_loop`` over the batch: O(d).
-CDS5nO1: O(1) (Thm 6), two table-row reads. Whole-mesh queries (``face_vertices``, used by the
+CDS5nO1: O(1) (Thm 6), two table-row reads, the first's answer written to memory in between
+(``base.materialize_loop``: XLA would fuse the two and re-read the first inside the second). Whole-mesh queries (``face_vertices``, used by the
 normals, and ``vertex_degrees``) read the tables column by column (slices, no gather), compute all
 ``3n`` targets at once -- by pointer jumping along the same ``LeftFront`` chains (one gather per
 round, ``ceil(log2(longest fan))`` rounds) or, for CDS5nO1, by Thm 6 in O(1) per edge -- and
@@ -1450,7 +1451,8 @@ class CDS5nO1(CDS4n):
 
         The first read's answer ``(y, second)`` is written to memory between the two
         (:func:`~jaxcds.structures.base.materialize_loop`): fused, XLA re-evaluated the first
-        read inside the second's loop (26 against 16 ns per query at 1M vertices)."""
+        read inside the second's loop (2.5M vertices: 55-82 ns per query before, 19-20 after;
+        ``benchmarks/RESULTS.md``, "CDS: materialisation loop")."""
         d = _ids(d)
         e = d >> 1
         u, c = e // 3, e % 3
@@ -1474,26 +1476,24 @@ class CDS5nO1(CDS4n):
     def origin(self, d: Int) -> Int:
         return self._dart_end(d, False)
 
+    def _three_targets(self, u, row):
+        """``(Target(u_red), Target(u_blue), Target(u_black))`` from ``row = refs[u]``: the three
+        first reads written to memory at once, then one second read each."""
+        plans = [self._target_plan_r(u, c, row) for c in (RED, BLUE, BLACK)]
+        flat = _materialize_loop(tuple(x for p in plans for x in p))
+        ys, seconds = flat[0::2], flat[1::2]
+        return tuple(self._target_finish_r(y, k, self._second_row(y, k)) for y, k in zip(ys, seconds))
+
     def _targets_cols(self, lfs=None):
         """Every target at once, column by column: O(1) per edge, one row gather per colour (no
         loop; ``lfs`` is not needed)."""
-        u = jnp.arange(self.num_vertices, dtype=jnp.int32)
-        plans = [self._target_plan_r(u, c, self.refs) for c in (RED, BLUE, BLACK)]
-        flat = _materialize_loop(tuple(x for p in plans for x in p))
-        return tuple(self._target_finish_r(flat[2 * c], flat[2 * c + 1],
-                                           self._second_row(flat[2 * c], flat[2 * c + 1]))
-                     for c in (RED, BLUE, BLACK))
+        return self._three_targets(jnp.arange(self.num_vertices, dtype=jnp.int32), self.refs)
 
     def _out_targets(self, u):
         """Targets of the three edges leaving ``u`` (``num_vertices`` where absent): one row for
         ``u`` and one for each vertex the three cases name."""
         u = _ids(u)
-        row = self.refs[u]
-        plans = [self._target_plan_r(u, c, row) for c in (RED, BLUE, BLACK)]
-        flat = _materialize_loop(tuple(x for p in plans for x in p))
-        ts = [self._target_finish_r(flat[2 * c], flat[2 * c + 1],
-                                    self._second_row(flat[2 * c], flat[2 * c + 1]))
-              for c in (RED, BLUE, BLACK)]
+        ts = self._three_targets(u, self.refs[u])
         return [jnp.where(self.edge_valid(3 * u + c), t, self.num_vertices) for c, t in enumerate(ts)]
 
     @classmethod
