@@ -41,6 +41,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
 from jaxcds.structures.base import interleave_rows, parts_of_one_class
+from jaxcds.structures.cds import slot_blocks
 
 __all__ = ["concatenate_cds", "packed_class"]
 
@@ -181,7 +182,8 @@ class _PackedMixin:
         valid = self._slot_valid()
         full = type(self)._base._slot_faces(self._whole_view())
         faces = jnp.where(valid[:, None], full, 0).astype(jnp.int32)
-        return interleave_rows(faces), interleave_rows(valid)  # as the single CDS (base.py)
+        b = slot_blocks(self.num_vertices)  # as the single CDS, by the union's size
+        return interleave_rows(faces, b), interleave_rows(valid, b)
 
     def vertex_degrees(self):
         return type(self)._base.vertex_degrees(self._whole_view())

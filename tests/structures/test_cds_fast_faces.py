@@ -101,3 +101,30 @@ def test_whole_mesh_routes_packed(name):
     np.testing.assert_allclose(np.asarray(vertex_normals(b, jnp.asarray(pos, jnp.float32))),
                                np.asarray(face_list_vertex_normals(jnp.asarray(pos, jnp.float32),
                                                                    s.face_vertices())), atol=2e-5)
+
+
+def test_slot_blocks_and_every_block_count_is_a_permutation(monkeypatch):
+    """The large-mesh block counts (8, 4: :func:`cds.slot_blocks`) are not reached by the small
+    meshes of the other tests: force them and compare the normals with the face list."""
+    from jaxcds.structures import cds as cds_module
+    from jaxcds.structures.base import interleave_rows
+
+    assert [cds_module.slot_blocks(n) for n in (4, 299_999, 300_000, 1_999_999, 2_000_000)] == [16, 16, 8, 8, 4]
+    for b in (4, 8, 16):
+        for m in (3, 37, 64):
+            x = np.asarray(interleave_rows(jnp.arange(m), b))
+            assert sorted(x.tolist()) == list(range(m))
+    mesh = random_planar_triangulation(300, seed=5)
+    p = np.asarray(mesh.vertices, np.float32)
+    want = np.asarray(face_list_vertex_normals(jnp.asarray(p), jnp.asarray(mesh.faces)))
+    for blocks in (8, 4):
+        monkeypatch.setattr(cds_module, "slot_blocks", lambda n, b=blocks: b)
+        for name in ("cds6n", "cds5n-o1"):
+            s = registry.build(name, mesh)
+            order = s.vertex_order
+            q = p if order is None else p[np.asarray(order)]
+            fv, ok = s.face_vertices_padded()
+            assert int(np.asarray(ok).sum()) == s.num_faces
+            got = np.asarray(vertex_normals.__wrapped__(s, jnp.asarray(q)))
+            ref = want if order is None else want[np.asarray(order)]
+            np.testing.assert_allclose(got, ref, atol=1e-5)
