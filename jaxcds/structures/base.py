@@ -254,7 +254,8 @@ def materialize(xs):
     themselves, and the packed LR decode fused into the interleaved rows re-ran per column. A
     scatter is never fused with the computation of its updates, so one identity scatter (sorted,
     unique, in-bounds iota indices) of the stacked columns is a materialisation point: one linear
-    pass. See :func:`materialize_loop` for the cheaper point used by the CDS5n-O(1) Target."""
+    pass (still used by the packed LR rows). :func:`materialize_loop` is the cheaper point the CDS
+    routes use."""
     x = jnp.stack(xs, axis=1)
     i = jnp.arange(x.shape[0], dtype=jnp.int32)
     x = jnp.zeros_like(x).at[i].set(x, indices_are_sorted=True, unique_indices=True,
@@ -270,11 +271,11 @@ def materialize_loop(xs):
     ``xs`` in one pass and its consumers read it, where a fused producer would be re-evaluated per
     consumer element (see :func:`materialize`). The trip count is read from the data
     (``min(xs[0][0], 0) + 1``: 1 for the non-negative ids passed here, 0 or less otherwise, same
-    result), so XLA cannot unroll the loop away, and the body touches every value (a ``where`` on
-    the counter) so the values are not hoisted out as loop invariants. Measured on the CDS5n-O(1)
-    batched Target (1M queries, 1M vertices): 16 ns per query with it, 26 without, and cheaper
-    than the identity scatter (the stacked ``(m, k)`` concatenate is slow under XLA:CPU's fusion
-    emitters). Integer structure data only: ``while_loop`` has no reverse-mode derivative (the
+    result), so XLA cannot unroll the loop away, and the body rewrites the first element of every
+    value (unchanged, by a ``where`` on the counter: an O(1) body) so the values are not hoisted
+    out as loop invariants. Measured on the CDS5n-O(1) batched Target (1M queries, 1M
+    vertices): 16 ns per query with it, 26 without, and cheaper than the identity scatter (the
+    stacked ``(m, k)`` concatenate is slow under XLA:CPU's fusion emitters). Integer structure data only: ``while_loop`` has no reverse-mode derivative (the
     values here never depend on positions).
 
     Traced as a nested ``jit`` named ``materialize_loop``, so a reader of the program (and

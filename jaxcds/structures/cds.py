@@ -61,8 +61,8 @@ Target
 CDS6n / CDS5n / CDS4n: ``Target(u_c)`` turns cw around the target with ``LeftFront`` until an
 edge leaving it shows up (Thm 2, "Operator Target"), a masked ``while_loop`` over the batch: O(d).
 CDS5nO1: O(1) (Thm 6), two table-row reads, the first's answer written to memory in between
-(``base.materialize_loop``: XLA would fuse the two and re-read the first inside the second). Whole-mesh queries (``face_vertices``, used by the
-normals, and ``vertex_degrees``) read the tables column by column (slices, no gather), compute all
+(``base.materialize_loop``: XLA would fuse the two and re-read the first inside the second).
+Whole-mesh queries (``face_vertices``, used by the normals, and ``vertex_degrees``) read the tables column by column (slices, no gather), compute all
 ``3n`` targets at once -- by pointer jumping along the same ``LeftFront`` chains (one gather per
 round, ``ceil(log2(longest fan))`` rounds) or, for CDS5nO1, by Thm 6 in O(1) per edge -- and
 assemble every face from its Thm 7 slot in O(1) (no navigation operator is called). The normals
@@ -98,7 +98,6 @@ from jaxcds._progress import want_progress as _want_progress
 from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
 from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure, interleave_rows
-from jaxcds.structures.base import materialize as _materialize
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
