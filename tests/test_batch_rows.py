@@ -14,7 +14,8 @@ from jaxcds.algorithms import face_list_vertex_normals, vertex_normals
 from jaxcds.generators import icosphere, random_planar_triangulation
 from jaxcds.mesh import load_mesh
 from jaxcds.structures import registry
-from jaxcds.structures.lr_packed import _chunk_plan, _segment_ids
+from jaxcds.structures.base import interleave_windows
+from jaxcds.structures.lr_packed import _chunk_plan, _pair, _segment_ids
 
 from conftest import load_shared, octahedron
 
@@ -49,6 +50,24 @@ def _rotated(rows):
     k = np.argmin(rows, axis=1)
     r = np.stack([rows[np.arange(len(rows)), (k + i) % 3] for i in range(3)], axis=1)
     return r[np.lexsort(r.T[::-1])]
+
+
+@pytest.mark.parametrize("m", [0, 5, 64, 100, 129, 1000])
+def test_interleave_windows_is_a_local_permutation(m):
+    """Every row once; inside each full window of 64 rows, rows 8 apart follow each other; the
+    tail (m mod 64 rows) stays in place; works on (m, 3) rows as on masks."""
+    x = np.asarray(interleave_windows(jnp.arange(m)))
+    assert sorted(x.tolist()) == list(range(m))
+    full = m - m % 64
+    for w in range(0, full, 64):
+        want = (w + np.arange(64).reshape(8, 8).T.reshape(-1)).tolist()
+        assert x[w:w + 64].tolist() == want
+    assert x[full:].tolist() == list(range(full, m))
+    rows = np.arange(3 * m).reshape(m, 3)
+    np.testing.assert_array_equal(np.asarray(interleave_windows(jnp.asarray(rows))), rows[x])
+    a, b = np.arange(m), -np.arange(m) - 1
+    assert np.asarray(_pair(jnp.asarray(a), jnp.asarray(b))).tolist() == \
+        [v for pair in zip(a.tolist(), b.tolist()) for v in pair]
 
 
 @pytest.mark.parametrize("name", ["lr", "lr-bits"])

@@ -36,13 +36,10 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import interleave_rows, materialize, parts_of_one_class
+from jaxcds.structures.base import interleave_windows, materialize, parts_of_one_class
 from jaxcds.structures.lr import _slot_triangles
 
 __all__ = ["concatenate_lr", "packed_class"]
-
-#: interleaved blocks of the packed rows (face_vertices_padded)
-_PACKED_BLOCKS = 8
 
 #: static sizes of one LR that become per-mesh arrays (columns of ``mesh_sizes``)
 _SIZES = ("num_vertices", "num_faces", "num_ring", "num_t0", "num_vos", "num_ring_faces",
@@ -63,6 +60,11 @@ class _Seg:
     def shape(self):
         return (self.n,)
 
+
+
+def _pair(a, b):
+    """Rows ``a[0], b[0], a[1], b[1], ...`` (``a`` and ``b`` of one shape)."""
+    return jnp.stack([a, b], axis=1).reshape((2 * a.shape[0],) + a.shape[1:])
 
 def _excl(c):
     """Exclusive cumulative sum of a small ``(B,)`` count array."""
@@ -289,12 +291,16 @@ class _PackedMixin:
         :meth:`jaxcds.structures.base.MeshStructure.face_vertices_padded`): one decode per ring
         vertex of the union, no per-face navigation."""
         rows, ok, _ = self._packed_rows()
-        # interleaved blocks: no run of one apex in a row for the scatter-adds of the sums. 8, not
-        # the single structure's 16: each block reads the positions and sums of other meshes, and
-        # fewer streams stay in cache (prof_packed_normals-style runs, min of 9 rounds, 300 random
-        # meshes: 1.30x the face list with 8 blocks, 1.35x with 4, 1.40x with 16, 1.47x with none;
-        # 42 real meshes (bunny, spot, fandisk, ... x6): 1.27 / 1.23 / 1.27 / 1.55x)
-        return interleave_rows(rows, _PACKED_BLOCKS), interleave_rows(ok, _PACKED_BLOCKS)
+        # each ring vertex's two slot rows side by side, then windows of 8 x 8 rows interleaved
+        # (base.interleave_windows): no run of one apex for the scatter-adds, and the rows keep
+        # the batch's mesh-by-mesh order, where interleave_rows's 8 blocks read 8 far-apart parts
+        # of the union at once. Routes in rotated turns, 10 rounds: 3,000 random meshes (8.2M
+        # vertices) 1.21x the face list against 1.36x with the blocks, 300 meshes 1.20x / 1.25x;
+        # at 10,000 meshes both vary 1.45-1.9x from run to run (benchmarks/RESULTS.md)
+        m = self.num_ring
+        rows = jnp.concatenate([_pair(rows[:m], rows[m:2 * m]), rows[2 * m:]])
+        ok = jnp.concatenate([_pair(ok[:m], ok[m:2 * m]), ok[2 * m:]])
+        return interleave_windows(rows), interleave_windows(ok)
 
     def face_vertices(self):
         """``(F, 3)`` in the union's face order (mesh by mesh, each in its dense face order): the
