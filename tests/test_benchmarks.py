@@ -156,3 +156,17 @@ def test_race_queries_times_every_route(capsys):
                               "--structures", "halfedge", "cds5n-o1", "--ops", "target"]) == 0
     out = capsys.readouterr().out
     assert "halfedge target" in out and "cds5n-o1 target" in out
+
+
+def test_race_row_orders_every_order_gives_the_face_list_normals(capsys):
+    """Every row order of benchmarks/race_row_orders.py sums the same normals as the face list,
+    for packed LR and packed CDS, and for one LR and one CDS mesh."""
+    from benchmarks import race_row_orders
+
+    for mesh in ("packed:3", "random:400"):
+        assert race_row_orders.main(["--mesh", mesh, "--structures", "lr,cds4n", "--rounds", "1",
+                                     "--orders", "cur,g4,p8x8,l2x4"]) == 0
+        out = capsys.readouterr().out
+        errs = [float(line.rsplit(" ", 1)[1]) for line in out.splitlines() if "largest difference" in line]
+        assert len(errs) == 8 and max(errs) < 1e-4, out
+        assert "lr/p8x8" in out and "cds4n/l2x4" in out
