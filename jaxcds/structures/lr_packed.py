@@ -296,7 +296,7 @@ class _PackedMixin:
         # the batch's mesh-by-mesh order, where interleave_rows's 8 blocks read 8 far-apart parts
         # of the union at once. Routes in rotated turns, 10 rounds: 3,000 random meshes (8.2M
         # vertices) 1.21x the face list against 1.36x with the blocks, 300 meshes 1.20x / 1.25x;
-        # at 10,000 meshes both vary 1.45-1.9x from run to run (benchmarks/RESULTS.md)
+        # at 10,000 meshes both vary 1.3-2.1x from run to run (benchmarks/RESULTS.md)
         m = self.num_ring
         rows = jnp.concatenate([_pair(rows[:m], rows[m:2 * m]), rows[2 * m:]])
         ok = jnp.concatenate([_pair(ok[:m], ok[m:2 * m]), ok[2 * m:]])
