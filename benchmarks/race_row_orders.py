@@ -41,12 +41,9 @@ from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.mesh import load_mesh  # noqa: E402
 from jaxcds.structures import registry  # noqa: E402
 from jaxcds.structures.base import interleave_rows, interleave_windows  # noqa: E402
+from jaxcds.structures.lr_packed import _pair  # noqa: E402
 
 SHARED = os.environ.get("JAXCDS_SHARED_MESHES", "/work/shared/meshes")
-
-
-def _pair(a, b):
-    return jnp.stack([a, b], axis=1).reshape((2 * a.shape[0],) + a.shape[1:])
 
 
 def arrange(rows, ok, half: int, order: str):
