@@ -64,12 +64,12 @@ def timeit(fn, repeat: int):
 
 
 def timepair(fa, fb, repeat: int):
-    """Medians of ``fa`` and ``fb`` timed in turn after one warm-up each, so that both see the
+    """``(median a, median b, fastest a, fastest b)`` of ``fa`` and ``fb`` timed in turn after one warm-up each, so that both see the
     same machine load (the ratio is what the target is about). The order flips every round (a b,
     b a, ...): with a fixed order, the 10,000-mesh run of 2026-11-30 timed the face list at
     104-118 ns per vertex next to the CDS kinds, against 66-82 in races of rotating order, which
-    made those ratios look better than they are (cause not found). ``LAST_MINS`` keeps the two
-    fastest runs (``vs_face_list_min`` in the rows)."""
+    made those ratios look better than they are (cause not found). The fastest runs give
+    ``vs_face_list_min`` in the rows."""
     jax.block_until_ready(fa())
     jax.block_until_ready(fb())
     ta, tb = [], []
@@ -79,11 +79,7 @@ def timepair(fa, fb, repeat: int):
             t0 = time.perf_counter()
             jax.block_until_ready(fn())
             acc.append(time.perf_counter() - t0)
-    LAST_MINS[:] = [min(ta), min(tb)]
-    return statistics.median(ta), statistics.median(tb)
-
-
-LAST_MINS = [0.0, 0.0]
+    return statistics.median(ta), statistics.median(tb), min(ta), min(tb)
 
 
 def make_meshes(k: int, lo: int, hi: int, seed: int):
@@ -154,10 +150,11 @@ def run(args) -> list[dict]:
         jax.block_until_ready(f(b, pos))
         first = time.perf_counter() - t0
         # face-list timed again, interleaved with the packed runs: same load for both
-        t_fl, t = timepair(lambda: face_list_vertex_normals(pos, faces), lambda: f(b, pos), args.repeat)
+        t_fl, t, lo_fl, lo = timepair(lambda: face_list_vertex_normals(pos, faces), lambda: f(b, pos),
+                                      args.repeat)
         err = float(jnp.max(jnp.abs(f(b, pos) - face_list_vertex_normals(pos, faces))))
         emit(what="normals", impl=f"packed/{name}", vertices=nv, seconds=t, ns_per_vertex=1e9 * t / nv,
-             vs_face_list=t / t_fl, vs_face_list_min=LAST_MINS[1] / LAST_MINS[0],
+             vs_face_list=t / t_fl, vs_face_list_min=lo / lo_fl,
              face_list_interleaved_s=t_fl, first_call_s=first, max_abs_diff_vs_face_list=err)
 
         # Python loop over meshes (warm: compile every distinct size first, timed apart)
@@ -175,7 +172,7 @@ def run(args) -> list[dict]:
         # the SAME meshes, not only with the big batch's per-vertex time
         sub = B._union(ms[:k])
         sp, sf = jnp.asarray(sub.vertices, jnp.float32), jnp.asarray(sub.faces)
-        t_sub, _ = timepair(lambda: face_list_vertex_normals(sp, sf), lambda: sp, args.repeat)
+        t_sub, *_ = timepair(lambda: face_list_vertex_normals(sp, sf), lambda: sp, args.repeat)
         emit(what="normals", impl=f"loop/{name}", meshes=k, vertices=nv_loop, seconds=t,
              ns_per_vertex=1e9 * t / nv_loop, vs_face_list=(t / nv_loop) / (base_normals / nv),
              vs_face_list_same_meshes=t / t_sub, face_list_same_meshes_s=t_sub,
@@ -185,7 +182,7 @@ def run(args) -> list[dict]:
         t0 = time.perf_counter()
         jax.block_until_ready(q(b, qm_j, qd_j))
         first = time.perf_counter() - t0
-        t_fl, t = timepair(lambda: face_list_target(faces, foff, voff, qm_j, qd_j),
+        t_fl, t, *_ = timepair(lambda: face_list_target(faces, foff, voff, qm_j, qd_j),
                            lambda: q(b, qm_j, qd_j), args.repeat)
         same = bool(np.array_equal(np.asarray(q(b, qm_j, qd_j)), want_target))
         emit(what="target", impl=f"packed/{name}", queries=args.queries, seconds=t,
@@ -227,13 +224,13 @@ def run_compact(args, ms, emit):
         t0 = time.perf_counter()
         got = jax.block_until_ready(f(b, pos))
         first = time.perf_counter() - t0
-        t_fl, t = timepair(lambda: face_list_vertex_normals(fl_pos, faces), lambda: f(b, pos), args.repeat)
-        mins = LAST_MINS[1] / LAST_MINS[0]
+        t_fl, t, lo_fl, lo = timepair(lambda: face_list_vertex_normals(fl_pos, faces), lambda: f(b, pos),
+                                      args.repeat)
         want = np.asarray(face_list_vertex_normals(fl_pos, faces))
         want = want if order is None else want[np.asarray(order)]
         err = float(np.max(np.abs(np.asarray(got) - want)))
         emit(what="normals", impl=f"packed/{name}", meshes=k, vertices=nv, seconds=t,
-             ns_per_vertex=1e9 * t / nv, vs_face_list=t / t_fl, vs_face_list_min=mins,
+             ns_per_vertex=1e9 * t / nv, vs_face_list=t / t_fl, vs_face_list_min=lo / lo_fl,
              face_list_interleaved_s=t_fl, first_call_s=first, max_abs_diff_vs_face_list=err)
         # Python loop over the first --loop-meshes meshes (each mesh's static roots / sizes are
         # jit-static: one compilation per mesh, timed apart)

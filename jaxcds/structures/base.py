@@ -238,13 +238,8 @@ def interleave_rows(x, blocks: int = SUM_BLOCKS):
     one vertex is a chain of dependent read-modify-writes on one address. Measured with
     ``normals.corner_sums``: armadillo LR normals 55 -> 27 ns per vertex, CDS 10-30% faster;
     each block is still read sequentially."""
-    n = x.shape[0] - x.shape[0] % blocks
-    if n == 0:
-        return x
-    head = jnp.swapaxes(x[:n].reshape((blocks, n // blocks) + x.shape[1:]), 0, 1)
-    head = head.reshape((n,) + x.shape[1:])
-    return jnp.concatenate([head, x[n:]]) if n < x.shape[0] else head
-
+    # one window of the whole block-divisible head: depth = blocks rows, stride = n // blocks
+    return interleave_windows(x, blocks, x.shape[0] // blocks) if x.shape[0] >= blocks else x
 
 
 def interleave_windows(x, depth: int = 8, stride: int = 8):
@@ -298,8 +293,9 @@ def materialize_loop(xs):
     value (unchanged, by a ``where`` on the counter: an O(1) body) so the values are not hoisted
     out as loop invariants. Measured on the CDS5n-O(1) batched Target (1M queries, 1M
     vertices): 16 ns per query with it, 26 without, and cheaper than the identity scatter (the
-    stacked ``(m, k)`` concatenate is slow under XLA:CPU's fusion emitters). Integer structure data only: ``while_loop`` has no reverse-mode derivative (the
-    values here never depend on positions).
+    stacked ``(m, k)`` concatenate is slow under XLA:CPU's fusion emitters). Integer structure
+    data only: ``while_loop`` has no reverse-mode derivative (the values here never depend on
+    positions).
 
     Traced as a nested ``jit`` named ``materialize_loop``, so a reader of the program (and
     ``tests/structures/test_cds_paper.py``, which checks that the O(1) operators have no loop)

@@ -62,10 +62,11 @@ CDS6n / CDS5n / CDS4n: ``Target(u_c)`` turns cw around the target with ``LeftFro
 edge leaving it shows up (Thm 2, "Operator Target"), a masked ``while_loop`` over the batch: O(d).
 CDS5nO1: O(1) (Thm 6), two table-row reads, the first's answer written to memory in between
 (``base.materialize_loop``: XLA would fuse the two and re-read the first inside the second).
-Whole-mesh queries (``face_vertices``, used by the normals, and ``vertex_degrees``) read the tables column by column (slices, no gather), compute all
-``3n`` targets at once -- by pointer jumping along the same ``LeftFront`` chains (one gather per
-round, ``ceil(log2(longest fan))`` rounds) or, for CDS5nO1, by Thm 6 in O(1) per edge -- and
-assemble every face from its Thm 7 slot in O(1) (no navigation operator is called). The normals
+Whole-mesh queries (``face_vertices``, used by the normals, and ``vertex_degrees``) read the
+tables column by column (slices, no gather), compute all ``3n`` targets at once -- by pointer
+jumping along the same ``LeftFront`` chains (one gather per round, ``ceil(log2(longest fan))``
+rounds) or, for CDS5nO1, by Thm 6 in O(1) per edge -- and assemble every face from its Thm 7 slot
+in O(1) (no navigation operator is called). The normals
 read the ``2n`` slots as they are (``face_vertices_padded``: the four unused slots masked), with
 no compaction into dense face ids; ``face_vertices`` cuts the unused slots out.
 

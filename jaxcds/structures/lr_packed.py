@@ -61,10 +61,10 @@ class _Seg:
         return (self.n,)
 
 
-
 def _pair(a, b):
     """Rows ``a[0], b[0], a[1], b[1], ...`` (``a`` and ``b`` of one shape)."""
     return jnp.stack([a, b], axis=1).reshape((2 * a.shape[0],) + a.shape[1:])
+
 
 def _excl(c):
     """Exclusive cumulative sum of a small ``(B,)`` count array."""
@@ -228,8 +228,9 @@ class _PackedMixin:
         per-mesh values (ring start, ``m_r``, vertex offset, ``VO*`` segment, ``n``) are ONE row
         gather of a small ``(B, 6)`` table, and the decoded ring block (five global ids, the two
         masks in their sign bits) is written once (:func:`~jaxcds.structures.base.materialize`)
-        before the rows are assembled and interleaved: fused into the interleaved rows instead, every column of every
-        row re-ran the mesh lookup and the decode (1.6-1.9x the face list before, 1.3x after)."""
+        before the rows are assembled and interleaved: fused into the interleaved rows instead,
+        every column of every row re-ran the mesh lookup and the decode (1.6-1.9x the face list
+        before, 1.3x after)."""
         nvm, mr, n0 = self.mesh_sizes[:, 0], self.mesh_sizes[:, 2], self.mesh_sizes[:, 3]
         plan = self.row_plan or (None, None)
         rstart = _excl(mr)
