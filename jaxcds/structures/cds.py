@@ -102,7 +102,7 @@ from jaxcds.structures.base import Int, MeshStructure, interleave_rows
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
-           "edge_fronts", "face_slots", "tables_reference"]
+           "edge_fronts", "face_slots", "tables_reference", "target_rounds"]
 
 _IDX = (1 << 30) - 1
 _MAX_VERTICES = 1 << 30
@@ -475,7 +475,8 @@ def _build_rows(wood: SchnyderWood, kind: int, label=None, even=None):
     relab = (lambda x: int(label[x])) if label.size else int
     unused = (relab(wood.v_red),) + tuple(int(n + x) for x in free[n_need:n_free])
     static = dict(num_vertices=n, num_faces=2 * n - 4, v_red=relab(wood.v_red),
-                  v_blue=relab(wood.v_blue), v_black=relab(wood.v_black), unused_slots=unused)
+                  v_blue=relab(wood.v_blue), v_black=relab(wood.v_black), unused_slots=unused,
+                  target_rounds=target_rounds(wood))
     return refs.view(np.int32), fblue, static
 
 
@@ -493,6 +494,28 @@ def _cwbfs_checked(wood: SchnyderWood):
         raise errors.StructureError(f"cwBFS reached {count} of {wood.num_vertices} vertices: the red "
                                     "tree does not span the mesh")
     return order, label, even
+
+
+@numba.njit(cache=True)
+def _longest_fan(out, n):
+    """The most edges of one colour entering one vertex (``out[u, c] == n``: absent edge)."""
+    cnt = np.zeros(n + 1, dtype=np.int32)
+    best = 0
+    for c in range(3):
+        cnt[:] = 0
+        for u in range(n):
+            cnt[out[u, c]] += 1
+        for v in range(n):
+            best = max(best, cnt[v])
+    return best
+
+
+def target_rounds(wood: SchnyderWood) -> int:
+    """Pointer-jumping rounds that resolve every Target at once (:meth:`_CDS._targets_cols`):
+    ``bit_length(F - 1)`` for ``F`` the longest incoming fan of one colour (exterior edges
+    included). A chain of ``LeftFront`` steps stays in one fan, so it is at most ``F - 1`` steps
+    long, and ``r`` rounds resolve every chain of at most ``2^r - 1`` steps."""
+    return int(max(_longest_fan(np.ascontiguousarray(wood.out), wood.num_vertices) - 1, 0)).bit_length()
 
 
 # ====================================================================================== base
@@ -543,6 +566,7 @@ class _CDS(MeshStructure):
     v_black: int
     unused_slots: tuple
     boundaries_closed: bool
+    target_rounds: int
 
     # ---- subclass primitives
     def _lf(self, e):
@@ -701,7 +725,16 @@ class _CDS(MeshStructure):
         edge ``w_c``), ``Target(u_c) = Target(w_c)``. Every walk is a chain through one incoming
         fan of ``v``; pointer jumping resolves all chains in ``ceil(log2(longest fan))`` rounds of
         one gather each (state: the target where known, else ``-(edge + 1)`` of the edge whose
-        target it equals)."""
+        target it equals).
+
+        The builders store that round count (``target_rounds``, O(1) metadata, see
+        :func:`target_rounds`): the rounds then run two per trip of a loop of static length, with
+        no test for pending entries between them, each round reading the other's buffer. On
+        XLA:CPU (2 cores) the test -- a compare and a reduction, two kernels per round -- and the
+        copy of the loop state that a one-round body needs (a round cannot overwrite the buffer
+        it gathers from) cost as much as the gather itself on meshes under 1M vertices. The
+        data-driven loop follows as a safety net: it runs no round when ``target_rounds`` is
+        right, and all of them when it is ``-1`` (a structure built without it)."""
         n = self.num_vertices
         lfs = self._lf_cols() if lfs is None else lfs
         u = jnp.arange(n, dtype=jnp.int32)
@@ -724,6 +757,17 @@ class _CDS(MeshStructure):
             pend = v < 0
             return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
 
+        def two_rounds(_, v):
+            # the first round's result written to memory (materialize_loop) and read by the
+            # second: no loop-state copy (a round cannot write the buffer it gathers from) and no
+            # fusion of the second round's gathers into the first (re-evaluated per element)
+            w, = _materialize_loop((body(v),))
+            return body(w)
+
+        rounds = max(self.target_rounds, 0)
+        val = jax.lax.fori_loop(0, rounds // 2, two_rounds, val)
+        if rounds % 2:
+            val = body(val)
         t = jax.lax.while_loop(cond, body, val).reshape(n, 3)
         return t[:, 0], t[:, 1], t[:, 2]
 
@@ -1038,6 +1082,8 @@ class CDS6n(_CDS):
         ``C_c^right[u]`` = colour ``c`` (else ``prev(c)``), ``I_c[u]`` = ``u`` has an incoming edge
         of colour ``c``.
       F_blue: ``(n,)`` int32 face map of Thm 7.
+      target_rounds: pointer-jumping rounds of the whole-mesh Targets (:func:`target_rounds`,
+        static metadata, not a reference; ``-1``: not known, the loop tests for pending entries).
     """
 
     refs: jnp.ndarray
@@ -1049,6 +1095,7 @@ class CDS6n(_CDS):
     v_black: int = static_field()
     unused_slots: tuple = static_field()
     boundaries_closed: bool = static_field(default=False)
+    target_rounds: int = static_field(default=-1)
 
     name = "cds6n"
     _gathered_lf = False  # column slices of refs
@@ -1202,6 +1249,7 @@ class CDS5n(_CDS):
         3: ``S_black^left[u]``, bit 30 ``C_black^left[u]``, bit 31 ``I_black[u]``;
         4: ``S_black^right[u]``, bit 30 ``C_black^right[u]``.
       F_blue: ``(n,)`` int32 face map of Thm 7.
+      target_rounds: as in :class:`CDS6n`.
 
     Every per-vertex rule below reads one table *row* (``row = refs[u]``, one gather of the
     whole row for batched queries) or, with ``row = refs`` and ``u = arange(n)``, the whole
@@ -1217,6 +1265,7 @@ class CDS5n(_CDS):
     v_black: int = static_field()
     unused_slots: tuple = static_field()
     boundaries_closed: bool = static_field(default=False)
+    target_rounds: int = static_field(default=-1)
 
     name = "cds5n"
     _COL_TOLEFT, _COL_BLUE, _COL_BLACK_L, _COL_BLACK_R = 0, 2, 3, 4

@@ -287,6 +287,9 @@ def concatenate_cds(cls, parts: Sequence) -> object:
     kw.update(refs=jnp.asarray(refs), F_blue=jnp.asarray(fblue), num_vertices=total,
               num_faces=int(nf.sum()), v_red=-1, v_blue=-1, v_black=-1, unused_slots=(),
               boundaries_closed=any(p.boundaries_closed for p in parts))
+    if "target_rounds" in kw:  # chains stay in their mesh: the union needs the most rounds of a part
+        rounds = [p.target_rounds for p in parts]
+        kw["target_rounds"] = -1 if min(rounds) < 0 else max(rounds)
     if "order" in kw:  # cwBFS labels (Sec. 2.3) -> union input ids
         kw["order"] = jnp.asarray(np.concatenate(
             [np.asarray(p.order, np.int64) + o for p, o in zip(parts, voff)]).astype(np.int32))

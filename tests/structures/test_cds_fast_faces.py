@@ -128,3 +128,50 @@ def test_slot_blocks_and_every_block_count_is_a_permutation(monkeypatch):
             got = np.asarray(vertex_normals.__wrapped__(s, jnp.asarray(q)))
             ref = want if order is None else want[np.asarray(order)]
             np.testing.assert_allclose(got, ref, atol=1e-5)
+
+
+def _rounds_needed(s) -> int:
+    """Pointer-jumping rounds that resolve every Target of ``s``, counted by running them in numpy
+    on the table's own LeftFront columns (independent of the builder's fan count)."""
+    n = s.num_vertices
+    u = np.arange(n)
+    vals = []
+    for c, (lf, ok) in enumerate(zip(s._lf_cols(), s._valid_cols())):
+        lf, ok = np.asarray(lf), np.asarray(ok)
+        val = np.where(((lf & 1) == 0) | ~ok, (lf >> 1) // 3, -((lf >> 1) + 1))
+        if c == 0:
+            val = np.where(u == s.v_blue, s.v_red, val)
+        if c == 1:
+            val = np.where(u == s.v_black, s.v_blue, val)
+        vals.append(val)
+    v, rounds = np.stack(vals, axis=1).reshape(-1), 0
+    while (v < 0).any():
+        assert rounds <= 32, "a LeftFront chain does not end"
+        pend = v < 0
+        v = np.where(pend, v[np.where(pend, -v - 1, 0)], v)
+        rounds += 1
+    return rounds
+
+
+@pytest.mark.parametrize("mesh", ["cube.off", "grid.off", "random:2000/7", "random:3000/3"])
+@pytest.mark.parametrize("name", ["cds6n", "cds5n", "cds4n"])
+def test_target_rounds_is_exact_and_a_wrong_count_is_still_right(name, mesh):
+    """The builders' static round count (``target_rounds``, from the longest fan) is the number of
+    rounds the chains need; the targets are the same with it, without it (``-1``: data-driven
+    loop) and with too few rounds (the safety-net loop finishes them)."""
+    import dataclasses
+
+    s = registry.build(name, _mesh(mesh))
+    assert s.target_rounds == _rounds_needed(s) >= 1
+    want = np.asarray(s.all_edge_targets())
+    for r in (-1, 0, 1, s.target_rounds + 1):
+        got = np.asarray(dataclasses.replace(s, target_rounds=r).all_edge_targets())
+        np.testing.assert_array_equal(got, want)
+
+
+def test_packed_target_rounds_is_the_largest_part():
+    meshes = [_mesh("random:300/2"), _mesh("cube.off"), _mesh("random:2000/7")]
+    parts = [registry.build("cds6n", m) for m in meshes]
+    s = pack(meshes, "cds6n").structure
+    assert s.target_rounds == max(p.target_rounds for p in parts)
+    assert s.target_rounds == _rounds_needed(s._whole_view())
