@@ -170,3 +170,13 @@ def test_race_row_orders_every_order_gives_the_face_list_normals(capsys):
         errs = [float(line.rsplit(" ", 1)[1]) for line in out.splitlines() if "largest difference" in line]
         assert len(errs) == 8 and max(errs) < 1e-4, out
         assert "lr/p8x8" in out and "cds4n/l2x4" in out
+
+
+def test_race_target_rounds_every_loop_form_gives_the_targets(capsys):
+    """benchmarks/race_target_rounds.py checks each loop form against ``all_edge_targets``."""
+    from benchmarks import race_target_rounds
+
+    assert race_target_rounds.main(["--meshes", "random:300,random:1000", "--rounds", "1",
+                                    "--structure", "cds4n"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("static_two=") == 2 and "target_rounds=" in out, out

@@ -1,0 +1,102 @@
+"""The CDS all-targets pointer jumping (``_CDS._targets_cols``) alone, three loop forms raced in
+turn on the same start values (ns per vertex, medians; every route checked equal first):
+
+* ``data_driven``: a ``while_loop`` on ``any(pending)`` (the route before ``target_rounds``);
+* ``static_one``: ``target_rounds`` rounds, one per trip of a static ``fori_loop``;
+* ``static_two``: two rounds per trip, the first's result written to memory in between
+  (``materialize_loop``): the library's route.
+
+    .venv/bin/python benchmarks/race_target_rounds.py --meshes armadillo.obj,random:200000
+    flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/race_target_rounds.py --meshes random:2000000
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from bench_lr_normals import _mesh  # noqa: E402
+
+from jaxcds.structures import registry  # noqa: E402
+from jaxcds.structures.base import materialize_loop  # noqa: E402
+
+
+def _round(v):
+    pend = v < 0
+    return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
+
+
+def data_driven(v, rounds):
+    return jax.lax.while_loop(lambda v: jnp.any(v < 0), _round, v)
+
+
+def static_one(v, rounds):
+    return jax.lax.fori_loop(0, rounds, lambda _, v: _round(v), v)
+
+
+def static_two(v, rounds):
+    def two(_, v):
+        w, = materialize_loop((_round(v),))
+        return _round(w)
+
+    v = jax.lax.fori_loop(0, rounds // 2, two, v)
+    return _round(v) if rounds % 2 else v
+
+
+ROUTES = {"data_driven": data_driven, "static_one": static_one, "static_two": static_two}
+
+
+def start_values(s) -> np.ndarray:
+    """The pointer-jumping start of ``s`` (edge id ``3u + c``): the target where LeftFront leaves
+    it, else ``-(next edge + 1)``; the exterior patches as in ``_targets_cols``."""
+    n, u, vals = s.num_vertices, np.arange(s.num_vertices), []
+    for c, (lf, ok) in enumerate(zip(s._lf_cols(), s._valid_cols())):
+        lf, ok = np.asarray(lf), np.asarray(ok)
+        val = np.where(((lf & 1) == 0) | ~ok, (lf >> 1) // 3, -((lf >> 1) + 1))
+        if c == 0:
+            val = np.where(u == s.v_blue, s.v_red, val)
+        if c == 1:
+            val = np.where(u == s.v_black, s.v_blue, val)
+        vals.append(val)
+    return np.stack(vals, axis=1).reshape(-1).astype(np.int32)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--meshes", default="armadillo.obj,random:200000")
+    ap.add_argument("--structure", default="cds6n")
+    ap.add_argument("--rounds", type=int, default=40, help="race rounds")
+    a = ap.parse_args(argv)
+    for spec in a.meshes.split(","):
+        s = registry.build(a.structure, _mesh(spec))
+        v = jnp.asarray(start_values(s))
+        want = np.asarray(s.all_edge_targets())
+        fns = {k: jax.jit(lambda v, f=f: f(v, s.target_rounds)) for k, f in ROUTES.items()}
+        ok = np.stack(s._valid_cols(), axis=1).reshape(-1)
+        for k, f in fns.items():
+            got = np.asarray(f(v))
+            assert np.array_equal(got[ok], want[ok]), f"{k}: targets differ"
+        times = {k: [] for k in fns}
+        for r in range(a.rounds):
+            for k, f in fns.items():
+                t0 = time.perf_counter()
+                f(v).block_until_ready()
+                times[k].append(time.perf_counter() - t0)
+        n = s.num_vertices
+        cols = " ".join(f"{k}={statistics.median(t) / n * 1e9:.1f}" for k, t in times.items())
+        print(f"{spec} {a.structure} n={n} target_rounds={s.target_rounds} {cols} ns/vertex")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
