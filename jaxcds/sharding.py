@@ -29,7 +29,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxcds._dataclass import pytree_dataclass, replace, static_field
-from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.base import Int, MeshStructure, one_pass_queries
 
 __all__ = ["device_mesh", "ShardedStructure", "shard_structure", "shard_rows", "sharded_query",
            "sharded_vertex_normals", "PAD"]
@@ -208,7 +208,9 @@ def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None
 
 
 def _query_impl(s, q, op):
-    return getattr(s, op)(q)
+    # one pass: chunks (base._chunked_query) along the sharded axis would gather the batch
+    with one_pass_queries():
+        return getattr(s, op)(q)
 
 
 _query = jax.jit(_query_impl, static_argnums=2)

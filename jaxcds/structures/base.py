@@ -38,6 +38,9 @@ triangle is the dart leaving ``c.v`` counter-clockwise in that triangle, so ``c.
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import threading
 from typing import ClassVar, Optional
 
 import jax
@@ -47,7 +50,7 @@ import numpy as np
 from jaxcds import errors
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows", "materialize",
-           "materialize_loop"]
+           "materialize_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
 
@@ -55,6 +58,82 @@ Int = jnp.ndarray  # int32 array of ids, any shape
 def as_ids(x) -> jnp.ndarray:
     """Ids as an int32 jnp array (the dtype of every reference in jaxcds)."""
     return jnp.asarray(x, dtype=jnp.int32)
+
+
+#: ids per chunk of a large batched query on CPU (see :func:`_chunked_query`)
+QUERY_CHUNK = 1 << 16
+
+#: the batched queries that run chunk by chunk: one or two id arrays in, one array out
+CHUNKED_QUERIES = ("origin", "source", "target", "twin", "next", "prev", "face", "face_left",
+                   "face_right", "edge_of_vertex", "edge_of_face", "left_front", "left_back",
+                   "right_front", "right_back", "ccw_vertex_edge", "cw_vertex_edge",
+                   "corner_opposite", "corner_swing", "adjacent")
+
+
+_ONE_PASS = threading.local()
+
+
+@contextlib.contextmanager
+def one_pass_queries():
+    """Within this block, operators traced run every batch in one pass (no chunks): for batches
+    sharded over devices (:func:`jaxcds.sharding.sharded_query`), where chunks along the sharded
+    axis would make the partitioner gather the batch."""
+    _ONE_PASS.depth = getattr(_ONE_PASS, "depth", 0) + 1
+    try:
+        yield
+    finally:
+        _ONE_PASS.depth -= 1
+
+
+def _chunked_query(method):
+    """``method(self, *ids)`` over a large batch, run :data:`QUERY_CHUNK` ids at a time (``lax.map``
+    over the chunks, the remainder in one more call) on the CPU backend, for the operators a class
+    names in ``chunked_queries``.
+
+    Why: a compact structure's operator is several passes over the batch (a row read, a case
+    analysis, a second read; :func:`materialize_loop` between them), each writing a temporary as
+    large as the batch. For 10M queries every temporary is 40 MB, out of cache; by chunks of 64K
+    ids they stay in L2. Measured (``benchmarks/race_queries.py``, 100K vertices, 4M random
+    darts): CDS5n-O(1) Origin 14.4 -> 6.6 ns per query, LR Target 37 -> 20, CDS6n Face_left
+    26 -> 14; at 2.5M vertices CDS5n-O(1) Target 20.6 -> 16.9. An operator that is one or two
+    gathers (HalfEdge, CornerTable, LR's ``next``, every ``twin`` of the CDS family) runs 2-5x
+    slower by chunks (the loop's fixed cost and the final copy), so each class names the operators
+    it chunks, as measured (``benchmarks/RESULTS.md``, "Batched queries by chunks"). Off for
+    batches under two chunks, for id arrays of different shapes, for the views of packed batches,
+    and on accelerators, where a chunk of 64K ids would leave most of the device idle. Nested
+    calls (an operator written with others) see at most one chunk and run as they are: one
+    ``lax.map``, at the outermost call."""
+
+    name = method.__name__
+
+    @functools.wraps(method)
+    def run(self, *ids):
+        chunk = QUERY_CHUNK
+        if (name not in self.chunked_queries or jax.default_backend() != "cpu"
+                or getattr(_ONE_PASS, "depth", 0)):
+            return method(self, *ids)
+        xs = [jnp.asarray(x) for x in ids]
+        shape, size = xs[0].shape, xs[0].size
+        if size < 2 * chunk or any(x.shape != shape for x in xs):
+            return method(self, *ids)
+        flat = [x.reshape(-1) for x in xs]
+        k = size // chunk
+        head = jax.lax.map(lambda cs: method(self, *cs), tuple(f[:k * chunk].reshape(k, chunk) for f in flat))
+        out = head.reshape(-1)
+        if size % chunk:
+            out = jnp.concatenate([out, method(self, *(f[k * chunk:] for f in flat)).reshape(-1)])
+        return out.reshape(shape)
+
+    run.chunked_query = True
+    return run
+
+
+def _chunk_queries(cls) -> None:
+    """Wrap the :data:`CHUNKED_QUERIES` that ``cls`` itself defines (not inherited ones)."""
+    for name in CHUNKED_QUERIES:
+        fn = cls.__dict__.get(name)
+        if callable(fn) and not getattr(fn, "chunked_query", False):
+            setattr(cls, name, _chunked_query(fn))
 
 
 class MeshStructure:
@@ -65,6 +144,13 @@ class MeshStructure:
     name: ClassVar[str] = "abstract"
     #: whether every face is a triangle and every dart has a face (closed triangle mesh)
     closed_triangles: ClassVar[bool] = True
+    #: the operators whose large batches run :data:`QUERY_CHUNK` ids at a time on CPU
+    #: (:func:`_chunked_query`)
+    chunked_queries: ClassVar[frozenset] = frozenset()
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        _chunk_queries(cls)
 
     num_vertices: int
     num_faces: int
@@ -223,6 +309,8 @@ class MeshStructure:
         return (f"{type(self).__name__}(num_vertices={self.num_vertices}, "
                 f"num_faces={self.num_faces}, references={self.references})")
 
+
+_chunk_queries(MeshStructure)
 
 SUM_BLOCKS = 16
 

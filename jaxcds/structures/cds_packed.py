@@ -55,6 +55,8 @@ class _ViewMixin:
     ``_voff``, ``_nv``, ``_foff``, ``_un`` the element's mesh vertex offset, vertex count, face
     offset and its four unused local Thm 7 slots. Never flattened (built inside traced code)."""
 
+    chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
+
     def _compact(self, slot):
         # union slot (red u, black/blue N + u) -> local Thm 7 slot -> dense local face -> global
         n = self.num_vertices
@@ -98,6 +100,8 @@ _ARG = {  # entry point -> kind of its argument (decides the mesh of each elemen
 class _PackedMixin:
     """Operators of the union: each entry point finds the mesh of every query element and runs
     the class's own code on a view with that mesh's roots (see the module docstring)."""
+
+    chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
 
     packed = True
 

@@ -228,6 +228,11 @@ class _LRNavigation(MeshStructure):
     """Operators shared by :class:`LR` and :class:`LRBits` (Sec. 4.7); subclasses provide
     ``_dec``, ``VOs``, ``V0``, ``O0``, ``C``, the slot directory and the static sizes."""
 
+    # the decoding operators run by chunks on CPU (base._chunked_query); next, prev, face,
+    # origin and edge_of_vertex are one or two gathers and measured 1.5-3.5x slower by chunks
+    chunked_queries = frozenset({"target", "twin", "face_right", "right_front", "right_back",
+                                 "corner_opposite"})
+
     closed_triangles = True
 
     # ---------------------------------------------------------------- paper operators (Fig. 2)

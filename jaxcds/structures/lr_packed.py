@@ -123,6 +123,8 @@ class _ViewMixin:
     Overrides the three spots of :class:`jaxcds.structures.lr._LRNavigation` that need a Python
     int or a whole array; ``_has_border`` (static) is the union's."""
 
+    chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
+
     @property
     def has_border(self) -> bool:
         return self._has_border
@@ -169,6 +171,8 @@ _OPS = {
 class _PackedMixin:
     """Operators of the union (module docstring): global ids in, the class's code on local ids
     of each element's mesh, global ids out."""
+
+    chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
 
     packed = True
 

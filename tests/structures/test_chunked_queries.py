@@ -1,0 +1,69 @@
+"""Large batched queries run by chunks on CPU (``base._chunked_query``): the chunked answers equal
+the one-pass answers for every operator a class chunks, on every dart (as a flat batch, a batch
+that is not a multiple of the chunk, and a 2-D batch), with the chunk size forced small so the
+small test meshes reach the chunked path."""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+import pytest
+
+from jaxcds.generators import random_planar_triangulation
+from jaxcds.structures import base, registry
+
+KINDS = ["cds6n", "cds5n-o1", "lr", pytest.param("cds5n", marks=pytest.mark.slow),
+         pytest.param("cds4n", marks=pytest.mark.slow), pytest.param("lr-bits", marks=pytest.mark.slow)]
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    return random_planar_triangulation(300, seed=4)
+
+
+def _answers(s, ops, ids):
+    # jitted, as users run them; a fresh trace per chunk size (the size is read at trace time)
+    return {op: np.asarray(jax.jit(lambda s, d, op=op: getattr(s, op)(d))(s, ids)) for op in ops}
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_chunked_answers_equal_one_pass(kind, mesh, monkeypatch):
+    s = registry.build(kind, mesh)
+    ops = sorted(type(s).chunked_queries)
+    assert ops, f"{kind} chunks no operator"
+    darts = s.all_darts()
+    assert darts.size > 4 * 37
+    assert darts.size % 37  # a remainder after the last whole chunk
+    batches = [darts, np.resize(darts, (37 * 3, 5))]
+    for ids in batches:
+        monkeypatch.setattr(base, "QUERY_CHUNK", 1 << 30)  # one pass
+        want = _answers(s, ops, ids)
+        monkeypatch.setattr(base, "QUERY_CHUNK", 37)
+        got = _answers(s, ops, ids)
+        for op in ops:
+            assert got[op].shape == ids.shape
+            np.testing.assert_array_equal(got[op], want[op], err_msg=f"{kind}.{op}")
+
+
+def test_chunking_is_really_used_and_only_for_the_named_operators(mesh, monkeypatch):
+    """The program of a chunked operator has a scan over the chunks (``lax.map``); one of an
+    operator the class does not name (CDS ``twin``: one gather) has none, nor has the
+    half-edge's."""
+    monkeypatch.setattr(base, "QUERY_CHUNK", 37)
+    s = registry.build("cds5n-o1", mesh)
+    d = s.all_darts()
+    assert "scan" in str(jax.make_jaxpr(lambda d: s.target(d))(d))
+    assert "scan" not in str(jax.make_jaxpr(lambda d: s.twin(d))(d))
+    half = registry.build("halfedge", mesh)
+    assert "scan" not in str(jax.make_jaxpr(lambda d: half.target(d))(half.all_darts()))
+    monkeypatch.setattr(base, "QUERY_CHUNK", 1 << 30)
+    assert "scan" not in str(jax.make_jaxpr(lambda d: s.target(d))(d))
+
+
+def test_one_pass_block_turns_chunking_off(mesh, monkeypatch):
+    monkeypatch.setattr(base, "QUERY_CHUNK", 37)
+    s = registry.build("lr", mesh)
+    d = s.all_darts()
+    with base.one_pass_queries():
+        assert "scan" not in str(jax.make_jaxpr(lambda d: s.target(d))(d))
+    assert "scan" in str(jax.make_jaxpr(lambda d: s.target(d))(d))
