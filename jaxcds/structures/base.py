@@ -86,9 +86,9 @@ def one_pass_queries():
 
 
 def _chunked_query(method):
-    """``method(self, *ids)`` over a large batch, run :data:`QUERY_CHUNK` ids at a time (``lax.map``
-    over the chunks, the remainder in one more call) on the CPU backend, for the operators a class
-    names in ``chunked_queries``.
+    """``method(self, *ids)`` over a large batch, run :data:`QUERY_CHUNK` ids at a time (a
+    ``fori_loop`` over the chunks, each chunk's answers written in place into the output) on the
+    CPU backend, for the operators a class names in ``chunked_queries``.
 
     Why: a compact structure's operator is several passes over the batch (a row read, a case
     analysis, a second read; :func:`materialize_loop` between them), each writing a temporary as
@@ -102,7 +102,7 @@ def _chunked_query(method):
     batches under two chunks, for id arrays of different shapes, for the views of packed batches,
     and on accelerators, where a chunk of 64K ids would leave most of the device idle. Nested
     calls (an operator written with others) see at most one chunk and run as they are: one
-    ``lax.map``, at the outermost call."""
+    loop, at the outermost call."""
 
     name = method.__name__
 
@@ -117,11 +117,16 @@ def _chunked_query(method):
         if size < 2 * chunk or any(x.shape != shape for x in xs):
             return method(self, *ids)
         flat = [x.reshape(-1) for x in xs]
-        k = size // chunk
-        head = jax.lax.map(lambda cs: method(self, *cs), tuple(f[:k * chunk].reshape(k, chunk) for f in flat))
-        out = head.reshape(-1)
-        if size % chunk:
-            out = jnp.concatenate([out, method(self, *(f[k * chunk:] for f in flat)).reshape(-1)])
+        dtype = jax.eval_shape(lambda: method(self, *(f[:chunk] for f in flat))).dtype
+
+        def one_chunk(i, out):
+            # the last chunk ends at the batch's end and overlaps the one before (same answers
+            # twice): every chunk has the static size, and the answers are written in place
+            start = jnp.minimum(i * chunk, size - chunk)
+            cs = [jax.lax.dynamic_slice(f, (start,), (chunk,)) for f in flat]
+            return jax.lax.dynamic_update_slice(out, method(self, *cs).astype(dtype), (start,))
+
+        out = jax.lax.fori_loop(0, -(-size // chunk), one_chunk, jnp.zeros(size, dtype))
         return out.reshape(shape)
 
     run.chunked_query = True
