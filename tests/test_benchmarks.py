@@ -180,3 +180,14 @@ def test_race_target_rounds_every_loop_form_gives_the_targets(capsys):
                                     "--structure", "cds4n"]) == 0
     out = capsys.readouterr().out
     assert out.count("static_two=") == 2 and "target_rounds=" in out, out
+
+
+def test_race_chunked_queries_runs_and_checks_the_answers(capsys, monkeypatch):
+    from benchmarks import race_chunked_queries
+    from jaxcds.structures import base
+
+    monkeypatch.setattr(base, "QUERY_CHUNK", 64)
+    assert race_chunked_queries.main(["--vertices", "200", "--queries", "1000", "--rounds", "1",
+                                      "--structures", "cds5n-o1,lr", "--ops", "target,next"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("one-pass") == 4 and "lr target chunked" in out, out

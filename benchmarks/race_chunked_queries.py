@@ -1,0 +1,73 @@
+"""Batched queries by chunks (``base._chunked_query``) against the same operators in one pass,
+raced in turn (ns per query, min and median over the rounds; the answers checked equal first).
+
+    .venv/bin/python benchmarks/race_chunked_queries.py --vertices 100000 --queries 4000000 \\
+        --structures cds6n,cds5n-o1,lr --ops target,origin,face_left,twin,next
+    flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/race_chunked_queries.py --vertices 2500000
+
+``one pass`` traces the operator under :func:`jaxcds.structures.base.one_pass_queries`; an
+operator the structure does not chunk gives the same program both ways.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from jaxcds.generators import random_planar_triangulation  # noqa: E402
+from jaxcds.structures import base, registry  # noqa: E402
+
+
+def _compiled(s, op, d, one_pass: bool):
+    fn = jax.jit(lambda s, d: getattr(s, op)(d))
+    if one_pass:
+        with base.one_pass_queries():
+            return fn.lower(s, d).compile()
+    return fn.lower(s, d).compile()
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--vertices", type=int, default=100_000)
+    ap.add_argument("--queries", type=int, default=4_000_000)
+    ap.add_argument("--structures", default="cds5n-o1,lr")
+    ap.add_argument("--ops", default="target,origin,face_left")
+    ap.add_argument("--rounds", type=int, default=5)
+    a = ap.parse_args(argv)
+    mesh = random_planar_triangulation(a.vertices, seed=1)
+    rng = np.random.default_rng(0)
+    progs = {}
+    for name in a.structures.split(","):
+        s = registry.build(name, mesh)
+        darts = np.asarray(s.all_darts())
+        d = jnp.asarray(darts[rng.integers(0, darts.size, a.queries)], jnp.int32)
+        for op in a.ops.split(","):
+            pair = [(f"{name} {op} {k}", _compiled(s, op, d, k == "one-pass"), (s, d))
+                    for k in ("chunked", "one-pass")]
+            got, want = (np.asarray(c(*args)) for _, c, args in pair)
+            assert np.array_equal(got, want), f"{name}.{op}: chunked answers differ"
+            progs.update({k: (c, args) for k, c, args in pair})
+    times = {k: [] for k in progs}
+    for _ in range(a.rounds):
+        for k, (c, args) in progs.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(c(*args))
+            times[k].append((time.perf_counter() - t0) / a.queries * 1e9)
+    print(f"random:{a.vertices}, {a.queries} random darts, chunks of {base.QUERY_CHUNK}, "
+          f"{a.rounds} rounds")
+    for k, t in times.items():
+        print(f"{k:36s} min {min(t):8.2f}  median {statistics.median(t):8.2f} ns/query")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
