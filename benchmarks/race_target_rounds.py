@@ -56,21 +56,6 @@ def static_two(v, rounds):
 ROUTES = {"data_driven": data_driven, "static_one": static_one, "static_two": static_two}
 
 
-def start_values(s) -> np.ndarray:
-    """The pointer-jumping start of ``s`` (edge id ``3u + c``): the target where LeftFront leaves
-    it, else ``-(next edge + 1)``; the exterior patches as in ``_targets_cols``."""
-    n, u, vals = s.num_vertices, np.arange(s.num_vertices), []
-    for c, (lf, ok) in enumerate(zip(s._lf_cols(), s._valid_cols())):
-        lf, ok = np.asarray(lf), np.asarray(ok)
-        val = np.where(((lf & 1) == 0) | ~ok, (lf >> 1) // 3, -((lf >> 1) + 1))
-        if c == 0:
-            val = np.where(u == s.v_blue, s.v_red, val)
-        if c == 1:
-            val = np.where(u == s.v_black, s.v_blue, val)
-        vals.append(val)
-    return np.stack(vals, axis=1).reshape(-1).astype(np.int32)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="armadillo.obj,random:200000")
@@ -79,7 +64,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         s = registry.build(a.structure, _mesh(spec))
-        v = jnp.asarray(start_values(s))
+        v = s._target_start()
         want = np.asarray(s.all_edge_targets())
         fns = {k: jax.jit(lambda v, f=f: f(v, s.target_rounds)) for k, f in ROUTES.items()}
         ok = np.stack(s._valid_cols(), axis=1).reshape(-1)

@@ -720,6 +720,25 @@ class _CDS(MeshStructure):
                 (u != self.v_red) & (u != self.v_blue),
                 (u != self.v_red) & (u != self.v_blue) & (u != self.v_black))
 
+    def _target_start(self, lfs=None):
+        """``(3n,)`` pointer-jumping start of :meth:`_targets_cols`, edge id ``3u + c``: the
+        target where ``LeftFront(u_c)`` leaves it (or the edge is absent), else ``-(w_c + 1)``
+        for the edge ``w_c`` whose target it shares."""
+        n = self.num_vertices
+        lfs = self._lf_cols() if lfs is None else lfs
+        u = jnp.arange(n, dtype=jnp.int32)
+        vals = []
+        for c, (lf, ok) in enumerate(zip(lfs, self._valid_cols())):
+            leaving = (lf & 1) == 0
+            val = jnp.where(leaving | ~ok, _src(lf), -((lf >> 1) + 1))
+            # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
+            if c == RED:
+                val = jnp.where(u == self.v_blue, self.v_red, val)
+            if c == BLUE:
+                val = jnp.where(u == self.v_black, self.v_blue, val)
+            vals.append(val)
+        return jnp.stack(vals, axis=1).reshape(-1)  # edge id 3u + c
+
     def _targets_cols(self, lfs=None):
         """``Target(u_c)`` of every edge, per colour (three ``(n,)`` arrays, garbage where the
         edge is absent): Thm 2's walk, all edges at once by pointer jumping.
@@ -739,19 +758,7 @@ class _CDS(MeshStructure):
         data-driven loop follows as a safety net: it runs no round when ``target_rounds`` is
         right, and all of them when it is ``-1`` (a structure built without it)."""
         n = self.num_vertices
-        lfs = self._lf_cols() if lfs is None else lfs
-        u = jnp.arange(n, dtype=jnp.int32)
-        vals = []
-        for c, (lf, ok) in enumerate(zip(lfs, self._valid_cols())):
-            leaving = (lf & 1) == 0
-            val = jnp.where(leaving | ~ok, _src(lf), -((lf >> 1) + 1))
-            # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
-            if c == RED:
-                val = jnp.where(u == self.v_blue, self.v_red, val)
-            if c == BLUE:
-                val = jnp.where(u == self.v_black, self.v_blue, val)
-            vals.append(val)
-        val = jnp.stack(vals, axis=1).reshape(-1)  # edge id 3u + c
+        val = self._target_start(lfs)
 
         def cond(v):
             return jnp.any(v < 0)

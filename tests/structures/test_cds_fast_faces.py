@@ -132,19 +132,8 @@ def test_slot_blocks_and_every_block_count_is_a_permutation(monkeypatch):
 
 def _rounds_needed(s) -> int:
     """Pointer-jumping rounds that resolve every Target of ``s``, counted by running them in numpy
-    on the table's own LeftFront columns (independent of the builder's fan count)."""
-    n = s.num_vertices
-    u = np.arange(n)
-    vals = []
-    for c, (lf, ok) in enumerate(zip(s._lf_cols(), s._valid_cols())):
-        lf, ok = np.asarray(lf), np.asarray(ok)
-        val = np.where(((lf & 1) == 0) | ~ok, (lf >> 1) // 3, -((lf >> 1) + 1))
-        if c == 0:
-            val = np.where(u == s.v_blue, s.v_red, val)
-        if c == 1:
-            val = np.where(u == s.v_black, s.v_blue, val)
-        vals.append(val)
-    v, rounds = np.stack(vals, axis=1).reshape(-1), 0
+    from the library's start values (independent of the builder's fan count)."""
+    v, rounds = np.asarray(s._target_start()), 0
     while (v < 0).any():
         assert rounds <= 32, "a LeftFront chain does not end"
         pend = v < 0
