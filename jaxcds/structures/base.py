@@ -93,11 +93,11 @@ def _chunked_query(method):
     Why: a compact structure's operator is several passes over the batch (a row read, a case
     analysis, a second read; :func:`materialize_loop` between them), each writing a temporary as
     large as the batch. For 10M queries every temporary is 40 MB, out of cache; by chunks of 64K
-    ids they stay in L2. Measured (``benchmarks/race_queries.py``, 100K vertices, 4M random
-    darts): CDS5n-O(1) Origin 14.4 -> 6.6 ns per query, LR Target 37 -> 20, CDS6n Face_left
-    26 -> 14; at 2.5M vertices CDS5n-O(1) Target 20.6 -> 16.9. An operator that is one or two
-    gathers (HalfEdge, CornerTable, LR's ``next``, every ``twin`` of the CDS family) runs 2-5x
-    slower by chunks (the loop's fixed cost and the final copy), so each class names the operators
+    ids they stay in L2. Measured (``benchmarks/race_chunked_queries.py``, 100K vertices, 4M
+    random darts, medians): CDS5n-O(1) Target 15.2 -> 10.6 ns per query, LR Target 40 -> 27,
+    CDS6n Face_left 23 -> 10; at 2.5M vertices CDS5n-O(1) Target 20.6 -> 17.1. An operator that
+    is one or two gathers (HalfEdge, CornerTable, LR's ``next``, every ``twin`` of the CDS family)
+    runs 2-5x slower by chunks (the loop's fixed cost), so each class names the operators
     it chunks, as measured (``benchmarks/RESULTS.md``, "Batched queries by chunks"). Off for
     batches under two chunks, for id arrays of different shapes, for the views of packed batches,
     and on accelerators, where a chunk of 64K ids would leave most of the device idle. Nested
