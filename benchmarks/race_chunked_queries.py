@@ -4,6 +4,7 @@ raced in turn (ns per query, min and median over the rounds; the answers checked
     .venv/bin/python benchmarks/race_chunked_queries.py --vertices 100000 --queries 4000000 \\
         --structures cds6n,cds5n-o1,lr --ops target,origin,face_left,twin,next
     flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/race_chunked_queries.py --vertices 2500000
+    .venv/bin/python benchmarks/race_chunked_queries.py --packed 300 --structures cds5n-o1,cds6n,lr
 
 ``one pass`` traces the operator under :func:`jaxcds.structures.base.one_pass_queries`; an
 operator the structure does not chunk gives the same program both ways.
@@ -23,6 +24,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from jaxcds.batch import pack  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import base, registry  # noqa: E402
 
@@ -42,12 +44,18 @@ def main(argv=None) -> int:
     ap.add_argument("--structures", default="cds5n-o1,lr")
     ap.add_argument("--ops", default="target,origin,face_left")
     ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--packed", type=int, default=0,
+                    help="instead of one mesh: a packed batch of this many random meshes (500-5,000 vertices)")
     a = ap.parse_args(argv)
-    mesh = random_planar_triangulation(a.vertices, seed=1)
     rng = np.random.default_rng(0)
+    if a.packed:
+        meshes = [random_planar_triangulation(int(n), seed=k)
+                  for k, n in enumerate(rng.integers(500, 5001, a.packed))]
+    else:
+        mesh = random_planar_triangulation(a.vertices, seed=1)
     progs = {}
     for name in a.structures.split(","):
-        s = registry.build(name, mesh)
+        s = pack(meshes, name).structure if a.packed else registry.build(name, mesh)
         darts = np.asarray(s.all_darts())
         d = jnp.asarray(darts[rng.integers(0, darts.size, a.queries)], jnp.int32)
         for op in a.ops.split(","):
@@ -62,7 +70,8 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             jax.block_until_ready(c(*args))
             times[k].append((time.perf_counter() - t0) / a.queries * 1e9)
-    print(f"random:{a.vertices}, {a.queries} random darts, chunks of {base.QUERY_CHUNK}, "
+    what = f"packed:{a.packed}" if a.packed else f"random:{a.vertices}"
+    print(f"{what}, {a.queries} random darts, chunks of {base.QUERY_CHUNK}, "
           f"{a.rounds} rounds")
     for k, t in times.items():
         print(f"{k:36s} min {min(t):8.2f}  median {statistics.median(t):8.2f} ns/query")

@@ -191,3 +191,6 @@ def test_race_chunked_queries_runs_and_checks_the_answers(capsys, monkeypatch):
                                       "--structures", "cds5n-o1,lr", "--ops", "target,next"]) == 0
     out = capsys.readouterr().out
     assert out.count("one-pass") == 4 and "lr target chunked" in out, out
+    assert race_chunked_queries.main(["--packed", "2", "--queries", "1000", "--rounds", "1",
+                                      "--structures", "cds6n", "--ops", "target"]) == 0
+    assert "packed:2" in capsys.readouterr().out

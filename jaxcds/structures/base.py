@@ -98,8 +98,9 @@ def _chunked_query(method):
     CDS6n Face_left 23 -> 10; at 2.5M vertices CDS5n-O(1) Target 20.6 -> 17.1. An operator that
     is one or two gathers (HalfEdge, CornerTable, LR's ``next``, every ``twin`` of the CDS family)
     runs 2-5x slower by chunks (the loop's fixed cost), so each class names the operators
-    it chunks, as measured (``benchmarks/RESULTS.md``, "Batched queries by chunks"). Off for
-    batches under two chunks, for id arrays of different shapes, for the views of packed batches,
+    it chunks, as measured (``benchmarks/RESULTS.md``, "Batched queries by chunks"); packed
+    batches chunk their class's operators at their entry points. Off for batches under two
+    chunks, for id arrays of different shapes, for the per-query views inside packed batches,
     and on accelerators, where a chunk of 64K ids would leave most of the device idle. Nested
     calls (an operator written with others) see at most one chunk and run as they are: one
     loop, at the outermost call."""

@@ -40,7 +40,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import interleave_rows, parts_of_one_class
+from jaxcds.structures.base import CHUNKED_QUERIES, _chunked_query, interleave_rows, parts_of_one_class
 from jaxcds.structures.cds import slot_blocks
 
 __all__ = ["concatenate_cds", "packed_class"]
@@ -100,8 +100,6 @@ _ARG = {  # entry point -> kind of its argument (decides the mesh of each elemen
 class _PackedMixin:
     """Operators of the union: each entry point finds the mesh of every query element and runs
     the class's own code on a view with that mesh's roots (see the module docstring)."""
-
-    chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
 
     packed = True
 
@@ -234,7 +232,9 @@ def _make_entry(name, kind):
 
 
 for _name, _kind in _ARG.items():
-    setattr(_PackedMixin, _name, _make_entry(_name, _kind))
+    # the union's chunked queries: each chunk finds its elements' meshes and builds its own view
+    _entry_fn = _make_entry(_name, _kind)
+    setattr(_PackedMixin, _name, _chunked_query(_entry_fn) if _name in CHUNKED_QUERIES else _entry_fn)
 
 _FIELDS = ("mesh_vertex_offsets", "mesh_vertex_counts", "mesh_face_offsets", "mesh_roots",
            "mesh_unused_slots")
@@ -248,7 +248,8 @@ def packed_class(base):
     ``mesh_unused_slots`` (``(B, 4)``: Thm 7's unused slots, local, sorted)."""
     if base not in _CLASSES:
         ns = {"__annotations__": {f: jnp.ndarray for f in _FIELDS}, **{f: None for f in _FIELDS},
-              "_base": base, "__module__": __name__, "__doc__": packed_class.__doc__.replace("``base``", base.__name__)}
+              "_base": base, "chunked_queries": base.chunked_queries, "__module__": __name__,
+              "__doc__": packed_class.__doc__.replace("``base``", base.__name__)}
         cls = pytree_dataclass(type(f"Packed{base.__name__}", (_PackedMixin, base), ns))
         cls._view_cls = type(f"_View{base.__name__}", (_ViewMixin, base), {"__module__": __name__})
         _CLASSES[base] = cls

@@ -36,7 +36,8 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import interleave_windows, materialize, parts_of_one_class
+from jaxcds.structures.base import (CHUNKED_QUERIES, _chunked_query, interleave_windows, materialize,
+                                    parts_of_one_class)
 from jaxcds.structures.lr import _slot_triangles
 
 __all__ = ["concatenate_lr", "packed_class"]
@@ -171,8 +172,6 @@ _OPS = {
 class _PackedMixin:
     """Operators of the union (module docstring): global ids in, the class's code on local ids
     of each element's mesh, global ids out."""
-
-    chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
 
     packed = True
 
@@ -347,7 +346,9 @@ def _make_entry(name, arg, res):
 
 
 for _name, (_arg, _res) in _OPS.items():
-    setattr(_PackedMixin, _name, _make_entry(_name, _arg, _res))
+    # the union's chunked queries: each chunk finds its elements' meshes and builds its own view
+    _entry_fn = _make_entry(_name, _arg, _res)
+    setattr(_PackedMixin, _name, _chunked_query(_entry_fn) if _name in CHUNKED_QUERIES else _entry_fn)
 
 _FIELDS = ("mesh_vertex_offsets", "mesh_face_offsets", "mesh_dart_offsets", "mesh_sizes",
            "mesh_array_offsets", "mesh_array_lengths", "slot_rank_cumulative")
@@ -370,7 +371,8 @@ def packed_class(base):
                                   "row_plan": tuple},
               **{f: None for f in _FIELDS}, **{f: static_field(default=0) for f in _STATIC},
               "row_plan": static_field(default=()),
-              "_base": base, "_arrays": arrays, "__module__": __name__}
+              "_base": base, "_arrays": arrays, "chunked_queries": base.chunked_queries,
+              "__module__": __name__}
         cls = pytree_dataclass(type(f"Packed{base.__name__}", (_PackedMixin, base), ns))
         cls._view_cls = type(f"_View{base.__name__}", (_ViewMixin, base), {"__module__": __name__})
         _CLASSES[base] = cls

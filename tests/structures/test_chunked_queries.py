@@ -26,6 +26,11 @@ def _has_loop(fn, ids) -> bool:
     return "while" in text or "scan" in text  # a fori_loop of static length is a scan
 
 
+def _loops(fn, ids) -> int:
+    text = str(jax.make_jaxpr(fn)(ids))
+    return text.count("while[") + text.count("scan[")
+
+
 def _answers(s, ops, ids):
     # jitted, as users run them; a fresh trace per chunk size (the size is read at trace time)
     return {op: np.asarray(jax.jit(lambda s, d, op=op: getattr(s, op)(d))(s, ids)) for op in ops}
@@ -71,3 +76,26 @@ def test_one_pass_block_turns_chunking_off(mesh, monkeypatch):
     with base.one_pass_queries():
         assert not _has_loop(lambda d: s.target(d), d)
     assert _has_loop(lambda d: s.target(d), d)
+
+
+@pytest.mark.parametrize("kind", ["cds5n-o1", "lr", pytest.param("cds6n", marks=pytest.mark.slow),
+                                  pytest.param("lr-bits", marks=pytest.mark.slow)])
+def test_packed_batches_chunk_their_queries_too(kind, monkeypatch):
+    """A packed union chunks the operators of its class (each chunk finds its elements' meshes
+    and builds its own view): same answers as one pass, on every dart of the union."""
+    from jaxcds.batch import pack
+
+    meshes = [random_planar_triangulation(n, seed=k) for k, n in enumerate((60, 150, 90))]
+    s = pack(meshes, kind).structure
+    ops = sorted(type(s).chunked_queries)
+    assert ops == sorted(registry.build(kind, meshes[0]).chunked_queries)
+    d = s.all_darts()
+    assert d.size % 37
+    monkeypatch.setattr(base, "QUERY_CHUNK", 1 << 30)
+    want = _answers(s, ops, d)
+    one_pass_loops = _loops(lambda d: s.target(d), d)
+    monkeypatch.setattr(base, "QUERY_CHUNK", 37)
+    assert _loops(lambda d: s.target(d), d) == one_pass_loops + 1  # the chunk loop
+    got = _answers(s, ops, d)
+    for op in ops:
+        np.testing.assert_array_equal(got[op], want[op], err_msg=f"packed {kind}.{op}")
