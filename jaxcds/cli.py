@@ -192,6 +192,13 @@ def cmd_demo(args) -> int:
 
 # ------------------------------------------------------------------------------ bench
 def cmd_bench(args, rest: Sequence[str]) -> int:
+    import os
+    import sys
+
+    # the console script's sys.path starts at its own folder, not the working directory: find
+    # benchmarks/ in the repository root the user runs from, as the error below advises
+    if os.path.isfile(os.path.join("benchmarks", "harness.py")) and os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
     try:
         from benchmarks import harness
     except ImportError:

@@ -98,3 +98,22 @@ def test_build_prints_the_papers_reference_counts(capsys, structure, nav):
     assert d["navigation_references_per_vertex"] == nav
     assert d["face_map_references_per_vertex"] == 1
     assert d["references_per_vertex"] == nav + 1
+
+
+def test_bench_console_script_finds_the_harness_from_the_repository_root(tmp_path):
+    """``jaxcds bench`` as the console script runs it (``sys.path`` without the working
+    directory: ``python -P``) from the repository root finds ``benchmarks/``; elsewhere it says
+    where the harness lives."""
+    import os
+    import subprocess
+    import sys
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    code = "from jaxcds.cli import main; raise SystemExit(main(['bench', '--help']))"
+    env = {**os.environ, "PYTHONPATH": ""}
+    ok = subprocess.run([sys.executable, "-P", "-c", code], cwd=root, capture_output=True, text=True,
+                        env=env, timeout=300)
+    assert ok.returncode == 0 and "usage" in ok.stdout.lower(), ok.stderr[-2000:]
+    bad = subprocess.run([sys.executable, "-P", "-c", code], cwd=tmp_path, capture_output=True,
+                         text=True, env=env, timeout=300)
+    assert bad.returncode != 0 and "benchmarks/ of the source tree" in bad.stderr, bad.stderr[-2000:]
