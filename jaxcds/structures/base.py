@@ -100,7 +100,8 @@ def _chunked_query(method):
     runs 2-5x slower by chunks (the loop's fixed cost), so each class names the operators
     it chunks, as measured (``benchmarks/RESULTS.md``, "Batched queries by chunks"); packed
     batches chunk their class's operators at their entry points. Off for batches under two
-    chunks, for id arrays of different shapes, for the per-query views inside packed batches,
+    chunks, for id arrays of different shapes or passed by keyword, for the per-query views
+    inside packed batches,
     and on accelerators, where a chunk of 64K ids would leave most of the device idle. Nested
     calls (an operator written with others) see at most one chunk and run as they are: one
     loop, at the outermost call."""
@@ -108,11 +109,11 @@ def _chunked_query(method):
     name = method.__name__
 
     @functools.wraps(method)
-    def run(self, *ids):
+    def run(self, *ids, **kwargs):
         chunk = QUERY_CHUNK
-        if (name not in self.chunked_queries or jax.default_backend() != "cpu"
+        if (kwargs or name not in self.chunked_queries or jax.default_backend() != "cpu"
                 or getattr(_ONE_PASS, "depth", 0)):
-            return method(self, *ids)
+            return method(self, *ids, **kwargs)
         xs = [jnp.asarray(x) for x in ids]
         shape, size = xs[0].shape, xs[0].size
         if size < 2 * chunk or any(x.shape != shape for x in xs):

@@ -99,3 +99,12 @@ def test_packed_batches_chunk_their_queries_too(kind, monkeypatch):
     got = _answers(s, ops, d)
     for op in ops:
         np.testing.assert_array_equal(got[op], want[op], err_msg=f"packed {kind}.{op}")
+
+
+def test_ids_by_keyword_run_in_one_pass(mesh, monkeypatch):
+    monkeypatch.setattr(base, "QUERY_CHUNK", 37)
+    s = registry.build("lr", mesh)
+    d = s.all_darts()
+    # LR's twin is chunked and calls no chunked operator
+    np.testing.assert_array_equal(np.asarray(s.twin(e=d)), np.asarray(s.twin(d)))
+    assert _has_loop(lambda d: s.twin(d), d) and not _has_loop(lambda d: s.twin(e=d), d)
