@@ -42,7 +42,7 @@ from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.mesh import load_mesh  # noqa: E402
 from jaxcds.structures import registry  # noqa: E402
 from jaxcds.structures.base import interleave_rows, interleave_windows  # noqa: E402
-from jaxcds.structures.lr_packed import _pair  # noqa: E402
+from jaxcds.structures.lr_packed import _pair_blocks  # noqa: E402
 
 from bench_lr_normals import _build as _build_lr  # noqa: E402
 
@@ -56,8 +56,7 @@ def arrange(rows, ok, half: int, order: str):
         return interleave_rows(rows, b), interleave_rows(ok, b)
     depth, stride = (int(t) for t in order[1:].split("x"))
     if order[0] == "p":
-        rows = jnp.concatenate([_pair(rows[:half], rows[half:2 * half]), rows[2 * half:]])
-        ok = jnp.concatenate([_pair(ok[:half], ok[half:2 * half]), ok[2 * half:]])
+        rows, ok = _pair_blocks(rows, half), _pair_blocks(ok, half)
     return interleave_windows(rows, depth, stride), interleave_windows(ok, depth, stride)
 
 

@@ -1,10 +1,11 @@
 """The CDS all-targets pointer jumping (``_CDS._targets_cols``) alone, three loop forms raced in
 turn on the same start values (ns per vertex, medians; every route checked equal first):
 
-* ``data_driven``: a ``while_loop`` on ``any(pending)`` (the route before ``target_rounds``);
+* ``data_driven``: a ``while_loop`` on ``any(pending)`` (the route before ``target_rounds``,
+  ``cds.pointer_jump`` without a round count);
 * ``static_one``: ``target_rounds`` rounds, one per trip of a static ``fori_loop``;
 * ``static_two``: two rounds per trip, the first's result written to memory in between
-  (``materialize_loop``): the library's route.
+  (``materialize_loop``): the library's route, ``cds.pointer_jump``.
 
     .venv/bin/python benchmarks/race_target_rounds.py --meshes armadillo.obj,random:200000
     flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/race_target_rounds.py --meshes random:2000000
@@ -19,7 +20,6 @@ import sys
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -28,29 +28,19 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_lr_normals import _mesh  # noqa: E402
 
 from jaxcds.structures import registry  # noqa: E402
-from jaxcds.structures.base import materialize_loop  # noqa: E402
-
-
-def _round(v):
-    pend = v < 0
-    return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
+from jaxcds.structures.cds import jump_round, pointer_jump  # noqa: E402
 
 
 def data_driven(v, rounds):
-    return jax.lax.while_loop(lambda v: jnp.any(v < 0), _round, v)
+    return pointer_jump(v, -1)  # no static rounds: the data-driven loop alone
 
 
 def static_one(v, rounds):
-    return jax.lax.fori_loop(0, rounds, lambda _, v: _round(v), v)
+    return jax.lax.fori_loop(0, rounds, lambda _, v: jump_round(v), v)
 
 
 def static_two(v, rounds):
-    def two(_, v):
-        w, = materialize_loop((_round(v),))
-        return _round(w)
-
-    v = jax.lax.fori_loop(0, rounds // 2, two, v)
-    return _round(v) if rounds % 2 else v
+    return pointer_jump(v, rounds)  # the library's route (its safety net runs no trip)
 
 
 ROUTES = {"data_driven": data_driven, "static_one": static_one, "static_two": static_two}

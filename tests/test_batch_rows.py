@@ -15,7 +15,7 @@ from jaxcds.generators import icosphere, random_planar_triangulation
 from jaxcds.mesh import load_mesh
 from jaxcds.structures import registry
 from jaxcds.structures.base import interleave_windows
-from jaxcds.structures.lr_packed import _chunk_plan, _pair, _segment_ids
+from jaxcds.structures.lr_packed import _chunk_plan, _pair_blocks, _segment_ids
 
 from conftest import load_shared, octahedron
 
@@ -65,9 +65,9 @@ def test_interleave_windows_is_a_local_permutation(m):
     assert x[full:].tolist() == list(range(full, m))
     rows = np.arange(3 * m).reshape(m, 3)
     np.testing.assert_array_equal(np.asarray(interleave_windows(jnp.asarray(rows))), rows[x])
-    a, b = np.arange(m), -np.arange(m) - 1
-    assert np.asarray(_pair(jnp.asarray(a), jnp.asarray(b))).tolist() == \
-        [v for pair in zip(a.tolist(), b.tolist()) for v in pair]
+    a, b, tail = np.arange(m), -np.arange(m) - 1, np.arange(7) + 10 * m
+    assert np.asarray(_pair_blocks(jnp.asarray(np.concatenate([a, b, tail])), m)).tolist() == \
+        [v for pair in zip(a.tolist(), b.tolist()) for v in pair] + tail.tolist()
 
 
 @pytest.mark.parametrize("name", ["lr", "lr-bits"])

@@ -101,10 +101,9 @@ def _chunked_query(method):
     it chunks, as measured (``benchmarks/RESULTS.md``, "Batched queries by chunks"); packed
     batches chunk their class's operators at their entry points. Off for batches under two
     chunks, for id arrays of different shapes or passed by keyword, for the per-query views
-    inside packed batches,
-    and on accelerators, where a chunk of 64K ids would leave most of the device idle. Nested
-    calls (an operator written with others) see at most one chunk and run as they are: one
-    loop, at the outermost call."""
+    inside packed batches, and on accelerators, where a chunk of 64K ids would leave most of the
+    device idle. Nested calls (an operator written with others) see at most one chunk and run
+    as they are: one loop, at the outermost call."""
 
     name = method.__name__
 
@@ -136,7 +135,8 @@ def _chunked_query(method):
 
 
 def _chunk_queries(cls) -> None:
-    """Wrap the :data:`CHUNKED_QUERIES` that ``cls`` itself defines (not inherited ones)."""
+    """Wrap the :data:`CHUNKED_QUERIES` that ``cls`` itself defines (not inherited ones): every
+    :class:`MeshStructure` subclass, and the mixins that add entry points (packed batches)."""
     for name in CHUNKED_QUERIES:
         fn = cls.__dict__.get(name)
         if callable(fn) and not getattr(fn, "chunked_query", False):

@@ -518,6 +518,31 @@ def target_rounds(wood: SchnyderWood) -> int:
     return int(max(_longest_fan(np.ascontiguousarray(wood.out), wood.num_vertices) - 1, 0)).bit_length()
 
 
+def jump_round(v):
+    """One pointer-jumping round: every pending entry (``-(i + 1)``: "the value of entry ``i``")
+    takes the value of the entry it points to."""
+    pend = v < 0
+    return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
+
+
+def pointer_jump(val, rounds: int):
+    """``val`` with every pending entry resolved (see :func:`jump_round`): ``rounds`` rounds run
+    two per trip of a static loop, then the data-driven loop (``any`` pending) as a safety net,
+    which runs no trip when ``rounds`` suffice and every round when ``rounds`` is ``-1``."""
+    def two_rounds(_, v):
+        # the first round's result written to memory (materialize_loop) and read by the second:
+        # no loop-state copy (a round cannot write the buffer it gathers from) and no fusion of
+        # the second round's gathers into the first (re-evaluated per element)
+        w, = _materialize_loop((jump_round(v),))
+        return jump_round(w)
+
+    rounds = max(rounds, 0)
+    val = jax.lax.fori_loop(0, rounds // 2, two_rounds, val)
+    if rounds % 2:
+        val = jump_round(val)
+    return jax.lax.while_loop(lambda v: jnp.any(v < 0), jump_round, val)
+
+
 # ====================================================================================== base
 def slot_blocks(num_vertices: int) -> int:
     """How many interleaved blocks the ``2n`` slot rows are read in (:func:`interleave_rows`).
@@ -757,28 +782,7 @@ class _CDS(MeshStructure):
         it gathers from) cost as much as the gather itself on meshes under 1M vertices. The
         data-driven loop follows as a safety net: it runs no round when ``target_rounds`` is
         right, and all of them when it is ``-1`` (a structure built without it)."""
-        n = self.num_vertices
-        val = self._target_start(lfs)
-
-        def cond(v):
-            return jnp.any(v < 0)
-
-        def body(v):
-            pend = v < 0
-            return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
-
-        def two_rounds(_, v):
-            # the first round's result written to memory (materialize_loop) and read by the
-            # second: no loop-state copy (a round cannot write the buffer it gathers from) and no
-            # fusion of the second round's gathers into the first (re-evaluated per element)
-            w, = _materialize_loop((body(v),))
-            return body(w)
-
-        rounds = max(self.target_rounds, 0)
-        val = jax.lax.fori_loop(0, rounds // 2, two_rounds, val)
-        if rounds % 2:
-            val = body(val)
-        t = jax.lax.while_loop(cond, body, val).reshape(n, 3)
+        t = pointer_jump(self._target_start(lfs), self.target_rounds).reshape(self.num_vertices, 3)
         return t[:, 0], t[:, 1], t[:, 2]
 
     def all_edge_targets(self) -> Int:

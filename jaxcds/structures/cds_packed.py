@@ -40,7 +40,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import CHUNKED_QUERIES, _chunked_query, interleave_rows, parts_of_one_class
+from jaxcds.structures.base import _chunk_queries, interleave_rows, parts_of_one_class
 from jaxcds.structures.cds import slot_blocks
 
 __all__ = ["concatenate_cds", "packed_class"]
@@ -232,9 +232,9 @@ def _make_entry(name, kind):
 
 
 for _name, _kind in _ARG.items():
-    # the union's chunked queries: each chunk finds its elements' meshes and builds its own view
-    _entry_fn = _make_entry(_name, _kind)
-    setattr(_PackedMixin, _name, _chunked_query(_entry_fn) if _name in CHUNKED_QUERIES else _entry_fn)
+    setattr(_PackedMixin, _name, _make_entry(_name, _kind))
+# the union's chunked queries: each chunk finds its elements' meshes and builds its own view
+_chunk_queries(_PackedMixin)
 
 _FIELDS = ("mesh_vertex_offsets", "mesh_vertex_counts", "mesh_face_offsets", "mesh_roots",
            "mesh_unused_slots")

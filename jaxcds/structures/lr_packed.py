@@ -36,7 +36,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import (CHUNKED_QUERIES, _chunked_query, interleave_windows, materialize,
+from jaxcds.structures.base import (_chunk_queries, interleave_windows, materialize,
                                     parts_of_one_class)
 from jaxcds.structures.lr import _slot_triangles
 
@@ -62,9 +62,11 @@ class _Seg:
         return (self.n,)
 
 
-def _pair(a, b):
-    """Rows ``a[0], b[0], a[1], b[1], ...`` (``a`` and ``b`` of one shape)."""
-    return jnp.stack([a, b], axis=1).reshape((2 * a.shape[0],) + a.shape[1:])
+def _pair_blocks(x, m: int):
+    """Rows of ``x`` with its first two blocks of ``m`` rows side by side: ``x[0], x[m], x[1],
+    x[m + 1], ..., x[m - 1], x[2m - 1]``, then ``x[2m:]`` as they are."""
+    a, b = x[:m], x[m:2 * m]
+    return jnp.concatenate([jnp.stack([a, b], axis=1).reshape((2 * m,) + x.shape[1:]), x[2 * m:]])
 
 
 def _excl(c):
@@ -302,8 +304,7 @@ class _PackedMixin:
         # vertices) 1.21x the face list against 1.36x with the blocks, 300 meshes 1.20x / 1.25x;
         # at 10,000 meshes both vary 1.3-2.1x from run to run (benchmarks/RESULTS.md)
         m = self.num_ring
-        rows = jnp.concatenate([_pair(rows[:m], rows[m:2 * m]), rows[2 * m:]])
-        ok = jnp.concatenate([_pair(ok[:m], ok[m:2 * m]), ok[2 * m:]])
+        rows, ok = _pair_blocks(rows, m), _pair_blocks(ok, m)
         return interleave_windows(rows), interleave_windows(ok)
 
     def face_vertices(self):
@@ -346,9 +347,9 @@ def _make_entry(name, arg, res):
 
 
 for _name, (_arg, _res) in _OPS.items():
-    # the union's chunked queries: each chunk finds its elements' meshes and builds its own view
-    _entry_fn = _make_entry(_name, _arg, _res)
-    setattr(_PackedMixin, _name, _chunked_query(_entry_fn) if _name in CHUNKED_QUERIES else _entry_fn)
+    setattr(_PackedMixin, _name, _make_entry(_name, _arg, _res))
+# the union's chunked queries: each chunk finds its elements' meshes and builds its own view
+_chunk_queries(_PackedMixin)
 
 _FIELDS = ("mesh_vertex_offsets", "mesh_face_offsets", "mesh_dart_offsets", "mesh_sizes",
            "mesh_array_offsets", "mesh_array_lengths", "slot_rank_cumulative")

@@ -1,7 +1,7 @@
 """Large batched queries run by chunks on CPU (``base._chunked_query``): the chunked answers equal
-the one-pass answers for every operator a class chunks, on every dart (as a flat batch, a batch
-that is not a multiple of the chunk, and a 2-D batch), with the chunk size forced small so the
-small test meshes reach the chunked path."""
+the one-pass answers for every operator a class chunks, on every dart (as a flat batch that is
+not a multiple of the chunk, and as a 2-D batch), with the chunk size forced small so the small
+test meshes reach the chunked path."""
 
 from __future__ import annotations
 
@@ -21,14 +21,13 @@ def mesh():
     return random_planar_triangulation(300, seed=4)
 
 
-def _has_loop(fn, ids) -> bool:
-    text = str(jax.make_jaxpr(fn)(ids))
-    return "while" in text or "scan" in text  # a fori_loop of static length is a scan
-
-
 def _loops(fn, ids) -> int:
     text = str(jax.make_jaxpr(fn)(ids))
-    return text.count("while[") + text.count("scan[")
+    return text.count("while[") + text.count("scan[")  # a fori_loop of static length is a scan
+
+
+def _has_loop(fn, ids) -> bool:
+    return _loops(fn, ids) > 0
 
 
 def _answers(s, ops, ids):
