@@ -402,25 +402,27 @@ def decode_cds6n(words: Words, *, boundaries_closed: bool = False):
     """Words -> :class:`~jaxcds.structures.cds.CDS6n` (vertex ``i`` = ``i``-th vertex of the ccw
     DFS of ``T_red``; ``V_red = 0``, ``V_blue = 1``, ``V_black = n - 1``)."""
     import jax.numpy as jnp
-    from jaxcds.structures.cds import CDS6n
+    from jaxcds.structures.cds import CDS6n, with_target_rounds
 
     refs = decode_refs6n(words)
     fb, unused = face_map6n(refs)
     n = words.num_vertices
-    return CDS6n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
-                 v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
+    s = CDS6n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
+              v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
+    return with_target_rounds(s)  # the static round count of the all-Targets pass (no wood here)
 
 
 def decode_cds5n(words: Words, *, boundaries_closed: bool = False):
     """Words of a maximal Schnyder wood -> :class:`~jaxcds.structures.cds.CDS5n`."""
     import jax.numpy as jnp
-    from jaxcds.structures.cds import CDS5n
+    from jaxcds.structures.cds import CDS5n, with_target_rounds
 
     refs = decode_refs5n(words)
     fb, unused = face_map5n(refs)
     n = words.num_vertices
-    return CDS5n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
-                 v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
+    s = CDS5n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
+              v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
+    return with_target_rounds(s)  # the static round count of the all-Targets pass (no wood here)
 
 
 # --------------------------------------------------------------------------- CDS4n (Sec. 5.2)
@@ -491,7 +493,7 @@ def decode_cds4n(words: Words, *, boundaries_closed: bool = False):
     """Words of a maximal Schnyder wood -> :class:`~jaxcds.structures.cds.CDS4n` (Thm 5), its
     ``vertex_order`` mapping cwBFS labels to decoded (DFS) vertex ids."""
     import jax.numpy as jnp
-    from jaxcds.structures.cds import CDS4n
+    from jaxcds.structures.cds import CDS4n, with_target_rounds
 
     r4, order = decode_refs4n(words)
     n = words.num_vertices
@@ -500,9 +502,10 @@ def decode_cds4n(words: Words, *, boundaries_closed: bool = False):
     has_black[[0, label1, 1]] = False  # V_red = 0, V_blue, V_black = label 1
     fb, unused = _face_map(n, has_black & _bits(r4[:, 2], 30), _bits(r4[:, 1], 31),
                            ~_bits(r4[:, 3], 30), outer=(0, label1, 1))
-    return CDS4n(refs=jnp.asarray(r4), F_blue=jnp.asarray(fb), order=jnp.asarray(order), num_vertices=n,
-                 num_faces=2 * n - 4, v_red=0, v_blue=label1, v_black=1, unused_slots=unused,
-                 boundaries_closed=boundaries_closed)
+    s = CDS4n(refs=jnp.asarray(r4), F_blue=jnp.asarray(fb), order=jnp.asarray(order), num_vertices=n,
+              num_faces=2 * n - 4, v_red=0, v_blue=label1, v_black=1, unused_slots=unused,
+              boundaries_closed=boundaries_closed)
+    return with_target_rounds(s)
 
 
 def build_cds(structure: str, words: Words, **kw):

@@ -102,7 +102,7 @@ from jaxcds.structures.base import Int, MeshStructure, interleave_rows
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
-           "edge_fronts", "face_slots", "tables_reference", "target_rounds"]
+           "edge_fronts", "face_slots", "tables_reference", "target_rounds", "with_target_rounds"]
 
 _IDX = (1 << 30) - 1
 _MAX_VERTICES = 1 << 30
@@ -516,6 +516,60 @@ def target_rounds(wood: SchnyderWood) -> int:
     included). A chain of ``LeftFront`` steps stays in one fan, so it is at most ``F - 1`` steps
     long, and ``r`` rounds resolve every chain of at most ``2^r - 1`` steps."""
     return int(max(_longest_fan(np.ascontiguousarray(wood.out), wood.num_vertices) - 1, 0)).bit_length()
+
+
+@numba.njit(cache=True)
+def _longest_chain(start):
+    """``(steps, entry)``: the most pointer steps (``-(i + 1)``: "entry ``i``") from an entry to a
+    resolved one; ``steps = -1`` when a chain runs out of range or never ends (``entry``: where).
+    Every entry has at most one predecessor in a CDS (one ``LeftFront`` in a fan), so walking
+    from the entries nobody points to visits each entry once: linear time."""
+    m = start.shape[0]
+    has_pred = np.zeros(m, dtype=np.bool_)
+    for i in range(m):
+        if start[i] < 0:
+            j = -np.int64(start[i]) - 1
+            if j >= m:
+                return -1, i
+            has_pred[j] = True
+    best = 0
+    visited = 0
+    for i in range(m):
+        if has_pred[i]:
+            continue
+        j, steps = i, 0
+        while start[j] < 0:
+            j = -np.int64(start[j]) - 1
+            steps += 1
+            if steps > m:
+                return -1, i
+        visited += steps + 1
+        best = max(best, steps)
+    if visited < m:  # entries on a cycle: nobody outside it points in
+        for i in range(m):
+            if has_pred[i] and start[i] < 0:
+                return -1, i
+    return best, -1
+
+
+_jit_target_start = jax.jit(lambda s: s._target_start())
+
+
+def with_target_rounds(structure):
+    """``structure`` (any CDS) with ``target_rounds`` measured on its own tables: the pointer
+    steps of the longest ``LeftFront`` chain of :meth:`_CDS._target_start` (one jitted pass and
+    one linear numba pass). For structures built without the Schnyder wood (the codec's
+    decoders); the builders count the same rounds from the wood (:func:`target_rounds`).
+    A chain that never ends (tables that are not a CDS) raises
+    :class:`~jaxcds.errors.StructureError` naming the edge id."""
+    import dataclasses
+
+    steps, at = _longest_chain(np.asarray(_jit_target_start(structure)))
+    if steps < 0:
+        raise errors.StructureError(
+            f"{type(structure).__name__}: the LeftFront chain from edge id {at} (3u + colour) does not "
+            "end at a vertex: the tables are not those of a Schnyder wood")
+    return dataclasses.replace(structure, target_rounds=int(steps).bit_length())
 
 
 def jump_round(v):
@@ -1096,8 +1150,9 @@ class CDS6n(_CDS):
         ``C_c^right[u]`` = colour ``c`` (else ``prev(c)``), ``I_c[u]`` = ``u`` has an incoming edge
         of colour ``c``.
       F_blue: ``(n,)`` int32 face map of Thm 7.
-      target_rounds: pointer-jumping rounds of the whole-mesh Targets (:func:`target_rounds`,
-        static metadata, not a reference; ``-1``: not known, the loop tests for pending entries).
+      target_rounds: pointer-jumping rounds of the whole-mesh Targets (:func:`target_rounds` from
+        the wood, :func:`with_target_rounds` from the tables; static metadata, not a reference;
+        ``-1``: not known, the loop tests for pending entries).
     """
 
     refs: jnp.ndarray

@@ -164,3 +164,26 @@ def test_packed_target_rounds_is_the_largest_part():
     s = pack(meshes, "cds6n").structure
     assert s.target_rounds == max(p.target_rounds for p in parts)
     assert s.target_rounds == _rounds_needed(s._whole_view())
+
+
+def test_with_target_rounds_measures_the_tables_and_names_a_chain_that_does_not_end(monkeypatch):
+    """``with_target_rounds`` (the decoders' count) equals the builders' fan count and the numpy
+    count; chains that cycle or leave the id range raise StructureError naming the edge id."""
+    import dataclasses
+
+    from jaxcds import errors
+    from jaxcds.structures import cds as cds_module
+
+    for name in ("cds6n", "cds5n", "cds4n", "cds5n-o1"):
+        s = registry.build(name, _mesh("random:2000/7"))
+        got = cds_module.with_target_rounds(dataclasses.replace(s, target_rounds=-1))
+        assert got.target_rounds == s.target_rounds == _rounds_needed(s) >= 1, name
+    chain = np.array([-2, -3, 7, -1], dtype=np.int32)  # 0 -> 1 -> 2 (resolved), 3 -> 0
+    assert tuple(cds_module._longest_chain(chain)) == (3, -1)
+    assert tuple(cds_module._longest_chain(np.array([4, 5], np.int32))) == (0, -1)
+    for bad, at in (([-2, -1, 7], 0), ([-2, -9, 7], 1)):  # a cycle 0 <-> 1; an id out of range
+        steps, where = cds_module._longest_chain(np.array(bad, np.int32))
+        assert steps == -1 and where == at
+    monkeypatch.setattr(cds_module, "_jit_target_start", lambda s: jnp.asarray([5, -3, -2], jnp.int32))
+    with pytest.raises(errors.StructureError, match="edge id 1"):
+        cds_module.with_target_rounds(s)
