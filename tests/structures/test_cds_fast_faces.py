@@ -187,3 +187,24 @@ def test_with_target_rounds_measures_the_tables_and_names_a_chain_that_does_not_
     monkeypatch.setattr(cds_module, "_jit_target_start", lambda s: jnp.asarray([5, -3, -2], jnp.int32))
     with pytest.raises(errors.StructureError, match="edge id 1"):
         cds_module.with_target_rounds(s)
+
+
+@pytest.mark.parametrize("name", CDS)
+def test_slot_faces_without_lf_words(name, monkeypatch):
+    """The slot rows read the LeftFronts as one word each below 2^28 vertices (``_lf_word``);
+    above, each consumer reads the parts off the rows. Force the second route on a small mesh:
+    the same faces and normals."""
+    from jaxcds.structures import cds as cds_module
+
+    mesh = _mesh("random:500/4")
+    s = registry.build(name, mesh)
+    want = np.asarray(s.face_vertices())
+    assert tuple(int(x) for x in cds_module._lf_unword(cds_module._lf_word((7, 2, 1)))) == (7, 2, 1)
+    monkeypatch.setattr(cds_module, "_WORD_VERTICES", 0)
+    np.testing.assert_array_equal(np.asarray(s.face_vertices()), want)
+    order = s.vertex_order
+    p = np.asarray(mesh.vertices, np.float32)
+    q = p if order is None else p[np.asarray(order)]
+    got = np.asarray(vertex_normals.__wrapped__(s, jnp.asarray(q)))
+    ref = np.asarray(face_list_vertex_normals(jnp.asarray(q), jnp.asarray(want)))
+    np.testing.assert_allclose(got, ref, atol=1e-5)
