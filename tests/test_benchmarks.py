@@ -182,6 +182,19 @@ def test_race_target_rounds_every_loop_form_gives_the_targets(capsys):
     assert out.count("static_two=") == 2 and "target_rounds=" in out, out
 
 
+def test_race_lf_words_checks_both_routes_against_the_face_list(capsys):
+    """benchmarks/race_lf_words.py compiles the word and the parts route and checks both."""
+    from benchmarks import race_lf_words
+    from jaxcds.structures import cds
+
+    before = cds._WORD_VERTICES
+    assert race_lf_words.main(["--meshes", "random:300,packed:3", "--structures", "cds6n,cds5n-o1",
+                               "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("words=") == 4 and out.count("parts=") == 4, out
+    assert cds._WORD_VERTICES == before  # the switch is restored
+
+
 def test_race_chunked_queries_runs_and_checks_the_answers(capsys, monkeypatch):
     from benchmarks import race_chunked_queries
     from jaxcds.structures import base

@@ -1,0 +1,105 @@
+"""CDS normals with the slot rows' LeftFronts read two ways, raced in turn against the plain-JAX
+face list in one process (ns per vertex, medians, ratio to the face list, fastest run):
+
+* ``words``: the library's route below 2^28 vertices: the three LeftFronts of every vertex
+  written once as one shift-decoded word each (``cds._lf_word``);
+* ``parts``: the route above 2^28 vertices: every consumer reads the dart's parts off the table
+  rows again (forced here with ``cds._WORD_VERTICES = 0``).
+
+Before both, the slot rows decoded packed darts ``2(3 src + col) + r`` with a division by 3
+(separate div/rem kernels on XLA:CPU); RESULTS.md, "CDS: slot rows without divisions", has that
+comparison.
+
+    .venv/bin/python benchmarks/race_lf_words.py --meshes armadillo.obj,bunny.off,random:200000
+    flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/race_lf_words.py --meshes packed:10000 \\
+        --structures cds6n,cds4n --rounds 5
+
+``--meshes``: files of ``$JAXCDS_SHARED_MESHES``, ``random:N`` or ``packed:K`` (K random
+triangulations of 500-5,000 vertices, packed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from bench_lr_normals import _mesh  # noqa: E402
+
+from jaxcds import batch as B  # noqa: E402
+from jaxcds.algorithms import normals as N  # noqa: E402
+from jaxcds.generators import random_planar_triangulation  # noqa: E402
+from jaxcds.structures import cds, registry  # noqa: E402
+
+ROUTES = {"words": cds._WORD_VERTICES, "parts": 0}  # route -> the _WORD_VERTICES it traces with
+
+
+def _meshes(spec):
+    """``(mesh, parts or None)``."""
+    if spec.startswith("packed:"):
+        sizes = np.random.default_rng(0).integers(500, 5001, int(spec[7:]))
+        parts = [random_planar_triangulation(int(n), seed=i) for i, n in enumerate(sizes)]
+        return B._union(parts), parts
+    return _mesh(spec), None
+
+
+def _compiled(limit, s, pos):
+    saved = cds._WORD_VERTICES
+    cds._WORD_VERTICES = limit  # read while tracing: each route is compiled under its own value
+    try:
+        return jax.jit(lambda s, p: N.normalize(N._scatter_sums(s, p))).lower(s, pos).compile()
+    finally:
+        cds._WORD_VERTICES = saved
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--meshes", default="armadillo.obj,bunny.off,random:200000")
+    ap.add_argument("--structures", default="cds6n,cds5n,cds4n,cds5n-o1")
+    ap.add_argument("--rounds", type=int, default=15)
+    a = ap.parse_args(argv)
+    for spec in a.meshes.split(","):
+        mesh, parts = _meshes(spec)
+        fpos = jnp.asarray(np.asarray(mesh.vertices), jnp.float32)
+        faces = jnp.asarray(mesh.faces, jnp.int32)
+        want = np.asarray(N.face_list_vertex_normals(fpos, faces))
+        for name in a.structures.split(","):
+            s = B.concatenate([registry.build(name, q) for q in parts]) if parts else registry.build(name, mesh)
+            order = None if s.vertex_order is None else np.asarray(s.vertex_order)
+            pos = fpos if order is None else fpos[order]
+            ref = want if order is None else want[order]
+            runs = {"face_list": (jax.jit(N.face_list_vertex_normals), (fpos, faces))}
+            for route, limit in ROUTES.items():
+                f = _compiled(limit, s, pos)
+                # summation orders differ: near-cancelling vertex sums of large batches move most
+                err = float(np.max(np.abs(np.asarray(f(s, pos)) - ref)))
+                assert err < 2e-2, f"{name}/{route}: normals differ from the face list's by {err}"
+                runs[route] = (f, (s, pos))
+            keys, times = list(runs), {k: [] for k in runs}
+            for r in range(a.rounds):
+                for i in range(len(keys)):  # rotating order
+                    k = keys[(i + r) % len(keys)]
+                    f, args = runs[k]
+                    t0 = time.perf_counter()
+                    jax.block_until_ready(f(*args))
+                    times[k].append(time.perf_counter() - t0)
+            base = statistics.median(times["face_list"])
+            cols = "  ".join(f"{k}={1e9 * statistics.median(t) / mesh.num_vertices:.1f} "
+                             f"({statistics.median(t) / base:.2f}x, fastest {1e9 * min(t) / mesh.num_vertices:.1f})"
+                             for k, t in times.items())
+            print(f"{spec} {name}: {cols}", flush=True)
+            del s, runs
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
