@@ -195,6 +195,17 @@ def test_race_lf_words_checks_both_routes_against_the_face_list(capsys):
     assert cds._WORD_VERTICES == before  # the switch is restored
 
 
+def test_race_vertex_order_relabels_the_face_list(capsys):
+    """benchmarks/race_vertex_order.py: the face list in the structure's order gives the same
+    normals (checked inside), for a single mesh and a packed batch."""
+    from benchmarks import race_vertex_order
+
+    for mesh in ("random:300", "packed:3"):
+        assert race_vertex_order.main(["--mesh", mesh, "--structure", "cds4n", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("face_list_structure_order=") == 2 and out.count("cds4n=") == 2, out
+
+
 def test_race_chunked_queries_runs_and_checks_the_answers(capsys, monkeypatch):
     from benchmarks import race_chunked_queries
     from jaxcds.structures import base
