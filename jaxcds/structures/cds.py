@@ -552,13 +552,16 @@ def _longest_chain(start):
     return best, -1
 
 
-_jit_target_start = jax.jit(lambda s: s._target_start())
+@jax.jit
+def _jit_target_start(s):
+    # a packed union's start values are its whole-mesh view's (per-vertex roots of each mesh)
+    return (s._whole_view() if getattr(s, "packed", False) else s)._target_start()
 
 
 def with_target_rounds(structure):
-    """``structure`` (any CDS) with ``target_rounds`` measured on its own tables: the pointer
-    steps of the longest ``LeftFront`` chain of :meth:`_CDS._target_start` (one jitted pass and
-    one linear numba pass). For structures built without the Schnyder wood (the codec's
+    """``structure`` (any CDS, or a packed CDS union) with ``target_rounds`` measured on its own
+    tables: the pointer steps of the longest ``LeftFront`` chain of :meth:`_CDS._target_start`
+    (one jitted pass and one linear numba pass). For structures built without the Schnyder wood (the codec's
     decoders); the builders count the same rounds from the wood (:func:`target_rounds`).
     A chain that never ends (tables that are not a CDS) raises
     :class:`~jaxcds.errors.StructureError` naming the edge id."""

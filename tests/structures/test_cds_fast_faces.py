@@ -178,6 +178,11 @@ def test_with_target_rounds_measures_the_tables_and_names_a_chain_that_does_not_
         s = registry.build(name, _mesh("random:2000/7"))
         got = cds_module.with_target_rounds(dataclasses.replace(s, target_rounds=-1))
         assert got.target_rounds == s.target_rounds == _rounds_needed(s) >= 1, name
+    meshes = [_mesh("random:300/2"), _mesh("cube.off"), _mesh("random:2000/7")]
+    for name in ("cds6n", "cds4n"):  # a packed union: measured on its whole-mesh view
+        s = pack(meshes, name).structure
+        got = cds_module.with_target_rounds(dataclasses.replace(s, target_rounds=-1))
+        assert got.target_rounds == s.target_rounds == _rounds_needed(s._whole_view()), name
     chain = np.array([-2, -3, 7, -1], dtype=np.int32)  # 0 -> 1 -> 2 (resolved), 3 -> 0
     assert tuple(cds_module._longest_chain(chain)) == (3, -1)
     assert tuple(cds_module._longest_chain(np.array([4, 5], np.int32))) == (0, -1)
