@@ -52,6 +52,20 @@ def _meshes(spec):
     return _mesh(spec), None
 
 
+def race_in_turn(runs, rounds: int):
+    """``{name: [seconds per run]}``: every ``(f, args)`` of ``runs`` once per round, the order
+    rotated each round (no route always runs right after another)."""
+    keys, times = list(runs), {k: [] for k in runs}
+    for r in range(rounds):
+        for i in range(len(keys)):
+            k = keys[(i + r) % len(keys)]
+            f, args = runs[k]
+            t0 = time.perf_counter()
+            jax.block_until_ready(f(*args))
+            times[k].append(time.perf_counter() - t0)
+    return times
+
+
 def _compiled(limit, s, pos):
     saved = cds._WORD_VERTICES
     cds._WORD_VERTICES = limit  # read while tracing: each route is compiled under its own value
@@ -84,14 +98,7 @@ def main(argv=None) -> int:
                 err = float(np.max(np.abs(np.asarray(f(s, pos)) - ref)))
                 assert err < 2e-2, f"{name}/{route}: normals differ from the face list's by {err}"
                 runs[route] = (f, (s, pos))
-            keys, times = list(runs), {k: [] for k in runs}
-            for r in range(a.rounds):
-                for i in range(len(keys)):  # rotating order
-                    k = keys[(i + r) % len(keys)]
-                    f, args = runs[k]
-                    t0 = time.perf_counter()
-                    jax.block_until_ready(f(*args))
-                    times[k].append(time.perf_counter() - t0)
+            times = race_in_turn(runs, a.rounds)
             base = statistics.median(times["face_list"])
             cols = "  ".join(f"{k}={1e9 * statistics.median(t) / mesh.num_vertices:.1f} "
                              f"({statistics.median(t) / base:.2f}x, fastest {1e9 * min(t) / mesh.num_vertices:.1f})"

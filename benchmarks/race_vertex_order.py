@@ -19,7 +19,6 @@ import argparse
 import os
 import statistics
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
@@ -28,7 +27,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_lf_words import _meshes  # noqa: E402
+from race_lf_words import _meshes, race_in_turn  # noqa: E402
 
 from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms import normals as N  # noqa: E402
@@ -60,14 +59,7 @@ def main(argv=None) -> int:
     for k in list(runs)[1:]:
         err = float(np.max(np.abs(outs[k] - want)))
         assert err < 2e-2, f"{k}: normals differ from the face list's by {err}"
-    keys, times = list(runs), {k: [] for k in runs}
-    for r in range(a.rounds):
-        for i in range(len(keys)):  # rotating order
-            k = keys[(i + r) % len(keys)]
-            f, args = runs[k]
-            t0 = time.perf_counter()
-            jax.block_until_ready(f(*args))
-            times[k].append(time.perf_counter() - t0)
+    times = race_in_turn(runs, a.rounds)
     base = statistics.median(times["face_list_own_order"])
     print(f"{a.mesh} ({n} vertices): " + "  ".join(
         f"{k}={1e9 * statistics.median(t) / n:.1f} ({statistics.median(t) / base:.2f}x)" for k, t in times.items()))
