@@ -52,6 +52,11 @@ def _meshes(spec):
     return _mesh(spec), None
 
 
+def _structure(name, mesh, parts):
+    """Structure ``name`` of ``mesh``, or the packed batch of ``parts`` when given."""
+    return B.concatenate([registry.build(name, q) for q in parts]) if parts else registry.build(name, mesh)
+
+
 def race_in_turn(runs, rounds: int):
     """``{name: [seconds per run]}``: every ``(f, args)`` of ``runs`` once per round, the order
     rotated each round (no route always runs right after another)."""
@@ -87,7 +92,7 @@ def main(argv=None) -> int:
         faces = jnp.asarray(mesh.faces, jnp.int32)
         want = np.asarray(N.face_list_vertex_normals(fpos, faces))
         for name in a.structures.split(","):
-            s = B.concatenate([registry.build(name, q) for q in parts]) if parts else registry.build(name, mesh)
+            s = _structure(name, mesh, parts)
             order = None if s.vertex_order is None else np.asarray(s.vertex_order)
             pos = fpos if order is None else fpos[order]
             ref = want if order is None else want[order]

@@ -27,11 +27,9 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_lf_words import _meshes, race_in_turn  # noqa: E402
+from race_lf_words import _meshes, _structure, race_in_turn  # noqa: E402
 
-from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms import normals as N  # noqa: E402
-from jaxcds.structures import registry  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -41,7 +39,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=15)
     a = ap.parse_args(argv)
     mesh, parts = _meshes(a.mesh)
-    s = B.concatenate([registry.build(a.structure, q) for q in parts]) if parts else registry.build(a.structure, mesh)
+    s = _structure(a.structure, mesh, parts)
     if s.vertex_order is None:
         raise SystemExit(f"{a.structure} keeps the mesh's vertex order: nothing to compare")
     n = mesh.num_vertices

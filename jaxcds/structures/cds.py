@@ -552,17 +552,15 @@ def _longest_chain(start):
     return best, -1
 
 
-@jax.jit
-def _jit_target_start(s):
-    # a packed union's start values are its whole-mesh view's (per-vertex roots of each mesh)
-    return (s._whole_view() if getattr(s, "packed", False) else s)._target_start()
+_jit_target_start = jax.jit(lambda s: s._target_start())
 
 
 def with_target_rounds(structure):
     """``structure`` (any CDS, or a packed CDS union) with ``target_rounds`` measured on its own
     tables: the pointer steps of the longest ``LeftFront`` chain of :meth:`_CDS._target_start`
-    (one jitted pass and one linear numba pass). For structures built without the Schnyder wood (the codec's
-    decoders); the builders count the same rounds from the wood (:func:`target_rounds`).
+    (one jitted pass and one linear numba pass). For structures built without the Schnyder wood
+    (the codec's decoders); the builders count the same rounds from the wood
+    (:func:`target_rounds`).
     A chain that never ends (tables that are not a CDS) raises
     :class:`~jaxcds.errors.StructureError` naming the edge id."""
     import dataclasses
@@ -906,7 +904,7 @@ class _CDS(MeshStructure):
             lf_r = (src_r,) + lf_r[1:]
         # _EXTERIOR: LeftFront((V_blue, V_red)) = (V_red, V_black): the red slot of V_blue is the
         # outer face (V_blue, V_red, V_black)
-        lf_r = _psel(u == self.v_blue, _parts(self.v_black, RED, 1), lf_r)
+        lf_r = _psel(u == self.v_blue, _parts(self.v_black, RED, 1), lf_r)  # self._d1, in parts
         t_r, t_b, t_k = self._targets_cols((lf_r, lf_b, lf_k))
         if self._fusible_targets:  # a while_loop's result is in memory already
             t_r, t_b, t_k = _materialize_loop((t_r, t_b, t_k))

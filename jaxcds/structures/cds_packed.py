@@ -193,6 +193,9 @@ class _PackedMixin:
     def all_edge_targets(self):
         return type(self)._base.all_edge_targets(self._whole_view())
 
+    def _target_start(self, lfs=None):
+        return type(self)._base._target_start(self._whole_view(), lfs)
+
     def _targets_cols(self, lfs=None):
         return type(self)._base._targets_cols(self._whole_view(), lfs)
 
