@@ -171,25 +171,32 @@ class PackedBatch(MeshStructure):
     # ------------------------------------------------------------------ local <-> global
     def to_global(self, kind: str, mesh: Int, local: Int) -> Int:
         """Global id of mesh ``mesh``'s local id ``local`` (``kind``: vertex, face, dart).
-        The local sentinel (the mesh's own count) maps to the global one. Broadcasts."""
+        The local sentinel (the mesh's own count) maps to the global one, and so does every id
+        out of range: a negative local id, one past the count, a mesh index outside the batch
+        (JAX would wrap or clamp them into another mesh's ids). Broadcasts."""
         mesh = jnp.asarray(mesh, jnp.int32)
         local = jnp.asarray(local, jnp.int32)
+        out = (local < 0) | (mesh < 0) | (mesh >= self.num_meshes)
+        mesh = jnp.clip(mesh, 0, max(self.num_meshes - 1, 0))
         if kind == "dart" and self.num_extra_darts == 0:  # static: one contiguous block per mesh
-            return jnp.where(local >= self.n_dart[mesh], self.num_darts,
+            return jnp.where(out | (local >= self.n_dart[mesh]), self.num_darts,
                              self.dart_offsets[mesh] + local).astype(jnp.int32)
         if kind == "dart":
             p = self.n_dart[mesh]
             primary = self.dart_offsets[mesh] + local
             extra = self.num_primary_darts + self.extra_dart_offsets[mesh] + (local - p)
             g = jnp.where(local < p, primary, extra)
-            return jnp.where(local >= p + self.n_extra_dart[mesh], self.num_darts, g)
+            return jnp.where(out | (local >= p + self.n_extra_dart[mesh]), self.num_darts,
+                             g).astype(jnp.int32)
         off, cnt, total = self._table(kind)
-        return jnp.where(local >= cnt[mesh], total, off[mesh] + local).astype(jnp.int32)
+        return jnp.where(out | (local >= cnt[mesh]), total, off[mesh] + local).astype(jnp.int32)
 
     def to_local(self, kind: str, mesh: Int, g: Int) -> Int:
         """Local id in mesh ``mesh`` of global id ``g``; the global sentinel maps to the mesh's
-        own count (its one past the end). ``mesh`` must own ``g`` (see :meth:`mesh_of`)."""
-        mesh = jnp.asarray(mesh, jnp.int32)
+        own count (its one past the end). ``mesh`` must own ``g`` (see :meth:`mesh_of`); a mesh
+        index outside the batch reads as the nearest mesh (:meth:`query` sends only the
+        sentinel then)."""
+        mesh = jnp.clip(jnp.asarray(mesh, jnp.int32), 0, max(self.num_meshes - 1, 0))
         g = jnp.asarray(g, jnp.int32)
         if kind == "dart" and self.num_extra_darts == 0:
             return jnp.where(g >= self.num_darts, self.n_dart[mesh], g - self.dart_offsets[mesh])
@@ -220,7 +227,16 @@ class PackedBatch(MeshStructure):
         mesh = jnp.asarray(mesh, jnp.int32)
         g = self.to_global(arg_kind, mesh, local)
         r = getattr(self.structure, op)(g)
-        return r if res_kind == "bool" else self.to_local(res_kind, mesh, r)
+        # an id out of range (or a mesh index outside the batch) answers "absent" (False for a
+        # test), not what the structure reads one past its arrays
+        absent = g >= self._absent(arg_kind)
+        if res_kind == "bool":
+            return r & ~absent
+        return self.to_local(res_kind, mesh, jnp.where(absent, self._absent(res_kind), r))
+
+    def _absent(self, kind: str) -> int:
+        """The global sentinel of ``kind`` (one past the end)."""
+        return self.num_darts if kind == "dart" else self._table(kind)[2]
 
     def adjacent(self, u: Int, v: Int) -> Int:  # noqa: D401 - forwarded, global ids
         """``Adjacent(u, v)`` on global vertex ids (the union structure's, or the generic one)."""

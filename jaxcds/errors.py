@@ -11,6 +11,7 @@ Hierarchy::
     │   ├── UnreadableMeshError       file missing, unknown format, parse failure
     │   ├── EmptyMeshError            no vertices or no faces
     │   ├── InvalidIndexError         face index negative or >= number of vertices
+    │   ├── UnreferencedVertexError   a vertex in no face (load_mesh drops them)
     │   ├── NonFiniteCoordinateError  NaN / inf in positions
     │   ├── DegenerateFaceError       a face repeats a vertex
     │   ├── DuplicateFaceError        two faces on the same vertex set
@@ -34,6 +35,7 @@ __all__ = [
     "UnreadableMeshError",
     "EmptyMeshError",
     "InvalidIndexError",
+    "UnreferencedVertexError",
     "NonFiniteCoordinateError",
     "DegenerateFaceError",
     "DuplicateFaceError",
@@ -67,6 +69,11 @@ class EmptyMeshError(MeshError):
 
 class InvalidIndexError(MeshError):
     """A face refers to a vertex index that is negative or out of range."""
+
+
+class UnreferencedVertexError(MeshError):
+    """A vertex that no face uses (:func:`jaxcds.mesh.load_mesh` drops them; a hand-made
+    ``TriMesh`` may still have them)."""
 
 
 class NonFiniteCoordinateError(MeshError):

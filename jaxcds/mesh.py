@@ -8,6 +8,7 @@ validated :class:`TriMesh`, and every defect is reported with a typed error of
 from __future__ import annotations
 
 import dataclasses
+import io
 import os
 from typing import Any, Optional, Sequence
 
@@ -121,14 +122,48 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
 
     try:
         # process=False: we weld ourselves, to count and report it.
-        loaded = trimesh.load(path, process=False, force="mesh")
+        if suffix in (".obj", ".off"):
+            # text formats, read as text here: trimesh guesses a non-UTF-8 file's encoding with
+            # an optional package (charset_normalizer) and fails without it; the numbers are
+            # ASCII in every encoding, so Latin-1 (which decodes any byte) reads a legacy comment
+            loaded = trimesh.load(io.StringIO(_text_of(path)), file_type=suffix[1:], process=False,
+                                  force="mesh")
+        else:
+            loaded = trimesh.load(path, process=False, force="mesh")
     except Exception as exc:  # trimesh raises many kinds; all mean "cannot parse"
-        raise errors.UnreadableMeshError(f"{path}: cannot parse as {suffix[1:].upper()}: {exc}") from exc
+        raise errors.UnreadableMeshError(f"{path}: cannot parse as {suffix[1:].upper()}: "
+                                         f"{_parse_failure(path, suffix, exc)}") from exc
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     if faces.size == 0 and os.path.getsize(path) > 0 and vertices.size == 0:
         raise errors.UnreadableMeshError(f"{path}: no vertices or faces could be read")
     return vertices, faces
+
+
+def _text_of(path: str) -> str:
+    raw = open(path, "rb").read()
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _parse_failure(path: str, suffix: str, exc: Exception) -> str:
+    """What went wrong, in words: trimesh's message, or, where trimesh fell back to guessing a
+    text encoding (a binary file it could not read as binary), the byte that is not text."""
+    if not (isinstance(exc, ImportError) and "charset_normalizer" in str(exc)):
+        return str(exc)
+    raw = open(path, "rb").read()
+    try:
+        raw.decode("utf-8")
+        where = "its text"
+    except UnicodeDecodeError as bad:
+        where = f"byte {bad.start} (0x{raw[bad.start]:02x}), which is not text"
+    if suffix == ".stl" and len(raw) >= 84:
+        count = int(np.frombuffer(raw[80:84], dtype="<u4")[0])
+        return (f"not a binary STL (its header declares {count} triangles, {84 + 50 * count} "
+                f"bytes; the file has {len(raw)}) and not an ASCII STL ({where})")
+    return f"the file is neither well-formed binary nor text: cannot read {where}"
 
 
 def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMesh:
@@ -224,17 +259,28 @@ def edge_table(faces: np.ndarray) -> EdgeTable:
 def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.MeshError]:
     """Every defect of the mesh, as (unraised) typed errors, most fundamental first.
 
-    Checks: non-finite coordinates, degenerate faces, duplicate faces, non-manifold edges,
-    inconsistent orientation, non-manifold vertices. (Empty meshes and bad indices are already
-    refused by :func:`load_mesh`.) ``et``: the mesh's :func:`edge_table`, if already at hand.
+    Checks: no faces, non-finite coordinates, unreferenced vertices, degenerate faces, duplicate
+    faces, non-manifold edges, inconsistent orientation, non-manifold vertices. (:func:`load_mesh`
+    already refuses empty meshes and bad indices and drops unreferenced vertices; a ``TriMesh``
+    made by hand may have them.) ``et``: the mesh's :func:`edge_table`, if already at hand.
     """
     v, f, src = mesh.vertices, np.ascontiguousarray(mesh.faces), mesh.source
+    if f.ndim != 2 or f.shape[0] == 0 or mesh.num_vertices == 0:
+        return [errors.EmptyMeshError(f"{src}: the mesh has {mesh.num_vertices} vertices and "
+                                      f"{f.shape[0] if f.ndim else 0} faces; nothing to build")]
     found: list[errors.MeshError] = []
     bad = np.nonzero(~np.isfinite(v).all(axis=1))[0]
     if bad.size:
         found.append(errors.NonFiniteCoordinateError(
             f"{src}: vertex {int(bad[0])} has a non-finite coordinate {v[bad[0]].tolist()} "
             f"({bad.size} such vertices)"))
+    used = np.zeros(mesh.num_vertices, dtype=bool)
+    used[f[(f >= 0) & (f < mesh.num_vertices)]] = True
+    unused = np.flatnonzero(~used)
+    if unused.size:
+        found.append(errors.UnreferencedVertexError(
+            f"{src}: vertex {int(unused[0])} is in no face ({unused.size} such vertices); "
+            "jaxcds.mesh.load_mesh(vertices, faces) drops them"))
     degenerate = np.nonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))[0]
     if degenerate.size:
         fi = int(degenerate[0])
@@ -345,7 +391,7 @@ class _Clean:
     num_edges: int
 
 
-def _fast_check(mesh: TriMesh, components: bool) -> Optional[_Clean]:
+def _fast_check(mesh: TriMesh, components: bool, unreferenced_ok: bool = False) -> Optional[_Clean]:
     """The fast path of validation: ``None`` unless the mesh has none of the defects
     :func:`find_defects` looks for, in which case the twins come with the verdict.
 
@@ -366,7 +412,7 @@ def _fast_check(mesh: TriMesh, components: bool) -> Optional[_Clean]:
                                                         mesh.num_vertices, components)
     if status == kernels.BAD_INDEX:  # load_mesh refuses these; a TriMesh built by hand may not
         _check_indices(f, mesh.num_vertices, mesh.source)
-    if status != kernels.CLEAN:
+    if status != kernels.CLEAN or (not unreferenced_ok and (vc < 0).any()):  # or a vertex in no face
         return None
     return _Clean(Twins(opp, vc), int(ncomp) if components else -1, int(ne))
 
@@ -385,7 +431,8 @@ def _closed_error(mesh: TriMesh, loops: list, structure: str) -> errors.MeshErro
 
 
 def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,
-             structure: str = "this structure", return_twins: bool = False):
+             structure: str = "this structure", return_twins: bool = False,
+             unreferenced_ok: bool = False):
     """Raise the first defect of ``mesh`` (typed error), or return it unchanged.
 
     Args:
@@ -393,11 +440,14 @@ def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,
       connected: also refuse meshes of several components (suggesting :func:`split_components`).
       return_twins: return ``(mesh, twins)``: the :class:`Twins` of its faces (``None`` when
         validation took the full path, which does not build them).
+      unreferenced_ok: accept vertices in no face (a half-edge built with
+        ``HalfEdge.from_faces`` answers "absent" for them; Polylla's points in a hole).
     """
-    clean = _fast_check(mesh, components=connected)
+    clean = _fast_check(mesh, components=connected, unreferenced_ok=unreferenced_ok)
     if clean is None:  # a defect, or an input the fast path does not take: the full checks
         et = edge_table(mesh.faces)
-        found = find_defects(mesh, et)
+        found = [d for d in find_defects(mesh, et)
+                 if not (unreferenced_ok and isinstance(d, errors.UnreferencedVertexError))]
         if found:
             raise found[0]
         if closed:

@@ -77,6 +77,22 @@ def _ints(row: list[str], path: str, lineno: int, what: str) -> list[int]:
         raise errors.PolyllaError(f"{path}: {what} {lineno}: expected integers, got {row}") from exc
 
 
+def _count(row: list[str], k: int, path: str, what: str, default: Optional[int] = None,
+           least: int = 0) -> int:
+    """Header field ``k`` of ``row`` (line 1 of ``path``): an integer of at least ``least``."""
+    if k >= len(row):
+        if default is not None:
+            return default
+        raise errors.PolyllaError(f"{path}: line 1 (header) has no {what}")
+    try:
+        x = int(row[k])
+    except ValueError as exc:
+        raise errors.PolyllaError(f"{path}: line 1 (header): {what} {row[k]!r} is not an integer") from exc
+    if x < least:
+        raise errors.PolyllaError(f"{path}: line 1 (header): {what} {x}, expected at least {least}")
+    return x
+
+
 def _table(rows, n, ncols, path, what, dtype):
     """``n`` data rows of at least ``ncols`` columns after the header row, as an array."""
     body = rows[1:1 + n]
@@ -158,9 +174,8 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
     if neigh is None and os.path.exists(stem + ".neigh"):
         neigh = stem + ".neigh"
     rows = _rows(node)
-    head = _ints(rows[0][:1], node, 0, "header")
-    nv = head[0]
-    dim = int(rows[0][1]) if len(rows[0]) > 1 else 2
+    nv = _count(rows[0], 0, node, "vertex count", least=3)
+    dim = _count(rows[0], 1, node, "dimension", default=2)
     if dim != 2:
         raise errors.PolyllaError(f"{node}: dimension {dim} in the header, Polylla needs 2")
     tab = _table(rows, nv, 3, node, "vertex", np.float64)
@@ -172,8 +187,8 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
             f"{node}: vertex ids must run consecutively from 0 or 1; line {bad + 1} has id {int(ids[bad])}")
     points = tab[:, 1:3]
     erows = _rows(ele)
-    nt = _ints(erows[0][:1], ele, 0, "header")[0]
-    per = int(erows[0][1]) if len(erows[0]) > 1 else 3
+    nt = _count(erows[0], 0, ele, "triangle count", least=1)
+    per = _count(erows[0], 1, ele, "nodes per triangle", default=3)
     if per not in (3, 6):
         raise errors.PolyllaError(f"{ele}: {per} nodes per triangle in the header (expected 3 or 6)")
     et = _table(erows, nt, 4, ele, "triangle", np.int64)
@@ -187,7 +202,7 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
 def _check_neigh(path: str, faces: np.ndarray, nf: int, base: int) -> None:
     """Every neighbour listed in ``.neigh`` shares the edge opposite the corner it is listed at."""
     rows = _rows(path)
-    n = _ints(rows[0][:1], path, 0, "header")[0]
+    n = _count(rows[0], 0, path, "triangle count")
     if n != nf:
         raise errors.PolyllaError(f"{path}: {n} triangles in the header, the .ele file has {nf}")
     tab = _table(rows, n, 4, path, "triangle", np.int64)[:, 1:4]
@@ -225,6 +240,9 @@ def read_off_2d(path: str) -> Triangulation2D:
         nv, nf = int(rows[i][0]), int(rows[i][1])
     except (ValueError, IndexError) as exc:
         raise errors.PolyllaError(f"{path}: bad OFF counts line {rows[i]}") from exc
+    if nv < 3 or nf < 1:
+        raise errors.PolyllaError(f"{path}: OFF counts line {rows[i]}: {nv} vertices and {nf} "
+                                  "faces (a triangulation needs at least 3 and 1)")
     vrows = rows[i + 1: i + 1 + nv]
     frows = rows[i + 1 + nv: i + 1 + nv + nf]
     if len(vrows) < nv or len(frows) < nf:
@@ -281,7 +299,11 @@ def read_input(path: str) -> Triangulation2D:
     if low.endswith(".npy"):
         if not os.path.exists(path):
             raise errors.PolyllaError(f"{path}: no such file")
-        return from_points(np.load(path), os.path.basename(path))
+        try:
+            pts = np.load(path, allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise errors.PolyllaError(f"{path}: not a numeric .npy array: {exc}") from exc
+        return from_points(pts, os.path.basename(path))
     if low.endswith((".xy", ".txt", ".csv", ".pts")):
         rows = _rows(path)
         try:

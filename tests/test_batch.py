@@ -107,6 +107,27 @@ def test_local_global_round_trip_and_owner():
     assert int(b.mesh_of("vertex", b.num_vertices)) == b.num_meshes
 
 
+@pytest.mark.parametrize("name", ["halfedge", "cds5n", "lr"])
+def test_ids_out_of_range_answer_absent(name):
+    """A negative local id, or a mesh index outside the batch, used to be answered from another
+    mesh (JAX wraps negative indices and clamps large ones): now they read as the sentinel."""
+    ms = [load_mesh(*octahedron()), icosphere(1)]
+    b = B.pack(ms, name)
+    nb = b.num_meshes
+    for mesh, local in ((1, -1), (0, -5), (nb, 0), (-1, 0), (nb + 3, 2)):
+        assert int(b.to_global("dart", mesh, local)) == b.num_darts
+        assert int(b.to_global("vertex", mesh, local)) == b.num_vertices
+        assert int(b.to_global("face", mesh, local)) == b.num_faces
+        assert not bool(b.query("dart_valid", mesh, local))
+        near = min(max(mesh, 0), nb - 1)
+        assert int(b.query("origin", mesh, local)) == int(b.n_vertex[near])  # the local "absent"
+        assert int(b.query("twin", mesh, local)) == int(b.n_dart[near] + b.n_extra_dart[near])
+        assert int(b.query("edge_of_vertex", mesh, local)) == int(b.n_dart[near] + b.n_extra_dart[near])
+    # in range: unchanged
+    d = b.query("edge_of_vertex", 1, 3)
+    assert bool(b.query("dart_valid", 1, d)) and int(b.query("origin", 1, d)) == 3
+
+
 @pytest.mark.parametrize("name,cls,meshes", CASES)
 def test_union_structure_passes_verify(name, cls, meshes):
     ms = meshes()

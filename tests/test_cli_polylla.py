@@ -130,7 +130,7 @@ def test_errors_write_nothing(capsys, tmp_path):
     _refused(capsys, ["polylla", str(tri), "-o", str(tmp_path / "o.obj")],
              str(tmp_path / "o.obj"), "unknown suffix '.obj'")
     # pemb is chosen (and refuses the unused vertex 4 by name) before anything is compiled
-    _refused(capsys, ["polylla", str(tri), "-o", out, "-s", "pemb"], out, "vertex 4 is in no triangle")
+    _refused(capsys, ["polylla", str(tri), "-o", out, "-s", "pemb"], out, "vertex 4 is in no face")
     with pytest.raises(SystemExit) as exc:  # argparse: not a structure Polylla runs on
         main(["polylla", str(tri), "-s", "cds6n"])
     assert exc.value.code == 2 and "invalid choice" in capsys.readouterr().err
@@ -139,3 +139,27 @@ def test_errors_write_nothing(capsys, tmp_path):
     assert main(["polylla", str(quad), "-o", str(keep)]) == 2
     assert keep.read_text() == "old"
     capsys.readouterr()
+
+
+_BAD_INPUTS = {
+    "negnode.node": ("-1 2 0 0\n", "negnode.ele", "1 3 0\n1 1 2 3\n", "vertex count -1, expected at least 3"),
+    "negele.node": ("3 2 0 0\n0 0 0\n1 1 0\n2 0 1\n", "negele.ele", "-1 3 0\n",
+                    "triangle count -1, expected at least 1"),
+    "baddim.node": ("3 two 0 0\n0 0 0\n1 1 0\n2 0 1\n", "baddim.ele", "1 3 0\n0 0 1 2\n",
+                    "dimension 'two' is not an integer"),
+    "badper.node": ("3 2 0 0\n0 0 0\n1 1 0\n2 0 1\n", "badper.ele", "1 x 0\n0 0 1 2\n",
+                    "nodes per triangle 'x' is not an integer"),
+    "negoff.off": ("OFF\n3 -1 0\n0 0 0\n1 0 0\n0 1 0\n", None, None, "3 vertices and -1 faces"),
+    "garbage.npy": ("garbage, not an npy file\n", None, None, "not a numeric .npy array"),
+}
+
+
+@pytest.mark.parametrize("name", list(_BAD_INPUTS))
+def test_bad_headers_are_named_not_tracebacks(name, capsys, tmp_path):
+    """Negative or non-numeric header fields used to escape as IndexError / ValueError."""
+    text, ele, ele_text, message = _BAD_INPUTS[name]
+    (tmp_path / name).write_text(text)
+    if ele:
+        (tmp_path / ele).write_text(ele_text)
+    out = str(tmp_path / "o.off")
+    _refused(capsys, ["polylla", str(tmp_path / name), "-o", out], out, message)

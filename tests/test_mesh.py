@@ -455,3 +455,60 @@ def test_sort_based_twin_matching_equals_first_unpaired_matching(seed):
                         np.stack([np.full(k, k + 1), nxt, ring], 1)]).astype(np.int32)
     g = g[rng.permutation(g.shape[0])]
     np.testing.assert_array_equal(_match_twins(g, k + 2), _first_unpaired_twins(g, k + 2))
+
+
+# a tetrahedron on vertices 0-3 and a vertex 4 that no face uses
+_TET_V = np.r_[np.eye(3), [[0, 0, 0], [5, 5, 5]]]
+_TET_F = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], np.int32)
+
+
+@pytest.mark.parametrize("name", ["halfedge", "corner-table", "cds6n", "cds5n-o1", "lr", "lr-bits", "pemb"])
+def test_every_builder_refuses_empty_meshes_and_vertices_in_no_face(name):
+    """A hand-made TriMesh (load_mesh refuses empties and drops unreferenced vertices): typed
+    errors naming the count or the vertex, never a crash (pemb's kernels segfaulted on an empty
+    mesh) nor a structure that answers for a vertex it cannot reach."""
+    from jaxcds.structures import registry
+
+    for mesh in (TriMesh(np.zeros((0, 3)), np.zeros((0, 3), np.int32)),
+                 TriMesh(np.zeros((5, 3)), np.zeros((0, 3), np.int32))):
+        with pytest.raises(errors.EmptyMeshError, match=r"has \d vertices and 0 faces"):
+            registry.build(name, mesh)
+    with pytest.raises(errors.UnreferencedVertexError, match="vertex 4 is in no face"):
+        registry.build(name, TriMesh(_TET_V, _TET_F))
+
+
+def test_find_defects_and_topology_name_vertices_in_no_face():
+    m = TriMesh(_TET_V, _TET_F)
+    assert [type(d) for d in find_defects(m)] == [errors.UnreferencedVertexError]
+    assert "vertex 4 is in no face" in topology(m)["defects"][0]
+    assert load_mesh((_TET_V, _TET_F)).removed_unreferenced == 1  # the loader's way out
+    with pytest.raises(errors.UnreferencedVertexError):
+        validate(m)
+
+
+_TET_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".off"])
+def test_a_latin1_comment_does_not_stop_a_text_mesh(suffix, tmp_path):
+    """A legacy-encoded comment used to fail with "No module named 'charset_normalizer'"
+    (trimesh guessing the encoding with an optional package)."""
+    text = ("# caf\xe9\n" + _TET_OBJ if suffix == ".obj" else
+            "OFF\n# caf\xe9\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n")
+    path = tmp_path / f"latin1{suffix}"
+    path.write_bytes(text.encode("latin-1"))
+    m = validate(load_mesh(str(path)))
+    assert (m.num_vertices, m.num_faces) == (4, 4)
+
+
+def test_a_truncated_binary_stl_names_sizes_and_byte(tmp_path):
+    import trimesh
+
+    good = tmp_path / "ico.stl"
+    trimesh.creation.icosphere(1).export(str(good))
+    bad = tmp_path / "cut.stl"
+    bad.write_bytes(good.read_bytes()[:300])
+    with pytest.raises(errors.UnreadableMeshError,
+                       match=r"not a binary STL \(its header declares 80 triangles, 4084 bytes; the file has 300\)"):
+        load_mesh(str(bad))
+    assert load_mesh(str(good)).num_faces == 80

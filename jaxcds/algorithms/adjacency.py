@@ -45,8 +45,9 @@ def adjacent(s, u, v):
     if hasattr(s, "adjacent"):
         return s.adjacent(u, v)
     start = s.edge_of_vertex(u)
-    _, hit = rotate_until(s, start, lambda e: s.target(e) == v, s.num_vertices + 1)
-    return hit & (u != v)
+    valid = s.dart_valid(start)  # false for a vertex in no face (edge_of_vertex: "absent")
+    _, hit = rotate_until(s, start, lambda e: valid & (s.target(e) == v), s.num_vertices + 1)
+    return hit & (u != v) & valid
 
 
 def one_ring(s, v, max_degree: int):
@@ -59,6 +60,7 @@ def one_ring(s, v, max_degree: int):
 @functools.partial(jax.jit, static_argnums=2)
 def _one_ring(s, v, max_degree):
     start = s.edge_of_vertex(v)
+    alone = ~s.dart_valid(start)  # a vertex in no face: an empty ring
 
     def step(carry, _):
         e, done = carry
@@ -66,6 +68,6 @@ def _one_ring(s, v, max_degree):
         e2 = s.ccw_vertex_edge(e)
         return (e2, done | (e2 == start)), t
 
-    (_, _), ring = jax.lax.scan(step, (start, jnp.zeros(v.shape, bool)), None, length=max_degree)
+    (_, _), ring = jax.lax.scan(step, (start, alone), None, length=max_degree)
     ring = jnp.moveaxis(ring, 0, -1)
     return ring, jnp.sum(ring < s.num_vertices, axis=-1).astype(jnp.int32)

@@ -141,6 +141,7 @@ def _gather_sums(s, positions):
         contrib = jnp.where((inner & ~done)[:, None], jnp.cross(a, b), 0.0)
         return e2, acc + contrib, done | (e2 == start), k + 1
 
+    alone = ~s.dart_valid(start)  # a vertex in no face: no turn, a zero sum
     _, acc, _, _ = jax.lax.while_loop(
-        cond, body, (start, jnp.zeros_like(positions), jnp.zeros(v.shape, bool), jnp.int32(0)))
+        cond, body, (start, jnp.zeros_like(positions), alone, jnp.int32(0)))
     return acc

@@ -180,6 +180,8 @@ def read_cds(path: str | os.PathLike, *, original_order: bool = True, drop_dummi
     pos = (np.asarray(c.positions, dtype=np.float64) if c.positions is not None
            else np.zeros((n, 3), dtype=np.float64))
     dummy = c.dummy
+    if dummy is not None:
+        ff.check_dummy_mask(dummy, faces, c.dummy_offset)
     if original_order and c.order is not None:
         inv_pos = np.empty_like(pos)
         inv_pos[c.order] = pos

@@ -64,6 +64,7 @@ class CdsContents:
     dummy: Optional[np.ndarray]      # (n,) bool
     flags: int
     version: int = VERSION
+    dummy_offset: int = -1           # byte offset of the dummy mask section (-1: none)
 
 
 def _crc(b) -> int:
@@ -192,10 +193,30 @@ def unpack_cds(data: bytes) -> CdsContents:
             missing = int(np.flatnonzero(~seen)[0])
             raise errors.FormatError(f"vertex order section (byte {ooff}) is not a permutation: "
                                      f"original vertex {missing} missing")
+    doff = -1
     if flags & FLAG_DUMMY:
-        _, m = blobs["dummy mask"]
+        doff, m = blobs["dummy mask"]
         dummy = np.unpackbits(np.frombuffer(m, dtype=np.uint8), count=n).astype(bool)
-    return CdsContents(words, positions, order, dummy, flags, head["version"])
+    return CdsContents(words, positions, order, dummy, flags, head["version"], doff)
+
+
+def check_dummy_mask(dummy: np.ndarray, faces: np.ndarray, offset: int) -> None:
+    """Raise :class:`FormatError` unless ``dummy`` (decoded order) can be a mask that
+    :func:`jaxcds.mesh.close_boundaries` wrote for ``faces`` (decoded order): every dummy vertex
+    is the apex of its own closing fan, so no face holds two of them, and some face holds none.
+    ``offset``: the mask section's first byte (bit ``i`` of the mask is in byte ``offset + i // 8``)."""
+    per_face = dummy[faces].sum(axis=1)
+    two = np.flatnonzero(per_face > 1)
+    if two.size:
+        f = faces[int(two[0])]
+        a, b = (int(x) for x in f[dummy[f]][:2])
+        raise errors.FormatError(
+            f"dummy mask (bytes from {offset}) flags vertices {a} and {b} (bytes {offset + a // 8} "
+            f"and {offset + b // 8}) of one face {f.tolist()}: hole-closing dummy vertices never "
+            "share a face; the mask is corrupted")
+    if faces.shape[0] and not (per_face == 0).any():
+        raise errors.FormatError(f"dummy mask (bytes from {offset}) leaves no face without a dummy "
+                                 "vertex: the mask is corrupted")
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

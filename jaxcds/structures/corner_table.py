@@ -121,6 +121,8 @@ class CornerTable(MeshStructure):
         else:  # a dart without twin: the half-edge route (border half-edges), as it always did
             _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices))
             O = _opposites(opp, nf)
+        # a vertex in no face: the protocol's "absent", one past the corners
+        vedge = np.where(np.asarray(vedge) < 0, 3 * nf, vedge).astype(np.int32)
         # jax.device_put: a plain copy (jnp.asarray compiles a conversion per new array shape)
         return cls(V=jax.device_put(vert[: 3 * nf]), O=jax.device_put(O),
                    vertex_corner=jax.device_put(vedge), num_vertices=int(num_vertices), num_faces=nf)

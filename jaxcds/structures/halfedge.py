@@ -213,4 +213,7 @@ def _link(faces, opp, num_vertices, nf):
         t = vert[opposite[j]]
         nxt[j] = border_out[t]
         bprev[nxt[j] - n3] = j
+    for v in range(num_vertices):
+        if vedge[v] < 0:  # a vertex in no face: the protocol's "absent", one past the darts
+            vedge[v] = h
     return nxt, opposite, vert, vedge, bprev

@@ -257,14 +257,9 @@ class PEMB(MeshStructure):
         :class:`~jaxcds.structures.succinct.BalancedParens` answer without the min-max tree."""
         mesh = load_mesh(mesh)
         if check:
+            # refuses vertices in no face too (UnreferencedVertexError): the spanning tree
+            # could not reach them
             validate(mesh, connected=True, structure="pemb")
-            used = np.zeros(mesh.num_vertices, bool)
-            used[mesh.faces.ravel()] = True
-            if not used.all():  # the spanning tree cannot reach them (topology says "genus None")
-                raise errors.UnsupportedTopologyError(
-                    f"{mesh.source}: vertex {int(np.argmin(used))} is in no triangle "
-                    f"({int((~used).sum())} such vertices): pemb's spanning tree must reach every "
-                    "vertex; drop unreferenced vertices first (load_mesh does) or use 'halfedge'")
             from jaxcds.mesh import topology
 
             top = topology(mesh)

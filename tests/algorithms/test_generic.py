@@ -126,3 +126,25 @@ def test_positions_of_wrong_shape_are_refused():
     he = HalfEdge.from_mesh(load_mesh(v, f))
     with pytest.raises(errors.MeshError, match=r"positions must have shape \(6, 3\)"):
         vertex_normals(he, jnp.zeros((5, 3)))
+
+
+@pytest.mark.parametrize("cls", [HalfEdge, CornerTable])
+def test_a_vertex_in_no_face_from_trusted_faces(cls):
+    """``from_faces`` (not validated; Polylla builds from a Triangle .node that may have an
+    unused node) with vertex 4 in no face: ``edge_of_vertex`` is the protocol's "absent"
+    (``num_darts``), it is adjacent to nothing, its ring is empty and its normal zero."""
+    v = np.r_[np.eye(3), [[0, 0, 0], [5, 5, 5]]].astype(np.float32)
+    f = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], np.int32)
+    s = cls.from_faces(f, 5)
+    assert int(s.edge_of_vertex(jnp.int32(4))) == s.num_darts
+    others = jnp.arange(4, dtype=jnp.int32)
+    assert not np.asarray(adjacent(s, jnp.full(4, 4, jnp.int32), others)).any()
+    assert not np.asarray(adjacent(s, others, jnp.full(4, 4, jnp.int32))).any()
+    ring, deg = one_ring(s, jnp.arange(5, dtype=jnp.int32), 4)
+    assert np.asarray(deg).tolist() == [3, 3, 3, 3, 0]
+    assert (np.asarray(ring)[4] == 5).all()
+    assert np.asarray(vertex_degrees(s)).tolist() == [3, 3, 3, 3, 0]
+    for method in ("scatter", "gather"):
+        n = np.asarray(vertex_normals(s, v, method=method))
+        np.testing.assert_array_equal(n[4], 0.0)
+        np.testing.assert_allclose(np.linalg.norm(n[:4], axis=1), 1.0, rtol=1e-5)

@@ -195,7 +195,7 @@ def test_pemb_refuses_vertex_in_no_triangle_by_name():
     keep = [f for f in tri.faces if 12 not in f]  # vertex 12 = (2, 2), the centre
     holed = io.Triangulation2D(tri.points, np.array(keep, np.int32), "grid5-cut")
     assert P.build_structure(holed, "halfedge").num_vertices == 25
-    with pytest.raises(errors.UnsupportedTopologyError, match="vertex 12 is in no triangle"):
+    with pytest.raises(errors.UnreferencedVertexError, match="vertex 12 is in no face"):
         P.build_structure(holed, "pemb")
 
 

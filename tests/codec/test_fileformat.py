@@ -243,3 +243,48 @@ def test_corpus_regressions(tmp_path):
     for f in files:
         with pytest.raises(errors.CodecError):
             read_cds(os.path.join(CORPUS, f))
+
+
+def _with_dummy_mask(data: bytes, mask: np.ndarray) -> bytes:
+    """``data`` (a .cds without a dummy mask) with ``mask`` appended as its dummy section and
+    every checksum made right: only the mask's meaning is wrong."""
+    out = bytearray(data)
+    n = struct.unpack_from("<Q", out, 12)[0]
+    bits = np.packbits(mask[:n]).tobytes()
+    out += bits + struct.pack("<I", zlib.crc32(bits))
+    struct.pack_into("<H", out, 10, struct.unpack_from("<H", out, 10)[0] | ff.FLAG_DUMMY)
+    struct.pack_into("<I", out, 32, zlib.crc32(bytes(out[:32])))
+    return bytes(out)
+
+
+@pytest.mark.parametrize("flagged", ["all", "two neighbours"])
+def test_a_dummy_mask_close_boundaries_cannot_write_is_refused(flagged, tmp_path):
+    """Dummy vertices are the apexes of hole-closing fans: never two on one face, and some face
+    has none. A mask (checksums right) that breaks this used to decode to an empty or wrongly
+    holed mesh with exit 0; now a FormatError names the mask's bytes, and no output is written."""
+    m = icosphere(1)
+    path = tmp_path / "ok.cds"
+    write_cds(path, m)
+    n = m.num_vertices
+    decoded = read_cds(path, original_order=False)[0].faces  # the mask's bits: decoded ids
+    mask = np.ones(n, bool) if flagged == "all" else np.isin(np.arange(n), decoded[0][:2])
+    data = _with_dummy_mask(path.read_bytes(), mask)
+    with pytest.raises(errors.FormatError, match=r"dummy mask \(bytes from \d+\)"):
+        read_cds(data)
+    bad = tmp_path / "bad.cds"
+    bad.write_bytes(data)
+    with pytest.raises(errors.FormatError):
+        decode_file(bad, tmp_path / "out.off")
+    assert not (tmp_path / "out.off").exists()
+
+
+def test_a_dummy_mask_of_a_real_hole_still_reads(tmp_path):
+    m = icosphere(1)
+    keep = np.ones(m.num_faces, bool)
+    keep[0] = False  # one triangular hole
+    from jaxcds.mesh import load_mesh
+    opened = load_mesh((m.vertices, m.faces[keep]))
+    path = tmp_path / "h.cds"
+    write_cds(path, opened)
+    m2, info = read_cds(path)
+    assert info["dummy_vertices"] == 1 and m2.num_faces == opened.num_faces
