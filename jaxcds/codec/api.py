@@ -58,7 +58,9 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     Args:
       mesh: anything :func:`jaxcds.mesh.load_mesh` accepts.
       mixed: produce the streamable mixed word (Sec. 3.3) instead of red ++ black.
-      maximal: use the maximal Schnyder wood (Lemma 3); any wood encodes (and decodes) as well.
+      maximal: use the maximal Schnyder wood (Lemma 3). Any wood encodes and decodes to a mesh;
+        decoding into CDS6n / CDS5n / CDS4n needs the maximal wood's words (EncodingError
+        otherwise: the Thm 7 face map and the 5n tables are decoded for it).
       check: validate the mesh first (typed :class:`MeshError` on defects).
       close: close boundaries with dummy vertices (``close_boundaries``) instead of refusing.
 

@@ -18,6 +18,8 @@ in linear time (a few temporary boolean/index arrays of size n, reported by the 
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -409,7 +411,51 @@ def decode_cds6n(words: Words, *, boundaries_closed: bool = False):
     n = words.num_vertices
     s = CDS6n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
               v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
-    return with_target_rounds(s)  # the static round count of the all-Targets pass (no wood here)
+    s = with_target_rounds(s)  # the static round count of the all-Targets pass (no wood here)
+    _refuse_clockwise_triangles(s)
+    return s
+
+
+def _edge_targets_of(s):
+    import jax.numpy as jnp
+
+    return s.all_edge_targets(), s.edge_valid(jnp.arange(3 * s.num_vertices, dtype=jnp.int32))
+
+
+@functools.cache
+def _jitted_edge_targets():
+    import jax
+
+    return jax.jit(_edge_targets_of)
+
+
+def _edge_targets(s):
+    """``(Target, edge_valid)`` of every edge id ``3u + c`` (one jitted program per shape)."""
+    return _jitted_edge_targets()(s)
+
+
+def _refuse_clockwise_triangles(s) -> None:
+    """Raise :class:`EncodingError` where the decoded wood has a clockwise triangle (a cycle
+    ``u ->red a ->black b ->blue u``): not the maximal wood (Lemma 3), and the Thm 7 face map
+    read off the table bits (:func:`face_map6n`) is only right for the maximal one. CDS6n's own
+    tables (Thm 2) decode from any wood's words; CDS5n/4n refuse other woods while decoding.
+    One all-Targets pass (pointer jumping) and three gathers: about a tenth of the decode."""
+    from jaxcds.construct.schnyder import BLACK, BLUE, RED
+
+    n = s.num_vertices
+    t, ok = (np.asarray(x).reshape(n, 3) for x in _edge_targets(s))
+    t = np.vstack([np.where(ok, t, n), np.full((1, 3), n)])  # row n: "absent"
+    u = np.arange(n)
+    a = t[u, RED]
+    b = t[a, BLACK]
+    cw = np.flatnonzero(t[b, BLUE] == u)
+    if cw.size:
+        x = int(cw[0])
+        raise errors.EncodingError(
+            f"the words encode a Schnyder wood with a clockwise triangle (decoded vertices {x}, "
+            f"{int(a[x])}, {int(b[x])}; {cw.size} such): not the maximal wood, and CDS6n's face map "
+            "(Thm 7) is decoded for the maximal one; encode with maximal=True (the default), or "
+            "decode to a mesh (read_cds), which any wood's words give")
 
 
 def decode_cds5n(words: Words, *, boundaries_closed: bool = False):

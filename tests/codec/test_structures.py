@@ -118,3 +118,23 @@ def test_invalid_words_into_cds_raise():
     for s in ("cds6n", "cds5n"):
         with pytest.raises(errors.EncodingError, match="bit"):
             decode(Words(10, pack(bits)), structure=s)
+
+
+@pytest.mark.parametrize("n", [6, 200])
+def test_non_maximal_words_into_cds6n_are_refused_not_mis_decoded(n):
+    """Any wood's words decode to a mesh, but the Thm 7 face map decoded into CDS6n is the
+    maximal wood's: a non-maximal wood's words used to give a CDS6n whose face_left /
+    face_right / edge_of_face disagreed with the half-edge (exit 0 without --verify). Now the
+    clockwise triangle is named; CDS5n refuses those words while decoding."""
+    from jaxcds.codec.structures import build_cds
+
+    m = random_planar_triangulation(n, seed=4)
+    loose = encode_mesh(m, maximal=False).words
+    faces, _ = decode_faces(loose)  # the mesh itself decodes
+    assert faces.shape == (2 * n - 4, 3)
+    with pytest.raises(errors.EncodingError, match="clockwise triangle"):
+        build_cds("cds6n", loose)
+    with pytest.raises(errors.EncodingError, match="maximal Schnyder wood"):
+        build_cds("cds5n", loose)
+    # the maximal wood's words decode (test_decoded_cds_passes_the_operator_check verifies them)
+    assert build_cds("cds6n", encode_mesh(m).words).num_vertices == n
