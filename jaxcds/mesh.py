@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import os
+import re
 from typing import Any, Optional, Sequence
 
 import numba
@@ -126,10 +127,15 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             # text formats, read as text here: trimesh guesses a non-UTF-8 file's encoding with
             # an optional package (charset_normalizer) and fails without it; the numbers are
             # ASCII in every encoding, so Latin-1 (which decodes any byte) reads a legacy comment
-            loaded = trimesh.load(io.StringIO(_text_of(path)), file_type=suffix[1:], process=False,
+            text = _text_of(path)
+            if suffix == ".obj":
+                _refuse_obj_index_zero(text, path)
+            loaded = trimesh.load(io.StringIO(text), file_type=suffix[1:], process=False,
                                   force="mesh")
         else:
             loaded = trimesh.load(path, process=False, force="mesh")
+    except errors.JaxcdsError:
+        raise
     except Exception as exc:  # trimesh raises many kinds; all mean "cannot parse"
         raise errors.UnreadableMeshError(f"{path}: cannot parse as {suffix[1:].upper()}: "
                                          f"{_parse_failure(path, suffix, exc)}") from exc
@@ -138,6 +144,19 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
     if faces.size == 0 and os.path.getsize(path) > 0 and vertices.size == 0:
         raise errors.UnreadableMeshError(f"{path}: no vertices or faces could be read")
     return vertices, faces
+
+
+_OBJ_INDEX_ZERO = re.compile(r"(?m)^[ \t]*f[ \t](?:[^\n]*?[ \t])?0(?=[/ \t\r]|$)")
+
+
+def _refuse_obj_index_zero(text: str, path: str) -> None:
+    """OBJ face indices start at 1 (negative ones count back); trimesh reads a 0 as another
+    vertex, and the face then looked degenerate instead of misnumbered."""
+    hit = _OBJ_INDEX_ZERO.search(text)
+    if hit:
+        line = text.count("\n", 0, hit.start()) + 1
+        raise errors.InvalidIndexError(f"{path}: line {line}: face index 0; OBJ vertex indices "
+                                       "start at 1 (negative ones count back from the last vertex)")
 
 
 def _text_of(path: str) -> str:
@@ -181,9 +200,14 @@ def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMe
     if f.ndim != 2 or f.shape[1] != 3:
         raise errors.UnreadableMeshError(f"{source}: faces must have shape (F, 3), got {f.shape}")
     if f.shape[0] and not np.issubdtype(f.dtype, np.integer):
-        if not np.all(np.equal(np.mod(f, 1), 0)):
-            raise errors.InvalidIndexError(f"{source}: face indices must be integers")
+        if not np.issubdtype(f.dtype, np.number) or not np.all(np.equal(np.mod(f, 1), 0)):
+            raise errors.InvalidIndexError(f"{source}: face indices must be integers, got "
+                                           f"{f.dtype} (first face {f[0].tolist()})")
         f = f.astype(np.int64)
+    if np.issubdtype(f.dtype, np.unsignedinteger) and f.size and f.max() >= 2**63:
+        fi, k = (int(x[0]) for x in np.nonzero(f >= 2**63))
+        raise errors.InvalidIndexError(f"{source}: face {fi} refers to vertex {int(f[fi, k])}, "
+                                       f"outside [0, {v.shape[0]})")
     f = f.astype(np.int64)
     if v.shape[0] == 0 or f.shape[0] == 0:
         raise errors.EmptyMeshError(

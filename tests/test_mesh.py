@@ -512,3 +512,21 @@ def test_a_truncated_binary_stl_names_sizes_and_byte(tmp_path):
                        match=r"not a binary STL \(its header declares 80 triangles, 4084 bytes; the file has 300\)"):
         load_mesh(str(bad))
     assert load_mesh(str(good)).num_faces == 80
+
+
+def test_obj_face_index_zero_is_named(tmp_path):
+    """OBJ indices start at 1: a 0 used to come out of trimesh as another vertex and the face
+    was reported as degenerate."""
+    path = tmp_path / "zero.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 0 3 4\nf 1 4 3\n")
+    with pytest.raises(errors.InvalidIndexError, match=r"line 7: face index 0; OBJ vertex indices start at 1"):
+        load_mesh(str(path))
+
+
+@pytest.mark.parametrize("faces,match", [([["a", "b", "c"]], "must be integers, got <U1"),
+                                         ([[0, 1, 2.5]], "must be integers, got float64"),
+                                         (np.array([[0, 1, 2**64 - 1]], np.uint64),
+                                          "refers to vertex 18446744073709551615")])
+def test_face_arrays_that_are_not_indices(faces, match):
+    with pytest.raises(errors.InvalidIndexError, match=match):
+        load_mesh((np.eye(3), faces))
