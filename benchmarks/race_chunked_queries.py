@@ -6,8 +6,10 @@ raced in turn (ns per query, min and median over the rounds; the answers checked
     flock /tmp/jaxcds_big.lock .venv/bin/python benchmarks/race_chunked_queries.py --vertices 2500000
     .venv/bin/python benchmarks/race_chunked_queries.py --packed 300 --structures cds5n-o1,cds6n,lr
 
-``one pass`` traces the operator under :func:`jaxcds.structures.base.one_pass_queries`; an
-operator the structure does not chunk gives the same program both ways.
+``one-pass`` traces the operator under :func:`jaxcds.structures.base.one_pass_queries`;
+``fused`` chunks it with each chunk's answers fused into the output's in-place update
+(``base.WRITE_CHUNK_ANSWERS_APART = False``, the form before 2026-11-30 evening). An operator the
+structure does not chunk gives the same program every way.
 """
 
 from __future__ import annotations
@@ -16,25 +18,34 @@ import argparse
 import os
 import statistics
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from jaxcds.batch import pack  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import base, registry  # noqa: E402
 
+from race_lf_words import race_in_turn  # noqa: E402
 
-def _compiled(s, op, d, one_pass: bool):
+
+def _compiled(s, op, d, route: str):
+    """``route``: ``chunked`` (as shipped), ``fused`` (chunked, each chunk's answers fused into
+    the output's in-place update: ``base.WRITE_CHUNK_ANSWERS_APART = False``) or ``one-pass``."""
     fn = jax.jit(lambda s, d: getattr(s, op)(d))
-    if one_pass:
+    if route == "one-pass":
         with base.one_pass_queries():
             return fn.lower(s, d).compile()
-    return fn.lower(s, d).compile()
+    saved = base.WRITE_CHUNK_ANSWERS_APART
+    base.WRITE_CHUNK_ANSWERS_APART = route != "fused"  # read while tracing
+    try:
+        return fn.lower(s, d).compile()
+    finally:
+        base.WRITE_CHUNK_ANSWERS_APART = saved
 
 
 def main(argv=None) -> int:
@@ -59,17 +70,13 @@ def main(argv=None) -> int:
         darts = np.asarray(s.all_darts())
         d = jnp.asarray(darts[rng.integers(0, darts.size, a.queries)], jnp.int32)
         for op in a.ops.split(","):
-            pair = [(f"{name} {op} {k}", _compiled(s, op, d, k == "one-pass"), (s, d))
-                    for k in ("chunked", "one-pass")]
-            got, want = (np.asarray(c(*args)) for _, c, args in pair)
-            assert np.array_equal(got, want), f"{name}.{op}: chunked answers differ"
-            progs.update({k: (c, args) for k, c, args in pair})
-    times = {k: [] for k in progs}
-    for _ in range(a.rounds):
-        for k, (c, args) in progs.items():
-            t0 = time.perf_counter()
-            jax.block_until_ready(c(*args))
-            times[k].append((time.perf_counter() - t0) / a.queries * 1e9)
+            routes = [(f"{name} {op} {k}", _compiled(s, op, d, k), (s, d))
+                      for k in ("chunked", "fused", "one-pass")]
+            got = [np.asarray(c(*args)) for _, c, args in routes]
+            assert all(np.array_equal(g, got[-1]) for g in got), f"{name}.{op}: chunked answers differ"
+            progs.update({k: (c, args) for k, c, args in routes})
+    raced = race_in_turn(progs, a.rounds)  # the order shuffled each round
+    times = {k: [t / a.queries * 1e9 for t in v] for k, v in raced.items()}
     what = f"packed:{a.packed}" if a.packed else f"random:{a.vertices}"
     print(f"{what}, {a.queries} random darts, chunks of {base.QUERY_CHUNK}, "
           f"{a.rounds} rounds")

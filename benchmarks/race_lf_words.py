@@ -57,13 +57,16 @@ def _structure(name, mesh, parts):
     return B.concatenate([registry.build(name, q) for q in parts]) if parts else registry.build(name, mesh)
 
 
-def race_in_turn(runs, rounds: int):
-    """``{name: [seconds per run]}``: every ``(f, args)`` of ``runs`` once per round, the order
-    rotated each round (no route always runs right after another)."""
+def race_in_turn(runs, rounds: int, seed: int = 0):
+    """``{name: [seconds per run]}``: every ``(f, args)`` of ``runs`` once per round, in an order
+    shuffled each round (seeded). A rotated order kept each route's cyclic neighbours: a cheap
+    program that always followed one with large temporaries read up to 2.5x slower than the
+    same program compiled twice and timed elsewhere in the round (2026-11-30 evening)."""
     keys, times = list(runs), {k: [] for k in runs}
-    for r in range(rounds):
-        for i in range(len(keys)):
-            k = keys[(i + r) % len(keys)]
+    rng = np.random.default_rng(seed)
+    for _ in range(rounds):
+        for i in rng.permutation(len(keys)):
+            k = keys[i]
             f, args = runs[k]
             t0 = time.perf_counter()
             jax.block_until_ready(f(*args))

@@ -63,6 +63,11 @@ def as_ids(x) -> jnp.ndarray:
 #: ids per chunk of a large batched query on CPU (see :func:`_chunked_query`)
 QUERY_CHUNK = 1 << 16
 
+#: let the operators a class names in ``chunk_answers_apart`` write each chunk's answers to a
+#: buffer of their own (read at trace time; see :func:`_chunked_query`; ``False`` only to race
+#: the fused write, ``benchmarks/race_chunked_queries.py``)
+WRITE_CHUNK_ANSWERS_APART = True
+
 #: the batched queries that run chunk by chunk: one or two id arrays in, one array out
 CHUNKED_QUERIES = ("origin", "source", "target", "twin", "next", "prev", "face", "face_left",
                    "face_right", "edge_of_vertex", "edge_of_face", "left_front", "left_back",
@@ -119,13 +124,21 @@ def _chunked_query(method):
             return method(self, *ids)
         flat = [x.reshape(-1) for x in xs]
         dtype = jax.eval_shape(lambda: method(self, *(f[:chunk] for f in flat))).dtype
+        apart = (WRITE_CHUNK_ANSWERS_APART and name in self.chunk_answers_apart
+                 and jnp.issubdtype(dtype, jnp.integer))
 
         def one_chunk(i, out):
             # the last chunk ends at the batch's end and overlaps the one before (same answers
             # twice): every chunk has the static size, and the answers are written in place
             start = jnp.minimum(i * chunk, size - chunk)
             cs = [jax.lax.dynamic_slice(f, (start,), (chunk,)) for f in flat]
-            return jax.lax.dynamic_update_slice(out, method(self, *cs).astype(dtype), (start,))
+            res = method(self, *cs).astype(dtype)
+            if apart:
+                # fused into the in-place update of the output, the operator's last pass runs
+                # on one thread; written apart it is split over both cores, at the cost of one
+                # more loop and copy per chunk (worth it only for a heavy last pass)
+                (res,) = materialize_loop((res,))
+            return jax.lax.dynamic_update_slice(out, res, (start,))
 
         out = jax.lax.fori_loop(0, -(-size // chunk), one_chunk, jnp.zeros(size, dtype))
         return out.reshape(shape)
@@ -154,6 +167,9 @@ class MeshStructure:
     #: the operators whose large batches run :data:`QUERY_CHUNK` ids at a time on CPU
     #: (:func:`_chunked_query`)
     chunked_queries: ClassVar[frozenset] = frozenset()
+    #: those of them whose chunks write their answers apart before the in-place update
+    #: (:data:`WRITE_CHUNK_ANSWERS_APART`), as measured per class
+    chunk_answers_apart: ClassVar[frozenset] = frozenset()
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

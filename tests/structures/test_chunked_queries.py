@@ -22,8 +22,21 @@ def mesh():
 
 
 def _loops(fn, ids) -> int:
-    text = str(jax.make_jaxpr(fn)(ids))
-    return text.count("while[") + text.count("scan[")  # a fori_loop of static length is a scan
+    """Loops in the traced program (a ``fori_loop`` of static length is a ``scan``), not counting
+    the one-trip loops of ``base.materialize_loop`` (materialisation points, not navigation)."""
+    def count(jaxpr):
+        k = 0
+        for eqn in jaxpr.eqns:
+            if eqn.params.get("name") == "materialize_loop":
+                continue
+            k += eqn.primitive.name in ("while", "scan")
+            for v in eqn.params.values():
+                for sub in (v if isinstance(v, (tuple, list)) else (v,)):
+                    inner = getattr(sub, "jaxpr", sub)
+                    if hasattr(inner, "eqns"):
+                        k += count(inner)
+        return k
+    return count(jax.make_jaxpr(fn)(ids).jaxpr)
 
 
 def _has_loop(fn, ids) -> bool:
@@ -49,9 +62,14 @@ def test_chunked_answers_equal_one_pass(kind, mesh, monkeypatch):
         want = _answers(s, ops, ids)
         monkeypatch.setattr(base, "QUERY_CHUNK", 37)
         got = _answers(s, ops, ids)
+        # each chunk's answers fused into the output's in-place update (the raced alternative)
+        monkeypatch.setattr(base, "WRITE_CHUNK_ANSWERS_APART", False)
+        fused = _answers(s, ops, ids)
+        monkeypatch.setattr(base, "WRITE_CHUNK_ANSWERS_APART", True)
         for op in ops:
             assert got[op].shape == ids.shape
             np.testing.assert_array_equal(got[op], want[op], err_msg=f"{kind}.{op}")
+            np.testing.assert_array_equal(fused[op], want[op], err_msg=f"{kind}.{op} (fused)")
 
 
 def test_chunking_is_really_used_and_only_for_the_named_operators(mesh, monkeypatch):
@@ -107,3 +125,18 @@ def test_ids_by_keyword_run_in_one_pass(mesh, monkeypatch):
     # LR's twin is chunked and calls no chunked operator
     np.testing.assert_array_equal(np.asarray(s.twin(e=d)), np.asarray(s.twin(d)))
     assert _has_loop(lambda d: s.twin(d), d) and not _has_loop(lambda d: s.twin(e=d), d)
+
+
+def test_answers_written_apart_only_where_the_class_names_them(mesh, monkeypatch):
+    """CDS5n-O(1) Target writes each chunk's answers apart (one more materialize_loop per
+    chunk); LR's Target (not named) keeps the fused write."""
+    monkeypatch.setattr(base, "QUERY_CHUNK", 37)
+
+    def loops_written(kind, apart):
+        s = registry.build(kind, mesh)
+        monkeypatch.setattr(base, "WRITE_CHUNK_ANSWERS_APART", apart)
+        return str(jax.make_jaxpr(lambda d: s.target(d))(s.all_darts())).count("name=materialize_loop")
+
+    assert "target" in registry.build("cds5n-o1", mesh).chunk_answers_apart
+    assert loops_written("cds5n-o1", True) == loops_written("cds5n-o1", False) + 1
+    assert loops_written("lr", True) == loops_written("lr", False)
