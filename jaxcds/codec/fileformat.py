@@ -196,7 +196,12 @@ def unpack_cds(data: bytes) -> CdsContents:
     doff = -1
     if flags & FLAG_DUMMY:
         doff, m = blobs["dummy mask"]
-        dummy = np.unpackbits(np.frombuffer(m, dtype=np.uint8), count=n).astype(bool)
+        mb = np.frombuffer(m, dtype=np.uint8)
+        pad = 8 * mb.size - n
+        if pad and int(mb[-1]) & ((1 << pad) - 1):
+            raise errors.FormatError(f"non-zero padding bits in byte {doff + mb.size - 1} "
+                                     f"(dummy mask bits {n}..{8 * mb.size - 1})")
+        dummy = np.unpackbits(mb, count=n).astype(bool)
     return CdsContents(words, positions, order, dummy, flags, head["version"], doff)
 
 

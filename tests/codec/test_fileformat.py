@@ -288,3 +288,17 @@ def test_a_dummy_mask_of_a_real_hole_still_reads(tmp_path):
     write_cds(path, opened)
     m2, info = read_cds(path)
     assert info["dummy_vertices"] == 1 and m2.num_faces == opened.num_faces
+
+
+def test_dummy_mask_padding_bits_must_be_zero(tmp_path):
+    """As in the connectivity section: the bits past vertex n - 1 in the mask's last byte."""
+    m = icosphere(1)  # 42 vertices: the mask's last byte has 6 padding bits
+    path = tmp_path / "ok.cds"
+    write_cds(path, m)
+    out = bytearray(_with_dummy_mask(path.read_bytes(), np.zeros(42, bool)))
+    n_bytes = 6  # ceil(42 / 8), then its CRC-32
+    start = len(out) - 4 - n_bytes
+    out[start + n_bytes - 1] |= 1  # the last padding bit (MSB first)
+    struct.pack_into("<I", out, len(out) - 4, zlib.crc32(bytes(out[start:start + n_bytes])))
+    with pytest.raises(errors.FormatError, match=rf"non-zero padding bits in byte {start + n_bytes - 1} \(dummy mask"):
+        read_cds(bytes(out))
