@@ -159,8 +159,13 @@ def _refuse_obj_index_zero(text: str, path: str) -> None:
                                        "start at 1 (negative ones count back from the last vertex)")
 
 
+def _bytes_of(path: str) -> bytes:
+    with open(path, "rb") as fh:
+        return fh.read()
+
+
 def _text_of(path: str) -> str:
-    raw = open(path, "rb").read()
+    raw = _bytes_of(path)
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -172,7 +177,7 @@ def _parse_failure(path: str, suffix: str, exc: Exception) -> str:
     text encoding (a binary file it could not read as binary), the byte that is not text."""
     if not (isinstance(exc, ImportError) and "charset_normalizer" in str(exc)):
         return str(exc)
-    raw = open(path, "rb").read()
+    raw = _bytes_of(path)
     try:
         raw.decode("utf-8")
         where = "its text"

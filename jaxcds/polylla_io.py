@@ -79,17 +79,18 @@ def _ints(row: list[str], path: str, lineno: int, what: str) -> list[int]:
 
 def _count(row: list[str], k: int, path: str, what: str, default: Optional[int] = None,
            least: int = 0) -> int:
-    """Header field ``k`` of ``row`` (line 1 of ``path``): an integer of at least ``least``."""
+    """Header field ``k`` of ``row`` (the first line of ``path`` that is not a comment): an
+    integer of at least ``least``."""
     if k >= len(row):
         if default is not None:
             return default
-        raise errors.PolyllaError(f"{path}: line 1 (header) has no {what}")
+        raise errors.PolyllaError(f"{path}: the header line has no {what}")
     try:
         x = int(row[k])
     except ValueError as exc:
-        raise errors.PolyllaError(f"{path}: line 1 (header): {what} {row[k]!r} is not an integer") from exc
+        raise errors.PolyllaError(f"{path}: header line: {what} {row[k]!r} is not an integer") from exc
     if x < least:
-        raise errors.PolyllaError(f"{path}: line 1 (header): {what} {x}, expected at least {least}")
+        raise errors.PolyllaError(f"{path}: header line: {what} {x}, expected at least {least}")
     return x
 
 
