@@ -141,7 +141,16 @@ class ShardedStructure(MeshStructure):
     def __getattr__(self, attr):
         if attr.startswith("__") or attr == "structure":
             raise AttributeError(attr)
+        if attr in _WHOLE_MESH_ROUTES:
+            # these read whole arrays (a CDS's degrees: its n rows): on the padded ones their
+            # shapes disagreed with num_vertices (an uneven split crashed)
+            return getattr(self.unpadded(), attr)
         return getattr(self.structure, attr)
+
+
+#: a structure's own whole-mesh routes that generic code looks up by name; a sharded structure
+#: runs them on its unpadded arrays (like face_vertices above)
+_WHOLE_MESH_ROUTES = frozenset({"vertex_degrees", "all_edge_targets"})
 
 
 def _forward(op):
@@ -183,8 +192,10 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
         x = np.asarray(x)
         if x.ndim == 0:
             return jax.device_put(x, NamedSharding(mesh, PartitionSpec()))
-        return jax.device_put(_pad_rows(x, d, PAD if x.dtype.kind in "iu" else 0),
-                              _row_sharding(mesh, x.ndim))
+        # integer leaves are padded past every id (narrow ones, e.g. lr-bits' int16 fields,
+        # with their largest value); others with 0
+        fill = min(PAD, int(np.iinfo(x.dtype).max)) if x.dtype.kind in "iu" else 0
+        return jax.device_put(_pad_rows(x, d, fill), _row_sharding(mesh, x.ndim))
 
     padded = jax.tree_util.tree_map(place, s)
     return ShardedStructure(

@@ -88,6 +88,11 @@ def test_renumbering_structure_sharded(report):
     assert r["order_equal"]
 
 
+def test_whole_mesh_routes_and_narrow_leaves_sharded(report):
+    assert report["cds4n"]["degrees_equal"]
+    assert report["lr-bits"]["degrees_equal"] and report["lr-bits"]["twin_mismatches"] == 0
+
+
 def test_cds_normals_sharded(report):
     # CDS4n (renumbered vertices, positions sharded) and a packed CDS5n batch of a closed and a
     # holed mesh: the face map on the unpadded view gives the unsharded faces, normals, gradient
@@ -187,6 +192,19 @@ def _child(full: bool) -> dict:
         "split_leaves": sum({sh.data.shape[0] for sh in x.addressable_shards} == {x.shape[0] // DEVICES}
                             for x in lv),
         "order_equal": bool(np.array_equal(ss4.vertex_order, s4.vertex_order))}
+    # a structure's own whole-mesh route (CDS degrees: 3 out-edges + incoming counts) runs on the
+    # unpadded arrays: on the padded ones an uneven split (301 rows over 4 devices) crashed
+    out["cds4n"]["degrees_equal"] = bool(np.array_equal(np.asarray(vertex_degrees(ss4)),
+                                                        np.asarray(vertex_degrees(s4))))
+    # lr-bits has int16 leaves: padded with their largest value (PAD = 2^29 overflowed them)
+    sb = registry.build("lr-bits", grid)
+    sbs = S.shard_structure(sb, mesh)
+    db = np.asarray(sb.all_darts())
+    db = db[rng.integers(0, db.size, 37)]
+    out["lr-bits"] = {
+        "degrees_equal": bool(np.array_equal(np.asarray(vertex_degrees(sbs)), np.asarray(vertex_degrees(sb)))),
+        "twin_mismatches": int(np.sum(np.asarray(S.sharded_query(sbs, "twin", db, mesh))
+                                      != np.asarray(sb.twin(jnp.asarray(db)))))}
     # the CDS normals through the face map of Thm 7 on the unpadded view (not per-face navigation)
     p4 = jnp.asarray(rpt.vertices[s4.vertex_order], jnp.float32)
     out["cds4n"]["faces_equal"] = bool(np.array_equal(np.asarray(jax.jit(lambda s: s.face_vertices())(ss4)),
