@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, replace, static_field
 from jaxcds.structures.base import Int, MeshStructure, one_pass_queries
 
@@ -175,11 +176,18 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
 
     Works for any structure whose sizes are static fields or array lengths and whose operators
     read, for a valid id, only entries of the unpadded arrays (true of every structure in the
-    registry: padding lies past every id they store). A :class:`jaxcds.batch.PackedBatch` keeps
-    its per-mesh tables replicated and gets its union structure sharded."""
+    registry but pemb: padding lies past every id they store). A :class:`jaxcds.batch.PackedBatch`
+    keeps its per-mesh tables replicated and gets its union structure sharded.
+
+    Raises:
+      UnsupportedTopologyError: a class that names why its arrays cannot be split by rows
+        (``row_sharding_refused``: pemb, whose bit vectors read their own lengths)."""
     mesh = device_mesh() if mesh is None else mesh
     d = int(mesh.devices.size)
     from jaxcds.batch import PackedBatch
+
+    if getattr(s, "row_sharding_refused", None):
+        raise errors.UnsupportedTopologyError(s.row_sharding_refused)
 
     if isinstance(s, PackedBatch):
         # the union structure is split; the per-mesh tables (B entries) are replicated

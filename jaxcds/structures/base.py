@@ -167,6 +167,9 @@ class MeshStructure:
     #: the operators whose large batches run :data:`QUERY_CHUNK` ids at a time on CPU
     #: (:func:`_chunked_query`)
     chunked_queries: ClassVar[frozenset] = frozenset()
+    #: why :func:`jaxcds.sharding.shard_structure` cannot split this class's arrays by rows
+    #: (``None``: it can)
+    row_sharding_refused: ClassVar[Optional[str]] = None
     #: those of them whose chunks write their answers apart before the in-place update
     #: (:data:`WRITE_CHUNK_ANSWERS_APART`), as measured per class
     chunk_answers_apart: ClassVar[frozenset] = frozenset()

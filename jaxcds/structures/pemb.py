@@ -239,6 +239,13 @@ class PEMB(MeshStructure):
 
     name = "pemb"
     closed_triangles = False
+    # jaxcds.sharding pads arrays by rows; the bit vectors' rank/select/match directories read
+    # their own lengths, so padded words changed every answer (found by an adversarial sweep)
+    row_sharding_refused = ("pemb cannot be split by rows over devices: its succinct bit "
+                            "vectors and their rank/select/match directories read their own "
+                            "lengths, and padding them changes the answers; shard a 'halfedge' "
+                            "(same protocol), or keep the pemb on every device and split the "
+                            "query batch")
 
     # -------------------------------------------------------------- construction
     @classmethod
