@@ -148,3 +148,31 @@ def test_a_vertex_in_no_face_from_trusted_faces(cls):
         n = np.asarray(vertex_normals(s, v, method=method))
         np.testing.assert_array_equal(n[4], 0.0)
         np.testing.assert_allclose(np.linalg.norm(n[:4], axis=1), 1.0, rtol=1e-5)
+
+
+@pytest.mark.parametrize("scale", [1e10, 1e-10, 1e-11])
+def test_normals_and_gradients_at_extreme_coordinate_scales(scale):
+    """Squared in float32, the sums of face normals overflowed near 1e10 (every normal came out
+    zero) and flushed to zero near 1e-10; the normals are scale invariant and now say so, with
+    finite gradients (of size 1 / scale)."""
+    v, f = octahedron()
+    he = HalfEdge.from_mesh(load_mesh(v, f))
+    unit = np.asarray(vertex_normals(he, jnp.asarray(v, jnp.float32)))
+    p = jnp.asarray(np.asarray(v) * scale, jnp.float32)
+    np.testing.assert_allclose(np.asarray(vertex_normals(he, p)), unit, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(face_list_vertex_normals(p, jnp.asarray(f))), unit, atol=1e-6)
+    g = jax.grad(lambda q: jnp.sum(vertex_normals(he, q)[:, 2]))(p)
+    g1 = jax.grad(lambda q: jnp.sum(vertex_normals(he, q)[:, 2]))(jnp.asarray(v, jnp.float32))
+    assert np.isfinite(np.asarray(g)).all()
+    np.testing.assert_allclose(np.asarray(g) * scale, np.asarray(g1), rtol=1e-4, atol=1e-5)
+
+
+def test_normalize_derivative_is_the_projection():
+    """The custom JVP ``(dx - u (u . dx)) / |x|``, in both modes, against the plain formula."""
+    x = jnp.array([[3.0, 4.0, 1.0], [0.5, -2.0, 0.25]], jnp.float32)
+    w = jnp.array([1.0, 2.0, 3.0], jnp.float32)
+    plain = lambda y: jnp.sum(y / jnp.linalg.norm(y, axis=-1, keepdims=True) * w)  # noqa: E731
+    np.testing.assert_allclose(np.asarray(jax.grad(lambda y: jnp.sum(normalize(y) * w))(x)),
+                               np.asarray(jax.grad(plain)(x)), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(jax.jacfwd(normalize)(x[0])),
+                               np.asarray(jax.jacfwd(lambda y: y / jnp.linalg.norm(y))(x[0])), rtol=1e-5, atol=1e-6)
