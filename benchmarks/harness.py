@@ -177,6 +177,18 @@ def machine_info() -> dict:
     }
 
 
+def _positive(text: str) -> int:
+    """An argparse type: an integer >= 1 (0 and negatives used to turn silently into the
+    default, or a traceback)."""
+    try:
+        x = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if x < 1:
+        raise argparse.ArgumentTypeError(f"{x} must be at least 1")
+    return x
+
+
 # ---------------------------------------------------------------------------------- meshes
 def load_bench_mesh(spec: str):
     """A benchmark mesh from a spec: ``icosphere:S``, ``random:N[:SEED]`` (Poulalhon--Schaeffer),
@@ -186,8 +198,14 @@ def load_bench_mesh(spec: str):
     from jaxcds.mesh import load_mesh
 
     kind, _, rest = spec.partition(":")
-    parts = [int(float(x)) for x in rest.split(":")] if rest and kind in (
-        "icosphere", "random", "hull", "square") else []
+    try:
+        parts = [int(float(x)) for x in rest.split(":")] if rest and kind in (
+            "icosphere", "random", "hull", "square") else []
+    except ValueError:
+        from jaxcds import errors
+
+        raise errors.MeshError(f"bench mesh {spec!r}: the sizes after '{kind}:' must be numbers "
+                               "(icosphere:S, random:N[:SEED], hull:N[:SEED], square:N[:SEED])") from None
     if kind == "icosphere":
         m = gen.icosphere(parts[0] if parts else 3)
     elif kind == "random":
@@ -566,8 +584,8 @@ def _parser() -> argparse.ArgumentParser:
                         f"(default: {' '.join(DEFAULT_MESHES)})")
     p.add_argument("--ops", nargs="+", metavar="OP",
                    help="only these ops (prefixes): vertex_degrees vertex_normals target face_left adjacent")
-    p.add_argument("--repeats", type=int, help="timed runs per op, median reported (default 7, quick 3)")
-    p.add_argument("--queries", type=int, help="batch size of the query ops (default 2^20, quick 4096)")
+    p.add_argument("--repeats", type=_positive, help="timed runs per op, median reported (default 7, quick 3)")
+    p.add_argument("--queries", type=_positive, help="batch size of the query ops (default 2^20, quick 4096)")
     p.add_argument("--budget", type=float, default=30.0, metavar="S",
                    help="at most about S seconds of timed runs per op (fewer repeats for slow ops)")
     p.add_argument("--max-call", type=float, default=60.0, metavar="S",

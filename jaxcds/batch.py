@@ -556,6 +556,9 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
             v = tm.vertices
             if v.shape[0] < want[i]:  # the structure closed its holes: dummies are vertices
                 v = validate_and_close(tm).vertices
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise errors.MeshError(f"pack_positions: mesh {i}'s positions have shape "
+                                   f"{tuple(v.shape)}, expected ({int(want[i])}, 3)")
         if v.shape[0] != want[i]:
             raise errors.MeshError(
                 f"pack_positions: mesh {i} has {v.shape[0]} positions, the batch holds "

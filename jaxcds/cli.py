@@ -244,7 +244,7 @@ def _parser() -> argparse.ArgumentParser:
                         "(beyond the paper; 0 = RING-EXPANDER's ring)")
     b.set_defaults(func=cmd_build)
 
-    bench = sub.add_parser("bench", help="benchmarks (options: see `jaxcds bench -- --help`)",
+    bench = sub.add_parser("bench", help="benchmarks (options: see `jaxcds bench --help`)",
                            add_help=False)
     bench.set_defaults(func=None)
     _extend_parser(sub)

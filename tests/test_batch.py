@@ -440,3 +440,15 @@ def test_pack_positions_of_holed_meshes(name):
     np.testing.assert_allclose(np.asarray(vertex_normals(b, pos)), np.concatenate(want), atol=1e-5)
     with pytest.raises(errors.MeshError, match="mesh 1 has 3 positions"):
         B.pack_positions(b, [ms[0], np.zeros((3, 3)), ms[2]])
+
+
+def test_pack_positions_checks_the_width():
+    """(n, 2), (n, 4) and 1-D arrays passed the row-count check (then np.concatenate failed, or
+    nothing did): a MeshError names the mesh and the shape."""
+    ms = [load_mesh(*octahedron()), icosphere(1)]
+    b = B.pack(ms, "halfedge")
+    good = [np.asarray(m.vertices) for m in ms]
+    for bad in (good[1][:, :2], np.hstack([good[1], good[1][:, :1]]), good[1].reshape(-1)):
+        with pytest.raises(errors.MeshError, match="mesh 1's positions have shape"):
+            B.pack_positions(b, [good[0], bad])
+    assert B.pack_positions(b, good).shape == (b.num_vertices, 3)

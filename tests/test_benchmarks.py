@@ -218,3 +218,16 @@ def test_race_chunked_queries_runs_and_checks_the_answers(capsys, monkeypatch):
     assert race_chunked_queries.main(["--packed", "2", "--queries", "1000", "--rounds", "1",
                                       "--structures", "cds6n", "--ops", "target"]) == 0
     assert "packed:2" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv,message", [(["--queries", "-5"], "-5 must be at least 1"),
+                                          (["--repeats", "0"], "0 must be at least 1"),
+                                          (["--quick", "--mesh", "icosphere:abc"], "must be numbers")])
+def test_bad_bench_arguments_are_named(argv, message, capsys):
+    """0 used to turn silently into the default, a negative count and a bad mesh size into
+    tracebacks."""
+    try:
+        rc = harness.main(argv)
+    except SystemExit as exc:  # argparse
+        rc = exc.code
+    assert rc == 2 and message in capsys.readouterr().err

@@ -105,22 +105,31 @@ def vertex_normals(s, positions, method: str = "scatter"):
     ``positions`` are in the structure's vertex order (``positions[s.vertex_order]`` when the
     structure permuted vertices). Border darts contribute nothing. Differentiable.
 
+    Integer positions are taken as float32.
+
     Raises:
       MeshError: ``positions`` is not ``(num_vertices, 3)`` (checked at trace time).
+      JaxcdsError: an unknown ``method``.
     """
-    _check_positions(s, positions)
+    if method not in ("scatter", "gather"):
+        raise errors.JaxcdsError(f"unknown normals method {method!r}: 'scatter' or 'gather'")
+    positions = _check_positions(s, positions)
     if method == "scatter":
         return normalize(_scatter_sums(s, positions))
-    if method == "gather":
-        return _gather_normals(s, positions)
-    raise ValueError(f"unknown method {method!r}: 'scatter' or 'gather'")
+    return _gather_normals(s, positions)
 
 
-def _check_positions(s, positions) -> None:
+def _check_positions(s, positions):
+    """``positions`` as a floating array of shape ``(num_vertices, 3)`` (a nested list and
+    integer coordinates are converted; the gather route's loop needs a float carry)."""
+    positions = jnp.asarray(positions)
+    if not jnp.issubdtype(positions.dtype, jnp.floating):
+        positions = positions.astype(jnp.float32)
     if positions.ndim != 2 or positions.shape != (s.num_vertices, 3):
         raise errors.MeshError(
             f"positions must have shape ({s.num_vertices}, 3) for this {s.name} "
             f"(structure vertex order), got {tuple(positions.shape)}")
+    return positions
 
 
 def _scatter_sums(s, positions):

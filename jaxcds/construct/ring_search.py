@@ -314,10 +314,18 @@ def ring_cost(V, O, tm, num_vertices: int, dummy: Optional[np.ndarray] = None) -
                           np.asarray(tm, np.uint8), int(num_vertices), nd))
 
 
+#: the most sweeps accepted: ``sweeps * n`` moves, 100 already gives the figures in RESULTS;
+#: beyond 64-bit move counts the kernel failed with a numba typing error
+MAX_SWEEPS = 100_000
+
+
 def check_sweeps(sweeps) -> int:
-    """``sweeps`` as an int, or the typed error (booleans, floats, strings, negatives refused)."""
-    if isinstance(sweeps, bool) or not isinstance(sweeps, (int, np.integer)) or sweeps < 0:
-        raise errors.StructureError(f"ring_sweeps must be an integer >= 0, got {sweeps!r}")
+    """``sweeps`` as an int, or the typed error (booleans, floats, strings, negatives and more
+    than :data:`MAX_SWEEPS` refused)."""
+    if (isinstance(sweeps, bool) or not isinstance(sweeps, (int, np.integer)) or sweeps < 0
+            or sweeps > MAX_SWEEPS):
+        raise errors.StructureError(
+            f"ring_sweeps must be an integer in [0, {MAX_SWEEPS}], got {sweeps!r}")
     return int(sweeps)
 
 

@@ -130,10 +130,12 @@ class CornerTable(MeshStructure):
     # Rossignac's operators, named as in the LR paper (Sec. 2)
     def n(self, c: Int) -> Int:
         """``c.n``: next corner in the triangle."""
+        c = jnp.asarray(c, jnp.int32)  # a Python int too
         return (3 * (c // 3) + (c + 1) % 3).astype(jnp.int32)
 
     def p(self, c: Int) -> Int:
         """``c.p``: previous corner in the triangle."""
+        c = jnp.asarray(c, jnp.int32)
         return (3 * (c // 3) + (c + 2) % 3).astype(jnp.int32)
 
     def v(self, c: Int) -> Int:

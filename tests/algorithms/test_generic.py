@@ -176,3 +176,22 @@ def test_normalize_derivative_is_the_projection():
                                np.asarray(jax.grad(plain)(x)), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(np.asarray(jax.jacfwd(normalize)(x[0])),
                                np.asarray(jax.jacfwd(lambda y: y / jnp.linalg.norm(y))(x[0])), rtol=1e-5, atol=1e-6)
+
+
+def test_normals_inputs_lists_ints_and_bad_method():
+    """A nested list and integer coordinates are converted (the gather route's float loop
+    carry crashed on ints); an unknown method is a jaxcds error, not a plain ValueError."""
+    from jaxcds import errors
+
+    v, f = octahedron()
+    he = HalfEdge.from_mesh(load_mesh(v, f))
+    want = np.asarray(vertex_normals(he, jnp.asarray(v, jnp.float32)))
+    ints = np.rint(np.asarray(v) * 2).astype(np.int32)
+    for method in ("scatter", "gather"):
+        np.testing.assert_allclose(np.asarray(vertex_normals(he, ints, method=method)), want, atol=1e-6)
+        np.testing.assert_allclose(np.asarray(vertex_normals(he, np.asarray(v).tolist(), method=method)),
+                                   want, atol=1e-6)
+    with pytest.raises(errors.JaxcdsError, match="unknown normals method 'foo'"):
+        vertex_normals(he, jnp.asarray(v, jnp.float32), method="foo")
+    ct = CornerTable.from_mesh(load_mesh(v, f))
+    assert int(ct.next(4)) == int(ct.next(jnp.int32(4)))  # a Python int id (n() crashed)

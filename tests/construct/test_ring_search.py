@@ -120,7 +120,7 @@ def test_lr_from_a_searched_ring(name):
     assert bits.bits <= LRBits.from_mesh(m, k=(16, 0), check=False).bits
 
 
-@pytest.mark.parametrize("sweeps", [-1, 2.5, "10", True])
+@pytest.mark.parametrize("sweeps", [-1, 2.5, "10", True, 100_001, 10**20])
 def test_bad_sweeps_are_refused(sweeps):
     m = load_shared("cube.off")
     for build in (LR.from_mesh, LRBits.from_mesh):
