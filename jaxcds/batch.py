@@ -130,6 +130,10 @@ class PackedBatch(MeshStructure):
     def closed_triangles(self) -> bool:  # type: ignore[override]
         return type(self.structure).closed_triangles
 
+    def dummy_vertex_mask(self):
+        """The union structure's mask (each part's dummy vertices, at their global ids)."""
+        return self.structure.dummy_vertex_mask()
+
     def __getattr__(self, attr):
         # structure-specific extras (a fast ``vertex_degrees()``, ``adjacent``...) are the
         # union structure's; guard the dataclass's own fields against recursion while unpickling

@@ -139,6 +139,10 @@ class ShardedStructure(MeshStructure):
         :meth:`face_vertices`: the padded arrays would add rows that are not faces)."""
         return self.unpadded().face_vertices_padded()
 
+    def dummy_vertex_mask(self):
+        """The structure's own mask, from the :meth:`unpadded` arrays (sized ``num_vertices``)."""
+        return self.unpadded().dummy_vertex_mask()
+
     def __getattr__(self, attr):
         if attr.startswith("__") or attr == "structure":
             raise AttributeError(attr)

@@ -182,6 +182,16 @@ def test_race_target_rounds_every_loop_form_gives_the_targets(capsys):
     assert out.count("static_two=") == 2 and "target_rounds=" in out, out
 
 
+def test_race_dummy_mask_checks_both_answers(capsys):
+    """benchmarks/race_dummy_mask.py checks the open surface's answers with the mask and the
+    closed surface's without it before timing."""
+    from benchmarks import race_dummy_mask
+
+    assert race_dummy_mask.main(["--vertices", "300", "--rounds", "1", "--structures", "cds5n"]) == 0
+    out = capsys.readouterr().out
+    assert "cds5n normals, mask" in out and "cds5n degrees, no mask" in out, out
+
+
 def test_race_lf_words_checks_both_routes_against_the_face_list(capsys):
     """benchmarks/race_lf_words.py compiles the word and the parts route and checks both."""
     from benchmarks import race_lf_words

@@ -24,7 +24,8 @@ import numpy as np
 
 from jaxcds import errors
 
-__all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums"]
+__all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums",
+           "surface_faces_padded"]
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
@@ -103,7 +104,9 @@ def vertex_normals(s, positions, method: str = "scatter"):
     """``(num_vertices, 3)`` unit area-weighted normals of structure ``s``.
 
     ``positions`` are in the structure's vertex order (``positions[s.vertex_order]`` when the
-    structure permuted vertices). Border darts contribute nothing. Differentiable.
+    structure permuted vertices). Border darts contribute nothing, nor do the fans that closed
+    holes (``s.dummy_vertex_mask()``, the CDS family): a border vertex gets the open mesh's
+    normal, a dummy vertex a zero one. Differentiable.
 
     Integer positions are taken as float32.
 
@@ -134,11 +137,24 @@ def _check_positions(s, positions):
 
 def _scatter_sums(s, positions):
     # any order and padding rows will do for a sum: structures with slotted faces skip compaction
-    fv, valid = s.face_vertices_padded()
+    fv, valid = surface_faces_padded(s)
     fn = face_normals(positions, fv)
     if valid is not None:
         fn = jnp.where(valid[:, None], fn, 0.0)
     return corner_sums(fn, fv, s.num_vertices)
+
+
+def surface_faces_padded(s):
+    """``s.face_vertices_padded()`` with the faces of the hole-closing fans (a face with a
+    vertex of ``s.dummy_vertex_mask()``) marked invalid too: the input mesh's own faces. A
+    structure without dummy vertices costs nothing more (the mask is ``None``, a trace-time
+    test)."""
+    fv, valid = s.face_vertices_padded()
+    dummy = s.dummy_vertex_mask()
+    if dummy is None:
+        return fv, valid
+    own = ~(dummy[fv[:, 0]] | dummy[fv[:, 1]] | dummy[fv[:, 2]])
+    return fv, own if valid is None else valid & own
 
 
 # The gather route turns around vertices with a while_loop (its trip count is the largest degree,
@@ -167,6 +183,7 @@ def _gather_sums(s, positions):
     v = jnp.arange(s.num_vertices, dtype=jnp.int32)
     start = s.edge_of_vertex(v)
     p0 = positions
+    dummy = s.dummy_vertex_mask()
 
     def cond(state):
         _, _, done, k = state
@@ -176,13 +193,18 @@ def _gather_sums(s, positions):
         e, acc, done, k = state
         e2 = s.ccw_vertex_edge(e)
         # the face (v, target(e), target(e2)) is the left face of e: skip border darts
+        t1, t2 = s.target(e), s.target(e2)
         inner = ~s.is_border(e)
-        a = positions[s.target(e)] - p0
-        b = positions[s.target(e2)] - p0
+        if dummy is not None:  # and the faces of the hole-closing fans
+            inner = inner & ~dummy[t1] & ~dummy[t2]
+        a = positions[t1] - p0
+        b = positions[t2] - p0
         contrib = jnp.where((inner & ~done)[:, None], jnp.cross(a, b), 0.0)
         return e2, acc + contrib, done | (e2 == start), k + 1
 
     alone = ~s.dart_valid(start)  # a vertex in no face: no turn, a zero sum
+    if dummy is not None:  # a dummy vertex: every face around it is a fan face
+        alone = alone | dummy
     _, acc, _, _ = jax.lax.while_loop(
         cond, body, (start, jnp.zeros_like(positions), alone, jnp.int32(0)))
     return acc

@@ -53,6 +53,7 @@ __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_wind
            "materialize_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
+Bool = jnp.ndarray  # bool array, any shape
 
 
 def as_ids(x) -> jnp.ndarray:
@@ -226,6 +227,17 @@ class MeshStructure:
         """``vertex_order[i]`` = input vertex id of structure vertex ``i``; ``None`` if the
         structure keeps the input numbering. Positions and per-vertex data must be permuted with
         it (``positions[vertex_order]``) before being used with the structure."""
+        return None
+
+    def dummy_vertex_mask(self) -> Optional[Bool]:
+        """``(num_vertices,)`` bool: the vertices this structure holds that the input mesh does
+        not (one per hole closed by :func:`jaxcds.mesh.close_boundaries`, CDS Sec. 4.5, when the
+        structure keeps them as vertices of its own), or ``None`` if there are none.
+
+        Whole-mesh reductions (:func:`jaxcds.algorithms.vertex_degrees`,
+        :func:`jaxcds.algorithms.vertex_normals`) leave their fans out, so they answer for the
+        input mesh: a border vertex's degree and normal are the open mesh's, a dummy's are 0.
+        Navigation still walks the closed surface."""
         return None
 
     @property

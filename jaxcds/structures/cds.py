@@ -949,12 +949,26 @@ class _CDS(MeshStructure):
         b = slot_blocks(self.num_vertices)
         return interleave_rows(faces, b), interleave_rows(valid, b)
 
+    def dummy_vertex_mask(self):
+        """The vertices of ``dummy_ids`` (holes closed by the builder, Sec. 4.5) as a mask."""
+        if self.dummy_ids is None:
+            return None
+        mask = jnp.zeros((self.num_vertices,), bool)
+        return mask.at[self.dummy_ids].set(True, mode="drop")
+
     def vertex_degrees(self) -> Int:
         """``(n,)`` degrees: the edges leaving ``u`` (3 for inner vertices, Definition 1) plus the
-        edges entering it, counted at every target (one ``segment_sum`` over the ``3n`` edges)."""
+        edges entering it, counted at every target (one ``segment_sum`` over the ``3n`` edges).
+
+        With ``dummy_ids`` (holes closed, Sec. 4.5) an edge with a dummy end is not counted: the
+        input mesh's degrees, 0 for a dummy vertex. Every edge is one ``u_c``, so no edge is
+        counted twice either way."""
         n = self.num_vertices
         ok = jnp.stack(self._valid_cols(), axis=1)
         t = jnp.stack(self._targets_cols(), axis=1)
+        dummy = self.dummy_vertex_mask()
+        if dummy is not None:
+            ok = ok & ~dummy[:, None] & ~dummy[jnp.where(ok, t, 0)]
         inc = jax.ops.segment_sum(ok.reshape(-1).astype(jnp.int32), jnp.where(ok, t, n).reshape(-1),
                                   num_segments=n + 1)[:n]
         return (jnp.sum(ok, axis=1, dtype=jnp.int32) + inc).astype(jnp.int32)
@@ -1196,6 +1210,9 @@ class CDS6n(_CDS):
       target_rounds: pointer-jumping rounds of the whole-mesh Targets (:func:`target_rounds` from
         the wood, :func:`with_target_rounds` from the tables; static metadata, not a reference;
         ``-1``: not known, the loop tests for pending entries).
+      dummy_ids: ``(k,)`` int32 or ``None``: the dummy vertices that closed the input's ``k``
+        holes (Sec. 4.5), in this structure's numbering; not references (``k`` is the number of
+        holes). :meth:`dummy_vertex_mask` reads them, so degrees and normals are the open mesh's.
     """
 
     refs: jnp.ndarray
@@ -1208,6 +1225,7 @@ class CDS6n(_CDS):
     unused_slots: tuple = static_field()
     boundaries_closed: bool = static_field(default=False)
     target_rounds: int = static_field(default=-1)
+    dummy_ids: jnp.ndarray = None
 
     name = "cds6n"
     _gathered_lf = False  # column slices of refs
@@ -1361,7 +1379,7 @@ class CDS5n(_CDS):
         3: ``S_black^left[u]``, bit 30 ``C_black^left[u]``, bit 31 ``I_black[u]``;
         4: ``S_black^right[u]``, bit 30 ``C_black^right[u]``.
       F_blue: ``(n,)`` int32 face map of Thm 7.
-      target_rounds: as in :class:`CDS6n`.
+      target_rounds, dummy_ids: as in :class:`CDS6n`.
 
     Every per-vertex rule below reads one table *row* (``row = refs[u]``, one gather of the
     whole row for batched queries) or, with ``row = refs`` and ``u = arange(n)``, the whole
@@ -1378,6 +1396,7 @@ class CDS5n(_CDS):
     unused_slots: tuple = static_field()
     boundaries_closed: bool = static_field(default=False)
     target_rounds: int = static_field(default=-1)
+    dummy_ids: jnp.ndarray = None
 
     name = "cds5n"
     _COL_TOLEFT, _COL_BLUE, _COL_BLACK_L, _COL_BLACK_R = 0, 2, 3, 4
@@ -1758,7 +1777,24 @@ def build_cds(cls, mesh, root_face: Optional[int] = None, progress: Optional[boo
     bar.step()
     s = cls.from_wood(wood, boundaries_closed=closed or m.closed_boundaries)
     bar.step()
-    return s
+    return with_dummy_vertices(s, m.dummy_vertices)
+
+
+def with_dummy_vertices(s, dummy_vertices: Optional[np.ndarray]):
+    """``s`` with ``dummy_ids``: the flagged vertices of ``dummy_vertices`` (``(n,)`` bool in the
+    input numbering, ``TriMesh.dummy_vertices``; ``None`` or all False: no change) in the
+    structure's own numbering (cwBFS labels for CDS4n / CDS5n-O(1))."""
+    import dataclasses
+
+    if dummy_vertices is None or not np.any(dummy_vertices):
+        return s
+    ids = np.flatnonzero(dummy_vertices)
+    order = s.vertex_order
+    if order is not None:  # input id -> structure label
+        label = np.empty(order.size, np.int64)
+        label[order] = np.arange(order.size)
+        ids = np.sort(label[ids])
+    return dataclasses.replace(s, dummy_ids=jnp.asarray(ids.astype(np.int32)))
 
 
 for _cls, _desc in ((CDS6n, "Schnyder-wood compact structure, Thm 2 (6n + n references)"),

@@ -298,6 +298,9 @@ def concatenate_cds(cls, parts: Sequence) -> object:
     if "target_rounds" in kw:  # chains stay in their mesh: the union needs the most rounds of a part
         rounds = [p.target_rounds for p in parts]
         kw["target_rounds"] = -1 if min(rounds) < 0 else max(rounds)
+    dummies = [np.asarray(p.dummy_ids, np.int64) + o for p, o in zip(parts, voff)
+               if p.dummy_ids is not None]
+    kw["dummy_ids"] = (jnp.asarray(np.concatenate(dummies).astype(np.int32)) if dummies else None)
     if "order" in kw:  # cwBFS labels (Sec. 2.3) -> union input ids
         kw["order"] = jnp.asarray(np.concatenate(
             [np.asarray(p.order, np.int64) + o for p, o in zip(parts, voff)]).astype(np.int32))

@@ -195,3 +195,62 @@ def test_normals_inputs_lists_ints_and_bad_method():
         vertex_normals(he, jnp.asarray(v, jnp.float32), method="foo")
     ct = CornerTable.from_mesh(load_mesh(v, f))
     assert int(ct.next(4)) == int(ct.next(jnp.int32(4)))  # a Python int id (n() crashed)
+
+
+def _flat_strip(nx=12, ny=3, seed=0):
+    """A nearly flat open patch (the case where a hole's fan flips border normals): an
+    ``nx`` by ``ny`` grid of quads in the plane z = 0, slightly bumped, split into triangles."""
+    rng = np.random.default_rng(seed)
+    x, y = np.meshgrid(np.arange(nx + 1, dtype=float), np.arange(ny + 1, dtype=float), indexing="ij")
+    v = np.stack([x.ravel(), y.ravel(), 1e-3 * rng.standard_normal(x.size)], axis=1)
+    idx = lambda i, j: i * (ny + 1) + j  # noqa: E731
+    f = []
+    for i in range(nx):
+        for j in range(ny):
+            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
+            f += [[a, b, c], [a, c, d]]
+    return load_mesh(v, np.asarray(f))
+
+
+@pytest.mark.parametrize("structure", ["cds6n", "cds5n", "cds4n", "cds5n-o1"])
+def test_cds_on_an_open_mesh_gives_the_open_meshes_degrees_and_normals(structure):
+    """The CDS family closes the hole with a dummy vertex and a fan (Sec. 4.5). Degrees and
+    normals are still the open surface's: on a flat strip every normal is about +z (the fan
+    flipped the border ones to -z before), the dummy's normal is zero and its degree 0; batched
+    and gathered the same, gradients equal the open face list's."""
+    from jaxcds import batch
+    from jaxcds.structures import registry
+
+    m = _flat_strip()
+    s = registry.build(structure, m)
+    assert s.num_vertices == m.num_vertices + 1  # one hole, one dummy vertex
+    order = np.arange(s.num_vertices) if s.vertex_order is None else np.asarray(s.vertex_order)
+    closed = close_boundaries(m)
+    dummy = np.asarray(closed.dummy_vertices)[order]
+    np.testing.assert_array_equal(np.asarray(s.dummy_vertex_mask()), dummy)
+    pos = jnp.asarray(closed.vertices[order], jnp.float32)
+    he = HalfEdge.from_mesh(m)
+    inv = np.argsort(order)[: m.num_vertices]  # input vertex -> structure label
+    want = np.asarray(vertex_normals(he, jnp.asarray(m.vertices, jnp.float32)))
+    for method in ("scatter", "gather"):
+        got = np.asarray(vertex_normals(s, pos, method=method))
+        np.testing.assert_allclose(got[inv], want, atol=1e-5)
+        assert got[inv][:, 2].min() > 0.99  # every normal of the flat strip points up
+        np.testing.assert_array_equal(got[dummy], 0.0)
+    deg = np.asarray(vertex_degrees(s))
+    np.testing.assert_array_equal(deg[inv], np.asarray(vertex_degrees(he)))
+    assert deg[dummy].tolist() == [0]
+    # the generic route (darts counted at their origins, fans subtracted) agrees
+    from jaxcds.algorithms.degrees import dart_count_degrees
+    np.testing.assert_array_equal(np.asarray(jax.jit(dart_count_degrees)(s)), deg)
+    # gradients: the open face list on the same positions (the dummy's gradient is zero)
+    w = jnp.asarray(np.random.default_rng(1).normal(size=pos.shape), jnp.float32)
+    faces = jnp.asarray(np.argsort(order)[m.faces])
+    g = jax.grad(lambda p: jnp.sum(vertex_normals(s, p) * w))(pos)
+    g_ref = jax.grad(lambda p: jnp.sum(face_list_vertex_normals(p, faces) * w))(pos)
+    np.testing.assert_allclose(np.asarray(g), np.asarray(g_ref), atol=1e-4, rtol=1e-3)
+    # a batch of the strip and a closed mesh: the dummy keeps its place in the union
+    b = batch.pack([octahedron(), m], structure)
+    got_b = np.asarray(vertex_normals(b, batch.pack_positions(b, [octahedron(), closed])))
+    np.testing.assert_allclose(got_b[6:][inv], want, atol=1e-5)
+    np.testing.assert_array_equal(np.asarray(vertex_degrees(b))[6:][inv], np.asarray(vertex_degrees(he)))

@@ -53,7 +53,13 @@ def _oracle(s):
     return ok, walk, MeshStructure.face_vertices(s)
 
 
-def _check(s, positions):
+def _dummy_mask(m, order=None):
+    """``m``'s dummy vertices (holes closed, Sec. 4.5) in structure order; all False if none."""
+    d = np.zeros(m.num_vertices, bool) if m.dummy_vertices is None else np.asarray(m.dummy_vertices)
+    return d if order is None else d[np.asarray(order)]
+
+
+def _check(s, positions, dummy):
     t, fv, pad, valid = _fast(s)
     ok, walk, fv_ref = _oracle(s)
     ok = np.asarray(ok)
@@ -67,7 +73,10 @@ def _check(s, positions):
     np.testing.assert_array_equal(key(pad[valid]), key(np.asarray(fv_ref)))
     # normals and gradients == the face list on the same faces
     p = jnp.asarray(positions, jnp.float32)
-    faces = jnp.asarray(fv_ref)
+    # the surface's own faces: the fans closing holes are left out of the normals
+    own = ~np.asarray(dummy)[np.asarray(fv_ref)].any(axis=1)
+    assert own.all() or s.dummy_vertex_mask() is not None
+    faces = jnp.asarray(np.asarray(fv_ref)[own])
     np.testing.assert_allclose(np.asarray(vertex_normals(s, p)),
                                np.asarray(face_list_vertex_normals(p, faces)), atol=2e-5)
     w = jnp.linspace(-1.0, 1.0, 3 * s.num_vertices).reshape(-1, 3)
@@ -87,7 +96,7 @@ def test_whole_mesh_routes_single(name, mesh):
     pos = np.asarray(m.vertices, np.float64)
     if s.vertex_order is not None:
         pos = pos[np.asarray(s.vertex_order)]
-    _check(s, pos)
+    _check(s, pos, _dummy_mask(m, s.vertex_order))
 
 
 @pytest.mark.parametrize("name", CDS)
@@ -96,11 +105,19 @@ def test_whole_mesh_routes_packed(name):
     b = pack(meshes, name)
     s = b.structure
     pos = np.asarray(pack_positions(b, meshes))
-    _check(s, pos)
-    # the batch forwards the padded faces: the batch normals == the face list's
+    # the union's vertex_order maps its labels to union input ids (meshes one after another)
+    dummy = np.concatenate([_dummy_mask(m) for m in meshes])
+    if s.vertex_order is not None:
+        dummy = dummy[np.asarray(s.vertex_order)]
+    assert dummy.any()  # grid.off has holes
+    _check(s, pos, dummy)
+    # the batch forwards the padded faces and the dummy mask: the batch normals == the face
+    # list's on the surfaces' own faces
+    fv = np.asarray(s.face_vertices())
+    own = jnp.asarray(fv[~dummy[fv].any(axis=1)])
     np.testing.assert_allclose(np.asarray(vertex_normals(b, jnp.asarray(pos, jnp.float32))),
-                               np.asarray(face_list_vertex_normals(jnp.asarray(pos, jnp.float32),
-                                                                   s.face_vertices())), atol=2e-5)
+                               np.asarray(face_list_vertex_normals(jnp.asarray(pos, jnp.float32), own)),
+                               atol=2e-5)
 
 
 def test_slot_blocks_and_every_block_count_is_a_permutation(monkeypatch):
