@@ -218,7 +218,8 @@ class PackedBatch(MeshStructure):
             return self.vertex_offsets, self.n_vertex, self.num_vertices
         if kind == "face":
             return self.face_offsets, self.n_face, self.num_faces
-        raise ValueError(f"unknown id kind {kind!r}: 'vertex', 'face' or 'dart'")
+        raise errors.ArgumentError(f"unknown id kind {kind!r}: 'vertex' or 'face' here "
+                                   "('dart' only for mesh_of / to_global / to_local)")
 
     # ------------------------------------------------------------------ batched local queries
     def query(self, op: str, mesh: Int, local: Int) -> Int:
@@ -226,7 +227,8 @@ class PackedBatch(MeshStructure):
         on mesh-local ids: ``mesh`` and ``local`` broadcast together, the answer is local to the
         same mesh (ids never leave their component). Jittable; ``op`` must be static."""
         if op not in OPERATOR_KINDS:
-            raise ValueError(f"unknown operator {op!r}; one of {sorted(OPERATOR_KINDS)}")
+            raise errors.ArgumentError(f"PackedBatch.query: unknown operator {op!r}; one of "
+                                       f"{sorted(OPERATOR_KINDS)}")
         arg_kind, res_kind = OPERATOR_KINDS[op]
         mesh = jnp.asarray(mesh, jnp.int32)
         g = self.to_global(arg_kind, mesh, local)
@@ -255,13 +257,24 @@ class PackedBatch(MeshStructure):
     # ------------------------------------------------------------------ per-mesh reductions
     def per_mesh_sum(self, values, kind: str = "vertex"):
         """``(num_meshes, ...)`` sums of per-vertex (or per-face) ``values`` over each mesh."""
+        self._check_length("per_mesh_sum", values, kind)
         seg = self.vertex_mesh() if kind == "vertex" else self.face_mesh()
         return jax.ops.segment_sum(values, seg, num_segments=self.num_meshes)
 
+    def _check_length(self, what: str, values, kind: str) -> None:
+        """Raise :class:`~jaxcds.errors.ArgumentError` unless ``values`` has one row per
+        ``kind`` (vertex or face) of the batch (segment sums would drop or misassign rows)."""
+        total = self._table(kind)[2]
+        rows = np.shape(values)[0] if np.ndim(values) else None
+        if rows != total:
+            raise errors.ArgumentError(
+                f"PackedBatch.{what}: values must have one row per {kind} of the batch ({total}), "
+                f"got shape {tuple(np.shape(values))}")
+
     def per_mesh_mean(self, values, kind: str = "vertex"):
         """Per-mesh means (0 for an empty mesh)."""
-        cnt = self.n_vertex if kind == "vertex" else self.n_face
         s = self.per_mesh_sum(values, kind)
+        cnt = self.n_vertex if kind == "vertex" else self.n_face
         c = jnp.maximum(cnt, 1).astype(s.dtype).reshape((-1,) + (1,) * (s.ndim - 1))
         return s / c
 
@@ -270,12 +283,14 @@ class PackedBatch(MeshStructure):
         """Host-side list of per-mesh slices of a per-vertex (per-face) array, in each mesh's
         structure vertex order (use :meth:`unpermute` first for input order)."""
         values = np.asarray(values)
+        self._check_length("split", values, kind)
         off = np.asarray(self._table(kind)[0])
         cnt = np.asarray(self._table(kind)[1])
         return [values[o:o + c] for o, c in zip(off.tolist(), cnt.tolist())]
 
     def unpermute(self, values):
         """Per-vertex ``values`` in structure order -> input (packed) order."""
+        self._check_length("unpermute", values, "vertex")
         order = self.vertex_order
         if order is None:
             return values

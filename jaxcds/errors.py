@@ -24,7 +24,9 @@ Hierarchy::
     ├── CodecError                    compressed streams and files (.cds)
     │   ├── FormatError               bad magic, version, checksum, truncation
     │   └── EncodingError             a word that is not a valid encoding
-    └── PolyllaError                  Polylla inputs
+    ├── PolyllaError                  Polylla inputs
+    └── ArgumentError                 a call's arguments: an unknown operator, id kind or
+                                      method, an array of the wrong length
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ __all__ = [
     "FormatError",
     "EncodingError",
     "PolyllaError",
+    "ArgumentError",
 ]
 
 
@@ -122,3 +125,8 @@ class EncodingError(CodecError):
 
 class PolyllaError(JaxcdsError, ValueError):
     """A Polylla input that cannot be meshed."""
+
+
+class ArgumentError(JaxcdsError, ValueError):
+    """A call's arguments are not ones the function takes: an unknown operator, id kind or
+    method name, or a per-vertex / per-face array whose length is not the count it must be."""

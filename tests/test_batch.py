@@ -201,6 +201,30 @@ def test_per_mesh_reductions():
     np.testing.assert_array_equal(area2, [m.num_faces for m in ms])
 
 
+def test_batch_helpers_refuse_bad_arguments_by_name():
+    """An unknown operator or id kind, and per-vertex / per-face arrays of the wrong length, are
+    ArgumentErrors naming the call (a segment sum dropped or misassigned rows silently)."""
+    ms = closed_meshes()
+    b = B.pack(ms, "corner-table")
+    with pytest.raises(errors.ArgumentError, match="unknown operator 'tagret'"):
+        b.query("tagret", 0, 0)
+    with pytest.raises(errors.ArgumentError, match="unknown id kind 'edge'"):
+        b.per_mesh_sum(jnp.ones(b.num_vertices), kind="edge")
+    with pytest.raises(errors.ArgumentError, match=f"per_mesh_sum.*one row per vertex.*{b.num_vertices}"):
+        b.per_mesh_sum(jnp.ones(b.num_vertices - 1))
+    with pytest.raises(errors.ArgumentError, match="one row per face"):
+        b.per_mesh_mean(jnp.ones(b.num_vertices), kind="face")
+    with pytest.raises(errors.ArgumentError, match="split.*one row per vertex"):
+        b.split(np.ones(3))
+    with pytest.raises(errors.ArgumentError, match="unpermute"):
+        b.unpermute(np.ones(b.num_vertices + 1))
+    with pytest.raises(errors.ArgumentError, match="split"):
+        b.split(np.float32(1.0))  # a scalar has no rows
+    # the right lengths still pass, under jit too
+    assert len(b.split(np.ones(b.num_faces), kind="face")) == len(ms)
+    assert jax.jit(lambda x: b.per_mesh_sum(x))(jnp.ones(b.num_vertices)).shape == (len(ms),)
+
+
 def test_same_totals_do_not_recompile():
     """Counts and offsets are leaves: two batches with the same totals share one compilation."""
     a = [icosphere(1), random_planar_triangulation(40, seed=3)]

@@ -31,7 +31,8 @@ __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_norm
 @functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
 def normalize(x, axis: int = -1, eps: float = 0.0):
     """``x / |x|``; a vector whose largest component is at most ``eps`` in magnitude (a zero
-    vector) maps to zero with a zero derivative instead of NaN (as optax's ``safe_norm``).
+    vector) maps to zero with a zero derivative instead of NaN (as optax's ``safe_norm``); a
+    vector with a NaN component maps to NaN.
 
     ``x`` is first divided by its largest component: squared directly, float32 sums of face
     normals overflowed from coordinates near 1e10 (``|x|^2`` past 3e38: every normal came out
@@ -44,7 +45,9 @@ def normalize(x, axis: int = -1, eps: float = 0.0):
 def _unit(x, axis, eps):
     """``(x / |x|, |x|, nonzero)``, computed on ``x`` scaled by its largest component."""
     big = _sum_or_max(jnp.abs(x), axis, jnp.maximum)
-    nonzero = big > eps
+    # written so that NaN counts as nonzero: a NaN coordinate gives NaN normals (NaN in, NaN
+    # out), not a zero normal that looks like a degenerate fan
+    nonzero = ~(big <= eps)
     safe_big = jnp.where(nonzero, big, 1.0)
     y = x / safe_big
     root = jnp.sqrt(jnp.where(nonzero, _sum_or_max(y * y, axis, jnp.add), 1.0))
@@ -112,10 +115,10 @@ def vertex_normals(s, positions, method: str = "scatter"):
 
     Raises:
       MeshError: ``positions`` is not ``(num_vertices, 3)`` (checked at trace time).
-      JaxcdsError: an unknown ``method``.
+      ArgumentError: an unknown ``method``.
     """
     if method not in ("scatter", "gather"):
-        raise errors.JaxcdsError(f"unknown normals method {method!r}: 'scatter' or 'gather'")
+        raise errors.ArgumentError(f"unknown normals method {method!r}: 'scatter' or 'gather'")
     positions = _check_positions(s, positions)
     if method == "scatter":
         return normalize(_scatter_sums(s, positions))

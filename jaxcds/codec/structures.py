@@ -324,8 +324,9 @@ def _blue5(n, r):
 def _run_phase1(words: Words, k: int, L, five: bool) -> np.ndarray:
     _check_size(words)
     n = words.num_vertices
-    if n >= 1 << 30:
-        raise errors.EncodingError(f"n = {n}: the packed CDS references hold at most 2^30 vertices")
+    if n >= 1 << 30 or 6 * n > 2**31 - 1:
+        raise errors.EncodingError(f"n = {n:,}: a CDS holds at most 357,913,941 vertices (its 6n dart "
+                                   "ids are int32; decode the faces instead)")
     refs = np.zeros((n, k), dtype=np.int32)
     r = refs.view(np.uint32)
     buf = np.ascontiguousarray(words.bits, dtype=np.uint8)

@@ -56,6 +56,21 @@ Int = jnp.ndarray  # int32 array of ids, any shape
 Bool = jnp.ndarray  # bool array, any shape
 
 
+#: the largest dart id space an int32 reference holds: ids ``0 .. 2^31 - 2`` and the "absent"
+#: sentinel ``num_darts`` itself (``2^31 - 1``)
+MAX_DARTS = 2**31 - 1
+
+
+def check_id_space(what: str, num_darts: int) -> None:
+    """Raise :class:`~jaxcds.errors.UnsupportedTopologyError` naming ``what`` when ``num_darts``
+    ids and their sentinel do not fit int32 (every reference of jaxcds is int32; past it the ids
+    wrap to negative values and every answer is wrong)."""
+    if num_darts > MAX_DARTS:
+        raise errors.UnsupportedTopologyError(
+            f"{what}: {num_darts:,} dart ids do not fit int32 references (at most {MAX_DARTS:,}, "
+            "the 'absent' sentinel included): split the mesh or pack fewer meshes per batch")
+
+
 def as_ids(x) -> jnp.ndarray:
     """Ids as an int32 jnp array (the dtype of every reference in jaxcds)."""
     return jnp.asarray(x, dtype=jnp.int32)
@@ -248,6 +263,37 @@ class MeshStructure:
     def nbytes(self) -> int:
         """Bytes of every array held by the structure."""
         return int(sum(np.asarray(x).nbytes for x in jax.tree_util.tree_leaves(self)))
+
+    def check_ids(self, kind: str, ids) -> np.ndarray:
+        """Host-side guard for ids from outside (files, user input): ``ids`` as an int32 numpy
+        array if every one names a ``kind`` (``"dart"``, ``"vertex"`` or ``"face"``) of this
+        structure, else :class:`~jaxcds.errors.InvalidIndexError` naming the first bad id and
+        its position.
+
+        The jitted operators take valid ids as a precondition, as a C++ mesh library does (no
+        test per query): an id out of range, or a dart id in a hole of the id space
+        (``dart_valid`` False: an LR slot that is no corner, a CDS root's missing edge), answers
+        an arbitrary value. Call this once on untrusted ids, or mask with :meth:`dart_valid`."""
+        if kind not in ("dart", "vertex", "face"):
+            raise errors.ArgumentError(f"unknown id kind {kind!r}: 'dart', 'vertex' or 'face'")
+        a = np.asarray(ids)
+        if a.size and not np.issubdtype(a.dtype, np.integer):
+            raise errors.InvalidIndexError(f"{kind} ids must be integers, got dtype {a.dtype}")
+        a = a.astype(np.int64)
+        size = {"dart": self.num_darts, "vertex": self.num_vertices, "face": self.num_faces}[kind]
+        bad = (a < 0) | (a >= size)
+        if kind == "dart" and a.size:
+            inside = np.where(bad, 0, a).astype(np.int32)
+            bad = bad | ~np.asarray(self.dart_valid(jnp.asarray(inside)))
+        if bad.any():
+            pos = np.unravel_index(int(np.argmax(bad)), a.shape) if a.ndim else ()
+            x = int(a[pos]) if a.ndim else int(a)
+            why = (f"outside [0, {size})" if not 0 <= x < size
+                   else "inside the id space but not a dart (dart_valid is False)")
+            where = f" at position {tuple(int(i) for i in pos)}" if a.ndim else ""
+            raise errors.InvalidIndexError(
+                f"{self.name}: {kind} id {x}{where} is {why}; {int(bad.sum())} of {a.size} ids are bad")
+        return a.astype(np.int32)
 
     def all_darts(self) -> np.ndarray:
         """Host-side array of every valid dart id (for checks, not for hot loops)."""

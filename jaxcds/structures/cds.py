@@ -98,7 +98,7 @@ from jaxcds._progress import Progress as _Progress
 from jaxcds._progress import want_progress as _want_progress
 from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
 from jaxcds.structures import registry
-from jaxcds.structures.base import Int, MeshStructure, interleave_rows
+from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
@@ -453,13 +453,20 @@ def _cds_rows(offsets, nbr, col, outg, out, n, v_red, v_black, kind, label, even
     return refs, fblue, free, n_need, n_free, -1
 
 
+def _check_size(n: int) -> None:
+    """Refuse ``n`` vertices past the 30-bit reference fields (Sec. 2.1) or past int32 dart ids
+    (``6n``: from 357,913,942 vertices on, below 2^30), naming the limit."""
+    if n >= _MAX_VERTICES:
+        raise errors.UnsupportedTopologyError(f"{n} vertices: the packed references hold at most 2^30")
+    check_id_space(f"CDS of {n:,} vertices (dart ids 2(3u + c) + r, 6n in all)", 6 * n)
+
+
 def _build_rows(wood: SchnyderWood, kind: int, label=None, even=None):
     """``(refs int32 (n, k), F_blue, static fields)`` of a CDS from ``wood``, by
     :func:`_cds_rows`; ``label``: the cwBFS renumbering (Sec. 2.3), or ``None``; ``even``: the
     depth parity (CDS5n-O(1))."""
     n = wood.num_vertices
-    if n >= _MAX_VERTICES:
-        raise errors.UnsupportedTopologyError(f"{n} vertices: the packed references hold at most 2^30")
+    _check_size(n)
     if label is None:
         label = np.empty(0, dtype=np.int32)
     if even is None:
@@ -1274,8 +1281,7 @@ class _Tables:
 
     def __init__(self, wood: SchnyderWood):
         n = wood.num_vertices
-        if n >= _MAX_VERTICES:
-            raise errors.UnsupportedTopologyError(f"{n} vertices: the packed references hold at most 2^30")
+        _check_size(n)
         self.wood = wood
         self.n = n
         self.lf, self.rf, self.lf2 = edge_fronts(wood)
@@ -1772,6 +1778,7 @@ def build_cds(cls, mesh, root_face: Optional[int] = None, progress: Optional[boo
     bar = _Progress(["mesh checks", "Schnyder wood", f"{cls.name} tables"], f"build {cls.name}",
                     _want_progress(progress, n0))
     m, closed = prepare_mesh(mesh, structure=f"{cls.name} (Schnyder woods)")
+    _check_size(m.num_vertices)  # before the wood: refused sizes cost no build
     bar.step()
     wood = schnyder_wood(m.faces, m.num_vertices, root_face=root_face, maximal=True)
     bar.step()

@@ -40,7 +40,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import _chunk_queries, interleave_rows, parts_of_one_class
+from jaxcds.structures.base import _chunk_queries, check_id_space, interleave_rows, parts_of_one_class
 from jaxcds.structures.cds import slot_blocks
 
 __all__ = ["concatenate_cds", "packed_class"]
@@ -275,6 +275,7 @@ def concatenate_cds(cls, parts: Sequence) -> object:
         raise errors.UnsupportedTopologyError(
             f"{cls.__name__}.concatenate: {total} vertices in all; the packed references hold at most "
             "2^30 (Sec. 2.1): pack fewer meshes per batch")
+    check_id_space(f"{cls.__name__}.concatenate of {total:,} vertices (6 dart ids each)", 6 * total)
     voff = np.concatenate([[0], np.cumsum(nv)[:-1]])
     nf = np.array([p.num_faces for p in parts], np.int64)
     if np.any(nf != 2 * nv - 4):

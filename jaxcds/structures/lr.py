@@ -39,7 +39,7 @@ from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, extract_ring, lr_tables
 from jaxcds.construct.ring_search import check_sweeps, improve_ring
 from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
-from jaxcds.structures.base import Int, MeshStructure, interleave_rows
+from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows
 from jaxcds.structures.corner_table import CornerTable
 
 __all__ = ["LR", "LRBits", "build_lr", "stats", "render_list", "expand_render_list",
@@ -828,6 +828,8 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
     _dev = jax.device_put  # a plain copy (jnp.asarray compiles a conversion per new shape)
     if nv >= 1 << _VALUE_BITS:
         raise errors.UnsupportedTopologyError(f"{nv} vertices: LR entries hold 29-bit vertex ids")
+    # corner ids 8 w + i of the ring (and 4 per T0, checked below): int32 from 2^28 ring vertices
+    check_id_space(f"{cls.__name__} with a ring of {int(m):,} vertices (corner ids 8 m_r + 4 n0)", 8 * int(m))
     dmask = np.zeros(nv, bool) if dummy is None else np.asarray(dummy, bool)
     p = lr_pack.pack_common(V, O, vertex_corner, tb, dmask, quad_check=check)
     if p["bad_quad"] is not None:
@@ -835,6 +837,8 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
         raise errors.StructureError(
             f"LR: quad opposite of corner {8 * w + i} (ring vertex {w}) is wrong")
     nv_real, nf_real, n0 = p["nv_real"], p["nf_real"], int(p["t0"].size)
+    check_id_space(f"{cls.__name__} with a ring of {m:,} vertices and {n0:,} T0 triangles "
+                   "(corner ids 8 m_r + 4 n0)", 8 * int(m) + 4 * n0)
     irl, irr = p["irl"], p["irr"]
     words, rank, nring_faces = lr_pack.directory(p["hidden"])
     order = p["order"]

@@ -254,3 +254,22 @@ def test_cds_on_an_open_mesh_gives_the_open_meshes_degrees_and_normals(structure
     got_b = np.asarray(vertex_normals(b, batch.pack_positions(b, [octahedron(), closed])))
     np.testing.assert_allclose(got_b[6:][inv], want, atol=1e-5)
     np.testing.assert_array_equal(np.asarray(vertex_degrees(b))[6:][inv], np.asarray(vertex_degrees(he)))
+
+
+def test_a_nan_coordinate_gives_nan_normals_not_zero_ones():
+    """NaN in, NaN out: the NaN vertex and its one-ring (the faces it is on) read NaN, every
+    other normal is untouched; a zero sum (a vertex in no face) still reads zero."""
+    m = load_mesh(*octahedron())
+    he = HalfEdge.from_mesh(m)
+    p = np.asarray(m.vertices, np.float32).copy()
+    good = np.asarray(vertex_normals(he, jnp.asarray(p)))
+    p[0, 1] = np.nan
+    ring = {0} | {int(v) for f in m.faces for v in f if 0 in f}
+    for method in ("scatter", "gather"):
+        n = np.asarray(vertex_normals(he, jnp.asarray(p), method=method))
+        nan_rows = set(np.flatnonzero(np.isnan(n).any(axis=1)).tolist())
+        assert nan_rows == ring, (method, nan_rows)
+        rest = sorted(set(range(m.num_vertices)) - ring)
+        np.testing.assert_allclose(n[rest], good[rest], atol=1e-6)
+    np.testing.assert_array_equal(np.asarray(normalize(jnp.zeros((2, 3)))), 0.0)
+    assert np.isnan(np.asarray(normalize(jnp.asarray([[np.nan, 0.0, 0.0]])))).all()

@@ -1,0 +1,56 @@
+"""int32 id spaces: sizes whose dart ids (or their 'absent' sentinel) would wrap are refused by
+name before anything is built (the meshes themselves would not fit this machine, so the guards
+are called with the sizes alone)."""
+
+from __future__ import annotations
+
+import types
+
+import pytest
+
+from jaxcds import errors
+from jaxcds.structures import cds
+from jaxcds.structures.base import MAX_DARTS, check_id_space
+
+
+def test_check_id_space_boundary():
+    check_id_space("x", MAX_DARTS)  # ids 0 .. 2^31 - 2 and the sentinel 2^31 - 1
+    with pytest.raises(errors.UnsupportedTopologyError, match=r"x: 2,147,483,648 dart ids do not fit int32"):
+        check_id_space("x", MAX_DARTS + 1)
+
+
+def test_cds_refuses_vertices_whose_6n_dart_ids_wrap():
+    cds._check_size(357_913_941)  # 6n = 2,147,483,646: fits, sentinel included
+    with pytest.raises(errors.UnsupportedTopologyError, match="357,913,942.*6n"):
+        cds._check_size(357_913_942)
+    with pytest.raises(errors.UnsupportedTopologyError, match="2\\^30"):
+        cds._check_size(1 << 30)
+    # the table builder checks before it allocates anything
+    with pytest.raises(errors.UnsupportedTopologyError, match="dart ids"):
+        cds._build_rows(types.SimpleNamespace(num_vertices=400_000_000), 0)
+
+
+@pytest.mark.parametrize("structure", ["halfedge", "lr", "cds4n"])
+def test_check_ids_names_the_first_bad_id(structure):
+    import numpy as np
+
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures import registry
+
+    s = registry.build(structure, random_planar_triangulation(60, seed=3))
+    darts = s.all_darts()
+    np.testing.assert_array_equal(s.check_ids("dart", darts), darts)
+    assert s.check_ids("vertex", [0, s.num_vertices - 1]).dtype == np.int32
+    with pytest.raises(errors.InvalidIndexError, match=rf"dart id -1 at position \(1,\) is outside \[0, {s.num_darts}\)"):
+        s.check_ids("dart", [darts[0], -1, 5])
+    with pytest.raises(errors.InvalidIndexError, match=f"face id {s.num_faces} is outside"):
+        s.check_ids("face", s.num_faces)
+    holes = np.setdiff1d(np.arange(s.num_darts), darts)
+    assert (holes.size > 0) == (structure != "halfedge")
+    if holes.size:  # LR slots that are no corner, a CDS root's missing edges
+        with pytest.raises(errors.InvalidIndexError, match=f"dart id {holes[0]} .*not a dart"):
+            s.check_ids("dart", np.stack([darts[:2], [darts[2], holes[0]]]))
+    with pytest.raises(errors.InvalidIndexError, match="integers"):
+        s.check_ids("vertex", [0.5])
+    with pytest.raises(errors.ArgumentError, match="unknown id kind"):
+        s.check_ids("edge", [0])
