@@ -82,8 +82,12 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     return EncodedMesh(words, order, mesh, tm["wood_s"], tm["words_s"])
 
 
-def decode(words: Words, *, structure: str = "faces"):
+def decode(words: Words, *, structure: str = "faces", dummy=None):
     """Decode words (either form) in linear time (Sec. 3.2).
+
+    ``dummy`` (CDS structures only): ``(n,)`` bool, the vertices that closed holes, in decoded
+    order (``read_cds(path, original_order=False, drop_dummies=False)[0].dummy_vertices``), so
+    the structure's degrees and normals are the open surface's.
 
     ``structure``:
       * ``"faces"``: ``(2n - 4, 3)`` int32 ccw triangles, vertices in ccw DFS order of ``T_red``;
@@ -104,7 +108,7 @@ def decode(words: Words, *, structure: str = "faces"):
     if structure in ("cds6n", "cds5n", "cds4n"):
         from jaxcds.codec.structures import build_cds
 
-        return build_cds(structure, words)
+        return build_cds(structure, words, dummy=dummy)
     raise ValueError(f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n, cds4n")
 
 

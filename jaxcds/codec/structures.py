@@ -555,12 +555,24 @@ def decode_cds4n(words: Words, *, boundaries_closed: bool = False):
     return with_target_rounds(s)
 
 
-def build_cds(structure: str, words: Words, **kw):
-    """``"cds6n"``, ``"cds5n"`` or ``"cds4n"`` from words."""
+def build_cds(structure: str, words: Words, *, dummy=None, **kw):
+    """``"cds6n"``, ``"cds5n"`` or ``"cds4n"`` from words. ``dummy``: ``(n,)`` bool, the
+    dummy vertices that closed holes, in decoded vertex order (the ``.cds`` file's dummy mask):
+    kept as the structure's ``dummy_ids`` (degrees and normals of the open surface)."""
+    from jaxcds.structures.cds import with_dummy_vertices
+
+    if dummy is not None:
+        dummy = np.asarray(dummy, bool)
+        if dummy.shape != (words.num_vertices,):
+            raise errors.ArgumentError(f"dummy mask of shape {dummy.shape} for {words.num_vertices} "
+                                       "decoded vertices")
+        kw.setdefault("boundaries_closed", bool(dummy.any()))
     if structure == "cds6n":
-        return decode_cds6n(words, **kw)
-    if structure == "cds5n":
-        return decode_cds5n(words, **kw)
-    if structure == "cds4n":
-        return decode_cds4n(words, **kw)
-    raise ValueError(f"unknown structure {structure!r}: cds6n, cds5n or cds4n")
+        s = decode_cds6n(words, **kw)
+    elif structure == "cds5n":
+        s = decode_cds5n(words, **kw)
+    elif structure == "cds4n":
+        s = decode_cds4n(words, **kw)
+    else:
+        raise errors.ArgumentError(f"unknown structure {structure!r}: cds6n, cds5n or cds4n")
+    return with_dummy_vertices(s, dummy)

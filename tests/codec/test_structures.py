@@ -138,3 +138,29 @@ def test_non_maximal_words_into_cds6n_are_refused_not_mis_decoded(n):
         build_cds("cds5n", loose)
     # the maximal wood's words decode (test_decoded_cds_passes_the_operator_check verifies them)
     assert build_cds("cds6n", encode_mesh(m).words).num_vertices == n
+
+
+@pytest.mark.parametrize("structure", ["cds6n", "cds4n"])
+def test_decoded_cds_of_a_holed_mesh_keeps_its_dummies(structure, tmp_path):
+    """A ``.cds`` file of a holed mesh: the dummy mask, passed to ``decode``, makes the decoded
+    structure's degrees and normals the open surface's (as the builders' structures)."""
+    import jax.numpy as jnp
+
+    from jaxcds.algorithms import vertex_degrees, vertex_normals
+    from jaxcds.codec import read_cds, write_cds
+    from jaxcds.structures.halfedge import HalfEdge
+
+    path = tmp_path / "grid.cds"
+    write_cds(path, load_shared("grid.off"))
+    mesh, _, words = read_cds(path, original_order=False, drop_dummies=False, return_words=True)
+    assert mesh.dummy_vertices.sum() >= 1
+    s = decode(words, structure=structure, dummy=mesh.dummy_vertices)
+    order = np.arange(s.num_vertices) if s.vertex_order is None else np.asarray(s.vertex_order)
+    np.testing.assert_array_equal(np.asarray(s.dummy_vertex_mask()), mesh.dummy_vertices[order])
+    he = HalfEdge.from_faces(mesh.faces[~mesh.dummy_faces], mesh.num_vertices)  # the open surface
+    pos = jnp.asarray(mesh.vertices, jnp.float32)
+    np.testing.assert_allclose(np.asarray(vertex_normals(s, pos[order])),
+                               np.asarray(vertex_normals(he, pos))[order], atol=2e-5)
+    np.testing.assert_array_equal(np.asarray(vertex_degrees(s)), np.asarray(vertex_degrees(he))[order])
+    with pytest.raises(errors.ArgumentError, match="dummy mask of shape"):
+        decode(words, structure=structure, dummy=mesh.dummy_vertices[:-1])
