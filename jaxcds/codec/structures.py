@@ -417,22 +417,15 @@ def decode_cds6n(words: Words, *, boundaries_closed: bool = False):
     return s
 
 
-def _edge_targets_of(s):
-    import jax.numpy as jnp
-
-    return s.all_edge_targets(), s.edge_valid(jnp.arange(3 * s.num_vertices, dtype=jnp.int32))
-
-
 @functools.cache
 def _jitted_edge_targets():
+    """``s -> (Target, edge_valid)`` of every edge id ``3u + c``, jitted once (one program per
+    shape)."""
     import jax
+    import jax.numpy as jnp
 
-    return jax.jit(_edge_targets_of)
-
-
-def _edge_targets(s):
-    """``(Target, edge_valid)`` of every edge id ``3u + c`` (one jitted program per shape)."""
-    return _jitted_edge_targets()(s)
+    return jax.jit(lambda s: (s.all_edge_targets(),
+                              s.edge_valid(jnp.arange(3 * s.num_vertices, dtype=jnp.int32))))
 
 
 def _refuse_clockwise_triangles(s) -> None:
@@ -444,7 +437,7 @@ def _refuse_clockwise_triangles(s) -> None:
     from jaxcds.construct.schnyder import BLACK, BLUE, RED
 
     n = s.num_vertices
-    t, ok = (np.asarray(x).reshape(n, 3) for x in _edge_targets(s))
+    t, ok = (np.asarray(x).reshape(n, 3) for x in _jitted_edge_targets()(s))
     t = np.vstack([np.where(ok, t, n), np.full((1, 3), n)])  # row n: "absent"
     u = np.arange(n)
     a = t[u, RED]
