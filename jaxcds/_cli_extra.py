@@ -49,13 +49,11 @@ def _check_output(path: str, suffixes: tuple, what: str) -> None:
     """Refuse a bad output path *before* any work: wrong suffix, missing folder, or a folder."""
     ext = os.path.splitext(path)[1].lower()
     if ext not in suffixes:
-        raise errors.JaxcdsError(f"output {path!r}: unknown suffix {ext!r} for {what} "
+        raise errors.OutputError(f"output {path!r}: unknown suffix {ext!r} for {what} "
                                  f"(use {', '.join(suffixes)})")
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise errors.JaxcdsError(f"output {path!r}: folder {folder!r} does not exist")
-    if os.path.isdir(path):
-        raise errors.JaxcdsError(f"output {path!r} is a folder")
+    from jaxcds.codec.fileformat import check_writable
+
+    check_writable(path)
 
 
 def _writing(path: str):
@@ -67,7 +65,7 @@ def _writing(path: str):
         try:
             yield
         except OSError as exc:
-            raise errors.JaxcdsError(f"cannot write {path!r}: {exc.strerror or exc}") from exc
+            raise errors.OutputError(f"cannot write {path!r}: {exc.strerror or exc}") from exc
 
     return ctx()
 

@@ -256,10 +256,25 @@ class PackedBatch(MeshStructure):
 
     # ------------------------------------------------------------------ per-mesh reductions
     def per_mesh_sum(self, values, kind: str = "vertex"):
-        """``(num_meshes, ...)`` sums of per-vertex (or per-face) ``values`` over each mesh."""
+        """``(num_meshes, ...)`` sums of per-vertex (or per-face) ``values`` over each mesh:
+        the input meshes' sums, the rows of a structure's dummy vertices (holes closed,
+        :meth:`dummy_vertex_mask`) and of their fans' faces left out."""
         self._check_length("per_mesh_sum", values, kind)
         seg = self.vertex_mesh() if kind == "vertex" else self.face_mesh()
+        dummy = self._dummy_rows(kind)
+        if dummy is not None:
+            values = jnp.asarray(values)
+            values = jnp.where(dummy.reshape((-1,) + (1,) * (values.ndim - 1)), 0, values)
         return jax.ops.segment_sum(values, seg, num_segments=self.num_meshes)
+
+    def _dummy_rows(self, kind: str):
+        """Rows of ``kind`` that are not the input meshes': a structure's dummy vertices, or
+        the faces of their fans (a face with a dummy corner); ``None`` if there are none."""
+        dummy = self.dummy_vertex_mask()
+        if dummy is None or kind == "vertex":
+            return dummy
+        fv = self.face_vertices()
+        return dummy[fv[:, 0]] | dummy[fv[:, 1]] | dummy[fv[:, 2]]
 
     def _check_length(self, what: str, values, kind: str) -> None:
         """Raise :class:`~jaxcds.errors.ArgumentError` unless ``values`` has one row per
@@ -272,9 +287,16 @@ class PackedBatch(MeshStructure):
                 f"got shape {tuple(np.shape(values))}")
 
     def per_mesh_mean(self, values, kind: str = "vertex"):
-        """Per-mesh means (0 for an empty mesh)."""
+        """Per-mesh means (0 for an empty mesh): the input meshes' (a structure's dummy vertices
+        and fan faces neither summed nor counted, as in :meth:`per_mesh_sum`)."""
+        self._check_length("per_mesh_mean", values, kind)
         s = self.per_mesh_sum(values, kind)
-        cnt = self.n_vertex if kind == "vertex" else self.n_face
+        dummy = self._dummy_rows(kind)
+        if dummy is not None:
+            seg = self.vertex_mesh() if kind == "vertex" else self.face_mesh()
+            cnt = jax.ops.segment_sum((~dummy).astype(jnp.int32), seg, num_segments=self.num_meshes)
+        else:
+            cnt = self.n_vertex if kind == "vertex" else self.n_face
         c = jnp.maximum(cnt, 1).astype(s.dtype).reshape((-1,) + (1,) * (s.ndim - 1))
         return s / c
 
@@ -556,6 +578,8 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
     CDS paper Sec. 4.5) have more vertices than the mesh: for such a mesh (given as a mesh, not
     as a bare position array) the positions are those of the closed mesh, dummies at their loop's
     centroid, as :func:`jaxcds.mesh.close_boundaries` places them when the structure is built.
+    The other way round, a mesh the user closed (dummies flagged) given to a structure that drops
+    flagged dummies (LR shows holes as borders) contributes its own vertices only.
 
     Raises:
       MeshError: the positions do not match the batch's vertex counts (naming the mesh).
@@ -575,6 +599,12 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
             v = tm.vertices
             if v.shape[0] < want[i]:  # the structure closed its holes: dummies are vertices
                 v = validate_and_close(tm).vertices
+            elif v.shape[0] > want[i] and tm.dummy_vertices is not None:
+                # a mesh the user closed, given to a structure that shows holes as borders and
+                # drops the flagged dummies (LR, Sec. 4.6): its own vertices, in order
+                own = ~np.asarray(tm.dummy_vertices, bool)
+                if int(own.sum()) == want[i]:
+                    v = v[own]
         if v.ndim != 2 or v.shape[1] != 3:
             raise errors.MeshError(f"pack_positions: mesh {i}'s positions have shape "
                                    f"{tuple(v.shape)}, expected ({int(want[i])}, 3)")

@@ -25,6 +25,7 @@ Hierarchy::
     │   ├── FormatError               bad magic, version, checksum, truncation
     │   └── EncodingError             a word that is not a valid encoding
     ├── PolyllaError                  Polylla inputs
+    ├── OutputError                   an output file cannot be written (nothing is left behind)
     └── ArgumentError                 a call's arguments: an unknown operator, id kind or
                                       method, an array of the wrong length
 """
@@ -51,6 +52,7 @@ __all__ = [
     "EncodingError",
     "PolyllaError",
     "ArgumentError",
+    "OutputError",
 ]
 
 
@@ -130,3 +132,9 @@ class PolyllaError(JaxcdsError, ValueError):
 class ArgumentError(JaxcdsError, ValueError):
     """A call's arguments are not ones the function takes: an unknown operator, id kind or
     method name, or a per-vertex / per-face array whose length is not the count it must be."""
+
+
+class OutputError(JaxcdsError, OSError):
+    """An output file cannot be written: its folder is missing, a folder is in its place, no
+    permission, a full disk. Writes go to a temporary file renamed at the end, so nothing half
+    written is left behind."""

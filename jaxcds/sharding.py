@@ -223,11 +223,33 @@ def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None
     """Operator ``op`` on a batch of ``ids``, the batch split over the devices like the
     structure (padded with id 0, the padding answers dropped). Equal to ``getattr(s, op)(ids)``
     unsharded. Answers are left sharded (``P(axis)``)."""
+    from jaxcds.batch import OPERATOR_KINDS
+
+    if op not in OPERATOR_KINDS:
+        raise errors.ArgumentError(f"sharded_query: unknown operator {op!r}; one of {sorted(OPERATOR_KINDS)}")
     mesh = device_mesh() if mesh is None else mesh
-    ids = np.asarray(ids, np.int32)
+    ids = _int32_ids(ids, op)
     q = shard_rows(ids, mesh, value=0)
     out = _query(s, q, op)
     return out[: ids.shape[0]]
+
+
+def _int32_ids(ids, op: str) -> np.ndarray:
+    """``ids`` as int32, or :class:`~jaxcds.errors.InvalidIndexError` for non-integers and
+    values int32 cannot hold (a cast would truncate 1.7 to 1 or wrap 2^63 silently)."""
+    try:
+        a = np.asarray(ids)
+    except ValueError as exc:
+        raise errors.InvalidIndexError(f"sharded_query({op!r}): ids are not an array: {exc}") from None
+    if a.size and not np.issubdtype(a.dtype, np.integer):
+        raise errors.InvalidIndexError(f"sharded_query({op!r}): ids must be integers, got dtype {a.dtype}")
+    info = np.iinfo(np.int32)
+    wide = (a > info.max) if a.dtype.kind == "u" else (a < info.min) | (a > info.max)
+    if np.any(wide):
+        i = int(np.argmax(np.ravel(wide)))
+        raise errors.InvalidIndexError(
+            f"sharded_query({op!r}): id {np.ravel(a)[i]} at flat position {i} does not fit int32")
+    return a.astype(np.int32)
 
 
 def _query_impl(s, q, op):
@@ -245,5 +267,12 @@ def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatte
     call). Per-vertex sums run as a partitioned ``segment_sum`` (an all-reduce of the sums)."""
     from jaxcds.algorithms import vertex_normals
 
-    p = positions[: s.num_vertices] if positions.shape[0] != s.num_vertices else positions
+    positions = positions if isinstance(positions, jax.Array) else jnp.asarray(positions)
+    n, d = s.num_vertices, s.num_devices
+    padded = -(-n // d) * d  # shard_rows' length for n rows
+    if positions.ndim != 2 or positions.shape[0] not in (n, padded):
+        raise errors.MeshError(
+            f"sharded_vertex_normals: positions must have {n} rows (or {padded}, padded by "
+            f"shard_rows), got shape {tuple(positions.shape)}")
+    p = positions[:n] if positions.shape[0] != n else positions
     return vertex_normals(s, p, method=method)

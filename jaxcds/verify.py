@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxcds import errors
 from jaxcds.mesh import TriMesh
 from jaxcds.structures.halfedge import HalfEdge
 
@@ -74,11 +75,35 @@ def _endpoints(s, e):
     return s.origin(e), s.target(e)
 
 
+def _open_surface(mesh: TriMesh) -> TriMesh:
+    """``mesh`` without its flagged dummy vertices and fan faces, the others renumbered in
+    order (as LR numbers a mesh the user closed)."""
+    keep = ~np.asarray(mesh.dummy_vertices, bool)
+    remap = np.cumsum(keep) - 1
+    faces = remap[mesh.faces[~np.asarray(mesh.dummy_faces, bool)]].astype(np.int32)
+    return TriMesh(vertices=mesh.vertices[keep], faces=faces, source=mesh.source)
+
+
 def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
            *, chunk: int = 1 << 20, adjacency_samples: int = 10_000, seed: int = 0) -> VerifyReport:
     """Check every protocol operator of ``structure`` on every valid dart against the HalfEdge
-    of ``mesh`` (the mesh the structure was built from, dummy vertices included)."""
+    of ``mesh`` (the mesh the structure was built from, dummy vertices included; an open mesh
+    given with a CDS that closed its holes is closed here the same way).
+
+    Raises:
+      ArgumentError: the structure and the mesh do not have the same number of vertices."""
     s = structure
+    if s.num_vertices != mesh.num_vertices and s.dummy_vertex_mask() is not None and reference is None:
+        from jaxcds.mesh import close_boundaries
+
+        mesh = close_boundaries(mesh)  # as the builder did (Sec. 4.5): dummies appended
+    elif (s.num_vertices != mesh.num_vertices and mesh.dummy_vertices is not None and reference is None
+          and int((~mesh.dummy_vertices).sum()) == s.num_vertices):
+        mesh = _open_surface(mesh)  # a closed mesh given to LR, which drops flagged dummies
+    if s.num_vertices != mesh.num_vertices:
+        raise errors.ArgumentError(
+            f"verify: the {getattr(s, 'name', type(s).__name__)} has {s.num_vertices} vertices, the "
+            f"mesh {mesh.num_vertices}: pass the mesh the structure was built from")
     he = reference if reference is not None else HalfEdge.from_faces(mesh.faces, mesh.num_vertices)
     rep = VerifyReport(structure=getattr(s, "name", type(s).__name__))
     n = mesh.num_vertices

@@ -225,6 +225,23 @@ def test_batch_helpers_refuse_bad_arguments_by_name():
     assert jax.jit(lambda x: b.per_mesh_sum(x))(jnp.ones(b.num_vertices)).shape == (len(ms),)
 
 
+@pytest.mark.parametrize("name", ["cds6n", "cds4n"])
+def test_per_mesh_reductions_are_the_input_meshes_on_holed_meshes(name):
+    """A CDS batch keeps each hole's dummy vertex and fan: per-mesh sums and means over vertices
+    and faces leave them out, so they equal the half-edge batch's of the same open meshes."""
+    ms = [icosphere(1), load_shared("grid.off")]
+    b, h = B.pack(ms, name), B.pack(ms, "halfedge")
+    assert int(np.asarray(b.dummy_vertex_mask()).sum()) >= 1
+    for f in ("per_mesh_sum", "per_mesh_mean"):
+        np.testing.assert_allclose(np.asarray(getattr(b, f)(vertex_degrees(b).astype(jnp.float32))),
+                                   np.asarray(getattr(h, f)(vertex_degrees(h).astype(jnp.float32))), rtol=1e-6)
+        # positions: the dummies (at their holes' centroids) are not the meshes' vertices
+        np.testing.assert_allclose(np.asarray(getattr(b, f)(B.pack_positions(b, ms))),
+                                   np.asarray(getattr(h, f)(B.pack_positions(h, ms))), rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(np.asarray(getattr(b, f)(jnp.ones(b.num_faces), kind="face")),
+                                   np.asarray(getattr(h, f)(jnp.ones(h.num_faces), kind="face")))
+
+
 def test_same_totals_do_not_recompile():
     """Counts and offsets are leaves: two batches with the same totals share one compilation."""
     a = [icosphere(1), random_planar_triangulation(40, seed=3)]
@@ -464,6 +481,12 @@ def test_pack_positions_of_holed_meshes(name):
     np.testing.assert_allclose(np.asarray(vertex_normals(b, pos)), np.concatenate(want), atol=1e-5)
     with pytest.raises(errors.MeshError, match="mesh 1 has 3 positions"):
         B.pack_positions(b, [ms[0], np.zeros((3, 3)), ms[2]])
+    # meshes the user closed (dummies flagged): the same list packs and positions, for a
+    # structure that keeps the dummies (CDS) and one that drops them (LR)
+    closed = [validate_and_close(m) for m in ms]
+    bc = B.pack(closed, name)
+    np.testing.assert_allclose(np.asarray(vertex_normals(bc, B.pack_positions(bc, closed))),
+                               np.asarray(vertex_normals(b, pos)), atol=1e-5)
 
 
 def test_pack_positions_checks_the_width():

@@ -108,6 +108,38 @@ def test_cds_normals_sharded(report):
     assert r["dummies"] == r["holes"] >= 1 and r["degrees_equal"], r
 
 
+def test_sharded_helpers_refuse_bad_arguments_by_name():
+    """In this process (one device): an unknown operator, ids that are no int32 integers, and
+    positions of the wrong row count are typed errors (were AttributeError, OverflowError, or a
+    silent cast / slice)."""
+    import numpy as np
+
+    from jaxcds import errors
+    from jaxcds import sharding as S
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures import registry
+
+    m = random_planar_triangulation(40, seed=2)
+    s = registry.build("cds4n", m)
+    ss = S.shard_structure(s)
+    with pytest.raises(errors.ArgumentError, match="unknown operator 'bogus'"):
+        S.sharded_query(ss, "bogus", [1])
+    with pytest.raises(errors.InvalidIndexError, match="does not fit int32"):
+        S.sharded_query(ss, "target", [2**40])
+    with pytest.raises(errors.InvalidIndexError, match="does not fit int32"):
+        S.sharded_query(ss, "target", np.array([2**63], np.uint64))
+    with pytest.raises(errors.InvalidIndexError, match="must be integers"):
+        S.sharded_query(ss, "target", [1.7])
+    d = s.all_darts()[:5]
+    np.testing.assert_array_equal(np.asarray(S.sharded_query(ss, "target", d)), np.asarray(s.target(d)))
+    pos = np.asarray(m.vertices[np.asarray(s.vertex_order)], np.float32)
+    with pytest.raises(errors.MeshError, match="positions must have 40 rows"):
+        S.sharded_vertex_normals(ss, np.zeros((47, 3), np.float32))
+    got = np.asarray(S.sharded_vertex_normals(ss, pos.tolist()))  # a list converts
+    from jaxcds.algorithms import vertex_normals
+    np.testing.assert_allclose(got, np.asarray(vertex_normals(s, pos)), atol=1e-6)
+
+
 @pytest.mark.slow  # ~75 SPMD compilations (every operator on every structure): > 10 min CPU on the shared box
 def test_every_operator_sharded(full_report):
     for name in ("halfedge", "corner-table", "packed-halfedge"):

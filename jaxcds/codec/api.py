@@ -99,6 +99,12 @@ def decode(words: Words, *, structure: str = "faces", dummy=None):
       * ``"cds4n"``: CDS5n then relabelled by cwBFS (Thm 5; not memory-free, see
         :func:`jaxcds.codec.structures.decode_refs4n`).
     """
+    if structure not in ("faces", "paper6n", "wood", "cds6n", "cds5n", "cds4n"):
+        raise errors.ArgumentError(
+            f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n, cds4n")
+    if dummy is not None and structure not in ("cds6n", "cds5n", "cds4n"):
+        raise errors.ArgumentError(f"a dummy mask is for the CDS structures, not {structure!r} "
+                                   "(its faces include the fans; drop them with the mask yourself)")
     if structure == "faces":
         return decode_faces(words)[0]
     if structure == "paper6n":
@@ -109,7 +115,6 @@ def decode(words: Words, *, structure: str = "faces", dummy=None):
         from jaxcds.codec.structures import build_cds
 
         return build_cds(structure, words, dummy=dummy)
-    raise ValueError(f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n, cds4n")
 
 
 # --------------------------------------------------------------------------- files
@@ -120,7 +125,11 @@ def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometr
     Geometry is stored as float32 in decoded order; with ``keep_order`` the original vertex
     ids are stored too (4 bytes per vertex) so :func:`read_cds` restores the input numbering.
     Meshes with holes are closed with dummy vertices, flagged in the file and removed on read.
-    Returns a report (sizes, bits per vertex, timings)."""
+    Returns a report (sizes, bits per vertex, timings).
+
+    Raises:
+      OutputError: ``path`` cannot be written (checked before encoding)."""
+    ff.check_writable(path)
     t0 = time.perf_counter()
     enc = encode_mesh(mesh, mixed=mixed, maximal=maximal)
     m = enc.mesh
@@ -260,8 +269,9 @@ def write_mesh_atomic(path: str | os.PathLike, mesh: TriMesh) -> None:
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in _MESH_TYPES:
-        raise errors.UnreadableMeshError(f"cannot write {path!r}: unknown suffix {ext!r} "
-                                         f"(use {', '.join(_MESH_TYPES)})")
+        raise errors.OutputError(f"cannot write {path!r}: unknown suffix {ext!r} "
+                                 f"(use {', '.join(_MESH_TYPES)})")
+    ff.check_writable(path)
     tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False, validate=False)
     data = tm.export(file_type=_MESH_TYPES[ext])
     if isinstance(data, str):

@@ -43,7 +43,7 @@ from jaxcds import errors
 from jaxcds.codec.words import Words, num_bits
 
 __all__ = ["MAGIC", "VERSION", "HEADER_SIZE", "CdsContents", "pack_cds", "unpack_cds", "read_header",
-           "atomic_write_bytes", "FLAG_MIXED", "FLAG_GEOMETRY", "FLAG_ORDER", "FLAG_DUMMY"]
+           "atomic_write_bytes", "check_writable", "FLAG_MIXED", "FLAG_GEOMETRY", "FLAG_ORDER", "FLAG_DUMMY"]
 
 MAGIC = b"\x89CDS\r\n\x1a\n"
 VERSION = 1
@@ -205,31 +205,53 @@ def unpack_cds(data: bytes) -> CdsContents:
     return CdsContents(words, positions, order, dummy, flags, head["version"], doff)
 
 
-def check_dummy_mask(dummy: np.ndarray, faces: np.ndarray, offset: int) -> None:
-    """Raise :class:`FormatError` unless ``dummy`` (decoded order) can be a mask that
+def check_dummy_mask(dummy: np.ndarray, faces: np.ndarray, offset: Optional[int]) -> None:
+    """Raise unless ``dummy`` (decoded order) can be a mask that
     :func:`jaxcds.mesh.close_boundaries` wrote for ``faces`` (decoded order): every dummy vertex
     is the apex of its own closing fan, so no face holds two of them, and some face holds none.
-    ``offset``: the mask section's first byte (bit ``i`` of the mask is in byte ``offset + i // 8``)."""
+    ``offset``: the mask section's first byte in a file (bit ``i`` of the mask is in byte
+    ``offset + i // 8``; a :class:`FormatError` names them), or ``None`` for a mask passed as an
+    argument (an :class:`~jaxcds.errors.ArgumentError`)."""
+    where = "dummy mask" if offset is None else f"dummy mask (bytes from {offset})"
+    fail = errors.ArgumentError if offset is None else errors.FormatError
+    bad = "does not fit this mesh" if offset is None else "is corrupted"
     per_face = dummy[faces].sum(axis=1)
     two = np.flatnonzero(per_face > 1)
     if two.size:
         f = faces[int(two[0])]
         a, b = (int(x) for x in f[dummy[f]][:2])
-        raise errors.FormatError(
-            f"dummy mask (bytes from {offset}) flags vertices {a} and {b} (bytes {offset + a // 8} "
-            f"and {offset + b // 8}) of one face {f.tolist()}: hole-closing dummy vertices never "
-            "share a face; the mask is corrupted")
+        at = "" if offset is None else f" (bytes {offset + a // 8} and {offset + b // 8})"
+        raise fail(f"{where} flags vertices {a} and {b}{at} of one face {f.tolist()}: hole-closing "
+                   f"dummy vertices never share a face; the mask {bad}")
     if faces.shape[0] and not (per_face == 0).any():
-        raise errors.FormatError(f"dummy mask (bytes from {offset}) leaves no face without a dummy "
-                                 "vertex: the mask is corrupted")
+        raise fail(f"{where} leaves no face without a dummy vertex: the mask {bad}")
+
+
+def check_writable(path: str | os.PathLike) -> str:
+    """``path`` as a string if a file can be written there (its folder exists, no folder in its
+    place), else :class:`~jaxcds.errors.OutputError` naming it. Called before any work."""
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise errors.OutputError(f"output {path!r}: folder {folder!r} does not exist")
+    if os.path.isdir(path):
+        raise errors.OutputError(f"output {path!r} is a folder")
+    return path
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to a temporary file next to ``path``, fsync, then rename over ``path``:
-    readers never see a partial file."""
-    path = os.fspath(path)
+    readers never see a partial file, and a failed write leaves nothing behind.
+
+    Raises:
+      OutputError: the folder is missing, a folder is in the way, or the OS refuses the write
+        (permission, full disk), naming ``path``."""
+    path = check_writable(path)
     d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=d)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=d)
+    except OSError as exc:
+        raise errors.OutputError(f"cannot write {path!r}: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -239,9 +261,11 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(exc, OSError):
+            raise errors.OutputError(f"cannot write {path!r}: {exc.strerror or exc}") from None
         raise

@@ -548,6 +548,29 @@ def decode_cds4n(words: Words, *, boundaries_closed: bool = False):
     return with_target_rounds(s)
 
 
+def _checked_dummy(dummy, words: Words) -> np.ndarray:
+    """``dummy`` as an ``(n,)`` bool mask of the decoded vertices, or an ArgumentError: the
+    wrong length, values other than 0/1, or a mask no hole closing can have written
+    (:func:`~jaxcds.codec.fileformat.check_dummy_mask` on the decoded faces)."""
+    from jaxcds.codec.decode import decode_faces
+    from jaxcds.codec.fileformat import check_dummy_mask
+
+    try:
+        d = np.asarray(dummy)
+    except ValueError as exc:  # ragged nested lists
+        raise errors.ArgumentError(f"dummy mask is not an array: {exc}") from None
+    n = words.num_vertices
+    if d.shape != (n,):
+        raise errors.ArgumentError(f"dummy mask of shape {d.shape} for {n} decoded vertices")
+    if d.dtype != bool:
+        if d.dtype.kind not in "iu" or not np.isin(d, (0, 1)).all():
+            raise errors.ArgumentError(f"dummy mask must be booleans (or 0/1), got dtype {d.dtype}")
+        d = d.astype(bool)
+    if d.any():
+        check_dummy_mask(d, decode_faces(words)[0], None)
+    return d
+
+
 def build_cds(structure: str, words: Words, *, dummy=None, **kw):
     """``"cds6n"``, ``"cds5n"`` or ``"cds4n"`` from words. ``dummy``: ``(n,)`` bool, the
     dummy vertices that closed holes, in decoded vertex order (the ``.cds`` file's dummy mask):
@@ -555,10 +578,7 @@ def build_cds(structure: str, words: Words, *, dummy=None, **kw):
     from jaxcds.structures.cds import with_dummy_vertices
 
     if dummy is not None:
-        dummy = np.asarray(dummy, bool)
-        if dummy.shape != (words.num_vertices,):
-            raise errors.ArgumentError(f"dummy mask of shape {dummy.shape} for {words.num_vertices} "
-                                       "decoded vertices")
+        dummy = _checked_dummy(dummy, words)
         kw.setdefault("boundaries_closed", bool(dummy.any()))
     if structure == "cds6n":
         s = decode_cds6n(words, **kw)

@@ -440,3 +440,12 @@ def test_points_far_from_the_origin_are_all_triangulated():
     mesh = run_on(tri)
     # areas measured near the origin (at 1e10, x * y has no digits left for them)
     check_partition(io.Triangulation2D(points=pts - 1e10, faces=tri.faces, source="shifted"), mesh)
+
+
+def test_collinear_points_are_named_in_one_line():
+    """Qhull's 50-line diagnostic for a flat point set becomes one line naming the cause."""
+    for pts in (np.array([[0, 0], [1, 1], [2, 2], [3, 3]], float),
+                np.zeros((5, 2)) + 7.0):
+        with pytest.raises(errors.PolyllaError, match="every point lies on one line") as exc:
+            io.from_points(pts, "flat")
+        assert "\n" not in str(exc.value)

@@ -72,6 +72,38 @@ def test_info_and_cli_helpers(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".tmp")) == []
 
 
+def test_writers_refuse_a_folder_or_a_missing_folder_before_any_work(tmp_path, monkeypatch):
+    """write_cds / write_mesh_atomic onto a folder, into a folder that does not exist, or when
+    the OS refuses the write: an OutputError naming the path, no temporary file left."""
+    from jaxcds.codec import api, write_mesh_atomic
+
+    m = icosphere(1)
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "b.off").mkdir()
+    with pytest.raises(errors.OutputError, match="adir' is a folder"):
+        write_cds(tmp_path / "adir", m)
+    with pytest.raises(errors.OutputError, match="does not exist"):
+        write_cds(tmp_path / "nope" / "x.cds", m)
+    with pytest.raises(errors.OutputError, match="b.off' is a folder"):
+        write_mesh_atomic(tmp_path / "b.off", m)
+    with pytest.raises(errors.OutputError, match="unknown suffix '.txt'"):
+        write_mesh_atomic(tmp_path / "x.txt", m)
+    calls = []
+    monkeypatch.setattr(api, "encode_mesh", lambda *a, **k: calls.append(1))
+    with pytest.raises(errors.OutputError):
+        write_cds(tmp_path / "adir", m)
+    assert calls == []  # refused before encoding
+    monkeypatch.undo()
+
+    def full(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(ff.os, "fsync", full)
+    with pytest.raises(errors.OutputError, match="x.cds.*No space left"):
+        write_cds(tmp_path / "x.cds", m)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "b.off"]  # nothing half written
+
+
 # ------------------------------------------------------------------------- corruption
 def _small_file(tmp_path):
     path = tmp_path / "small.cds"

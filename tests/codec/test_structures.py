@@ -164,3 +164,20 @@ def test_decoded_cds_of_a_holed_mesh_keeps_its_dummies(structure, tmp_path):
     np.testing.assert_array_equal(np.asarray(vertex_degrees(s)), np.asarray(vertex_degrees(he))[order])
     with pytest.raises(errors.ArgumentError, match="dummy mask of shape"):
         decode(words, structure=structure, dummy=mesh.dummy_vertices[:-1])
+    # a mask no hole closing can have written is refused by name (it gave degrees of 0 before)
+    wrong = np.zeros_like(mesh.dummy_vertices)
+    wrong[list(mesh.faces[0][:2])] = True  # two corners of one face
+    with pytest.raises(errors.ArgumentError, match="never share a face"):
+        decode(words, structure=structure, dummy=wrong)
+    with pytest.raises(errors.ArgumentError, match="never share a face|no face without a dummy"):
+        decode(words, structure=structure, dummy=np.ones_like(mesh.dummy_vertices))
+    with pytest.raises(errors.ArgumentError, match="booleans"):
+        decode(words, structure=structure, dummy=mesh.dummy_vertices * 0.5)
+    with pytest.raises(errors.ArgumentError, match="not an array"):
+        decode(words, structure=structure, dummy=[True, [False]])
+    s01 = decode(words, structure=structure, dummy=mesh.dummy_vertices.astype(np.int8))  # 0/1 ints
+    np.testing.assert_array_equal(np.asarray(s01.dummy_vertex_mask()), mesh.dummy_vertices[order])
+    with pytest.raises(errors.ArgumentError, match="for the CDS structures"):
+        decode(words, structure="faces", dummy=mesh.dummy_vertices)
+    with pytest.raises(errors.ArgumentError, match="unknown structure 'bogus'"):
+        decode(words, structure="bogus")

@@ -54,3 +54,17 @@ def test_check_ids_names_the_first_bad_id(structure):
         s.check_ids("vertex", [0.5])
     with pytest.raises(errors.ArgumentError, match="unknown id kind"):
         s.check_ids("edge", [0])
+
+
+def test_check_ids_ragged_and_huge_unsigned():
+    import numpy as np
+
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures import registry
+
+    s = registry.build("cds4n", random_planar_triangulation(30, seed=1))
+    with pytest.raises(errors.InvalidIndexError, match="not an array"):
+        s.check_ids("vertex", [1, [2]])
+    with pytest.raises(errors.InvalidIndexError, match=r"vertex id 9223372036854775808 at position \(1,\)"):
+        s.check_ids("vertex", np.array([3, 2**63], np.uint64))
+    assert s.check_ids("vertex", np.array([3, 4], np.uint64)).tolist() == [3, 4]

@@ -160,3 +160,22 @@ def test_ids_that_are_not_darts_terminate(structure):
     pos = np.searchsorted(np.asarray(ids), d)
     for got, w in zip(res, want):
         np.testing.assert_array_equal(got[pos], w)
+
+
+@pytest.mark.parametrize("structure", ["cds6n", "cds4n", "lr"])
+def test_verify_takes_the_open_or_the_user_closed_mesh(structure):
+    """verify(s, mesh) with the mesh the user gave the builder, open or closed by the user: a
+    CDS keeps dummies (the open mesh is closed again the same way), LR drops flagged ones (the
+    closed mesh is opened again); a mesh of another size is an ArgumentError naming both."""
+    from jaxcds.generators import icosphere
+    from jaxcds.mesh import load_mesh
+
+    ico = icosphere(1)
+    keep = np.ones(ico.num_faces, bool)
+    keep[[0, 30]] = False
+    holed = load_mesh(ico.vertices, ico.faces[keep])
+    for m in (holed, close_boundaries(holed)):
+        rep = verify(registry.build(structure, m), m)
+        assert rep.checked > 10 * holed.num_faces and rep.mismatches == 0, str(rep)
+    with pytest.raises(errors.ArgumentError, match="vertices, the mesh 12"):
+        verify(registry.build(structure, holed), icosphere(0))
