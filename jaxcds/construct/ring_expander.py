@@ -259,6 +259,35 @@ def extract_ring(V, O, tm, num_vertices: int, seed: int = -1, k=None) -> Ring:
                 invaded=np.asarray(tm, np.uint8))
 
 
+def check_seeds(seeds, V, dummy=None):
+    """``seeds`` as given to the ring builders, checked: a count (an integer >= 1) or a list of
+    seed corners, each an integer corner id in ``[0, 3F)`` of a triangle without a dummy vertex.
+    Returns an int or a list of ints; :class:`~jaxcds.errors.ArgumentError` names a bad value
+    (an out-of-range corner crashed the numba kernel)."""
+    def _int(x):
+        return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+
+    if np.isscalar(seeds) or seeds is None:
+        if not _int(seeds) or seeds < 1:
+            raise errors.ArgumentError(f"seeds must be a count >= 1 or a list of corner ids, got {seeds!r}")
+        return int(seeds)
+    try:
+        lst = list(seeds)
+    except TypeError:
+        raise errors.ArgumentError(f"seeds must be a count >= 1 or a list of corner ids, got {seeds!r}") from None
+    if not lst:
+        raise errors.ArgumentError("seeds: an empty list of seed corners")
+    nc = int(np.asarray(V).shape[0])
+    dm = None if dummy is None else np.asarray(dummy, bool)
+    for i, c in enumerate(lst):
+        if not _int(c) or not 0 <= c < nc:
+            raise errors.ArgumentError(f"seeds[{i}] = {c!r} is not a corner id in [0, {nc})")
+        if dm is not None and dm[np.asarray(V).reshape(-1, 3)[int(c) // 3]].any():
+            raise errors.ArgumentError(f"seeds[{i}] = corner {c} is on a hole-closing (dummy) triangle; "
+                                       "the ring starts on a triangle of the mesh")
+    return [int(c) for c in lst]
+
+
 def best_ring(V, O, num_vertices: int, *, seeds=4, k=None, dummy=None, rng_seed: int = 0) -> Ring:
     """Run RING-EXPANDER (``k is None``) or HYBRID-RING-EXPANDER (period ``k``) from ``seeds``
     random seed corners (or the given list) and keep the ring with the fewest isolated vertices
@@ -267,6 +296,7 @@ def best_ring(V, O, num_vertices: int, *, seeds=4, k=None, dummy=None, rng_seed:
     V = np.asarray(V, dtype=np.int32)
     O = np.asarray(O, dtype=np.int32)
     nf = V.shape[0] // 3
+    seeds = check_seeds(seeds, V, dummy)
     if np.isscalar(seeds):
         rng = np.random.default_rng(rng_seed)
         ok = np.ones(nf, dtype=bool)

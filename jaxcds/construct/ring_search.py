@@ -324,7 +324,7 @@ def check_sweeps(sweeps) -> int:
     than :data:`MAX_SWEEPS` refused)."""
     if (isinstance(sweeps, bool) or not isinstance(sweeps, (int, np.integer)) or sweeps < 0
             or sweeps > MAX_SWEEPS):
-        raise errors.StructureError(
+        raise errors.ArgumentError(
             f"ring_sweeps must be an integer in [0, {MAX_SWEEPS}], got {sweeps!r}")
     return int(sweeps)
 

@@ -36,7 +36,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
-from jaxcds.construct.ring_expander import LRTables, best_ring, extract_ring, lr_tables
+from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
 from jaxcds.construct.ring_search import check_sweeps, improve_ring
 from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
 from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows
@@ -686,7 +686,11 @@ class LRBits(_LRNavigation):
                           check: bool = True, wart_skipping: bool = True) -> "LRBits":
         """HYBRID-RING-EXPANDER of period ``k`` (Sec. 6.1; 0 = depth-first) and the 16-bit tables
         from a :class:`CornerTable`; ``dummy``: mask of dummy vertices (shown as borders)."""
-        return _from_corner_table(cls, ct, dummy=dummy, seeds=seeds, k=int(k), check=check,
+        ks = _check_k(k)
+        if len(ks) != 1:
+            raise errors.ArgumentError(f"LRBits.from_corner_table takes one period k, got {k!r}")
+        seeds = check_seeds(seeds, ct.V, dummy)
+        return _from_corner_table(cls, ct, dummy=dummy, seeds=seeds, k=ks[0], check=check,
                                   wart_skipping=wart_skipping)
 
 
@@ -721,14 +725,15 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     towards fewer references (:mod:`jaxcds.construct.ring_search`; beyond the paper, 0 = the
     paper's ring; about 0.2 us per triangle per sweep)."""
     ring_sweeps = check_sweeps(ring_sweeps)
+    ks = _check_k(k) if bits else None
     mesh, twins = _prepare(mesh)
     ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
     dummy = mesh.dummy_vertices
+    seeds = check_seeds(seeds, ct.V, dummy)
     if not bits:
         return _from_corner_table(LR, ct, dummy=dummy, seeds=seeds, k=None, check=check,
                                   wart_skipping=wart_skipping, borders=borders,
                                   ring_sweeps=ring_sweeps)
-    ks = _AUTO_K if k == "auto" else ([k] if np.isscalar(k) else list(k))
     V, O, nv = np.asarray(ct.V), np.asarray(ct.O), ct.num_vertices
     best = None
     for kk in ks:
@@ -747,6 +752,20 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     if check:
         _check_against(best, ct)
     return best
+
+
+def _check_k(k) -> list:
+    """The hybrid periods to try for ``LRBits``: ``"auto"`` (:data:`_AUTO_K`), an integer >= 0
+    or a non-empty list of them; else :class:`~jaxcds.errors.ArgumentError` naming the value."""
+    if isinstance(k, str) and k == "auto":
+        return list(_AUTO_K)
+    ks = [k] if np.isscalar(k) or k is None else (list(k) if hasattr(k, "__iter__") else [k])
+    ok = bool(ks) and all(isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+                          and x >= 0 for x in ks)
+    if not ok:
+        raise errors.ArgumentError(f"k must be 'auto', an integer >= 0 (0: depth-first) or a "
+                                   f"non-empty list of them, got {k!r}")
+    return [int(x) for x in ks]
 
 
 def _from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, k=None, check=True,

@@ -124,7 +124,7 @@ def test_lr_from_a_searched_ring(name):
 def test_bad_sweeps_are_refused(sweeps):
     m = load_shared("cube.off")
     for build in (LR.from_mesh, LRBits.from_mesh):
-        with pytest.raises(errors.StructureError, match="ring_sweeps must be an integer"):
+        with pytest.raises(errors.ArgumentError, match="ring_sweeps must be an integer"):
             build(m, check=False, ring_sweeps=sweeps)
 
 

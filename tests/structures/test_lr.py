@@ -566,3 +566,29 @@ def test_packing_finds_a_wrong_quad_opposite():
     assert lr_pack.pack_common(V, O, ct.vertex_corner, tb, dm, quad_check=False)["bad_quad"] is None
     with pytest.raises(errors.StructureError, match="quad opposite"):
         lrmod._pack(LR, tb, V, O, np.asarray(ct.vertex_corner), mesh.num_vertices, check=True, k=0)
+
+
+def test_seed_and_period_arguments_are_checked_by_name():
+    """An out-of-range seed corner crashed the numba RING-EXPANDER (segfault); counts, lists
+    and periods of the wrong kind were plain ValueError / AttributeError or silently cast."""
+    m = icosphere(1)  # 240 corners
+    bad_seeds = [(0, "count >= 1"), (True, "count >= 1"), ("x", "count >= 1"), ([], "empty list"),
+                 ([240], r"seeds\[0\] = 240 is not a corner id in \[0, 240\)"), ([5, -3], r"seeds\[1\] = -3"),
+                 ([1.0], r"seeds\[0\] = 1.0")]
+    for seeds, msg in bad_seeds:
+        with pytest.raises(errors.ArgumentError, match=msg):
+            build_lr(m, seeds=seeds)
+    for k in ([], "x", -1, 1.5, True):
+        with pytest.raises(errors.ArgumentError, match="k must be 'auto'"):
+            build_lr(m, bits=True, k=k)
+    ct = CornerTable.from_mesh(m)
+    with pytest.raises(errors.ArgumentError, match="seeds"):
+        LR.from_corner_table(ct, seeds=[10**6])
+    with pytest.raises(errors.ArgumentError, match="one period"):
+        LRBits.from_corner_table(ct, k=[2, 4])
+    # a seed on a hole-closing triangle is refused too (the ring starts on the mesh)
+    grid = close_boundaries(load_shared("grid.off"))
+    fan = int(np.flatnonzero(grid.dummy_faces)[0])
+    with pytest.raises(errors.ArgumentError, match="dummy"):
+        build_lr(grid, seeds=[3 * fan])
+    assert verify(build_lr(m, seeds=[3, 9]), m).mismatches == 0
