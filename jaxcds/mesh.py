@@ -130,9 +130,13 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             text = _text_of(path)
             if suffix == ".obj":
                 _refuse_obj_index_zero(text, path)
+            else:
+                _check_off_counts(text, path)
             loaded = trimesh.load(io.StringIO(text), file_type=suffix[1:], process=False,
                                   force="mesh")
         else:
+            if suffix == ".ply":
+                _check_ascii_ply_counts(path)
             loaded = trimesh.load(path, process=False, force="mesh")
     except errors.JaxcdsError:
         raise
@@ -166,10 +170,75 @@ def _bytes_of(path: str) -> bytes:
 
 def _text_of(path: str) -> str:
     raw = _bytes_of(path)
+    if raw.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark: it hid an OBJ's first line
+        raw = raw[3:]
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
         return raw.decode("latin-1")
+
+
+def _check_off_counts(text: str, path: str) -> None:
+    """The element counts an OFF header declares against the lines that follow (trimesh reads
+    fewer faces without a word, and a face line's declared corner count against its indices).
+    Line-based, as trimesh's reader; lines are numbered in the file."""
+    rows = []  # (line number, tokens) of every line with data, comments removed
+    for no, line in enumerate(text.splitlines(), 1):
+        tok = line.split("#", 1)[0].split()
+        if tok:
+            rows.append((no, tok))
+    if not rows or not rows[0][1][0].upper().endswith("OFF"):
+        return  # not a header this check knows (trimesh names it)
+    head = rows[0][1][1:] or (rows[1][1] if len(rows) > 1 else [])
+    body = rows[1:] if rows[0][1][1:] else rows[2:]
+    try:
+        nv, nf = int(head[0]), int(head[1])
+    except (IndexError, ValueError):
+        raise errors.UnreadableMeshError(
+            f"{path}: line {rows[0][0]}: the OFF counts line must start with the numbers of "
+            f"vertices and faces, got {' '.join(head) or 'nothing'}") from None
+    if nv < 0 or nf < 0:
+        raise errors.UnreadableMeshError(f"{path}: the OFF header declares {nv} vertices and {nf} faces")
+    if len(body) < nv + nf:
+        have_f = max(len(body) - nv, 0)
+        raise errors.UnreadableMeshError(
+            f"{path}: the OFF header declares {nv} vertices and {nf} faces; the file has "
+            f"{min(len(body), nv)} vertex lines and {have_f} face lines (truncated?)")
+    for k, (no, tok) in enumerate(body[nv:nv + nf]):
+        try:
+            want = int(tok[0])
+        except ValueError:
+            raise errors.UnreadableMeshError(
+                f"{path}: line {no}: face {k} must start with its number of corners, got {tok[0]!r}") from None
+        if len(tok) < want + 1:
+            raise errors.UnreadableMeshError(
+                f"{path}: line {no}: face {k} declares {want} corners but lists {len(tok) - 1}")
+
+
+def _check_ascii_ply_counts(path: str) -> None:
+    """An ASCII PLY's declared vertex and face counts against its data lines (trimesh reads a
+    short file without a word; binary PLYs are checked by size already)."""
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    end = raw.find(b"end_header")
+    if end < 0 or b"format ascii" not in raw[:end]:
+        return
+    counts = {}
+    for line in raw[:end].decode("latin-1").splitlines():
+        tok = line.split()
+        if len(tok) == 3 and tok[0] == "element":
+            try:
+                counts[tok[1]] = int(tok[2])
+            except ValueError:
+                return  # trimesh names a malformed header
+    data = raw[end:].split(b"\n", 1)[1] if b"\n" in raw[end:] else b""
+    lines = sum(1 for line in data.splitlines() if line.strip())
+    want = sum(counts.values())
+    if lines < want:
+        declared = ", ".join(f"{v} {k}" for k, v in counts.items())
+        raise errors.UnreadableMeshError(
+            f"{path}: the PLY header declares {declared} ({want} data lines); the file has "
+            f"{lines} (truncated?)")
 
 
 def _parse_failure(path: str, suffix: str, exc: Exception) -> str:

@@ -530,3 +530,38 @@ def test_obj_face_index_zero_is_named(tmp_path):
 def test_face_arrays_that_are_not_indices(faces, match):
     with pytest.raises(errors.InvalidIndexError, match=match):
         load_mesh((np.eye(3), faces))
+
+
+_TET_TEXT = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+
+
+def test_a_byte_order_mark_does_not_hide_an_obj_vertex(tmp_path):
+    """A UTF-8 BOM before an OBJ's first 'v' line hid that vertex: every index then pointed at
+    the next one, and the wrong tetrahedron validated."""
+    p = tmp_path / "bom.obj"
+    p.write_bytes(b"\xef\xbb\xbf" + b"".join(b"v " + r.encode() + b"\n" for r in _TET_TEXT.splitlines())
+                  + b"v 5 5 5\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n")
+    m = load_mesh(p)
+    np.testing.assert_array_equal(m.vertices, [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+
+
+def test_text_meshes_shorter_than_their_headers_are_named(tmp_path):
+    """OFF and ASCII PLY files with fewer faces than their headers declare loaded the faces
+    present without a word; an OFF face line with fewer indices than it declares passed."""
+    faces = "3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n"
+    (tmp_path / "ok.off").write_text("OFF\n4 4 6\n" + _TET_TEXT + faces)
+    (tmp_path / "oneline.off").write_text("OFF 4 4 6\n# a comment\n" + _TET_TEXT + faces)
+    assert load_mesh(tmp_path / "ok.off").num_faces == load_mesh(tmp_path / "oneline.off").num_faces == 4
+    (tmp_path / "short.off").write_text("OFF\n4 4 6\n" + _TET_TEXT + faces[:16])
+    with pytest.raises(errors.UnreadableMeshError, match="declares 4 vertices and 4 faces; the file has 4 vertex lines and 2 face lines"):
+        load_mesh(tmp_path / "short.off")
+    (tmp_path / "five.off").write_text("OFF\n4 4 6\n" + _TET_TEXT + "5 0 2 1\n" + faces[8:])
+    with pytest.raises(errors.UnreadableMeshError, match="line 7: face 0 declares 5 corners but lists 3"):
+        load_mesh(tmp_path / "five.off")
+    head = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n")
+    (tmp_path / "ok.ply").write_text(head + _TET_TEXT + faces)
+    assert load_mesh(tmp_path / "ok.ply").num_faces == 4
+    (tmp_path / "short.ply").write_text(head + _TET_TEXT + faces[:16])
+    with pytest.raises(errors.UnreadableMeshError, match="PLY header declares 4 vertex, 4 face .8 data lines.; the file has 6"):
+        load_mesh(tmp_path / "short.ply")
