@@ -106,8 +106,28 @@ def _table(rows, n, ncols, path, what, dtype):
             f"{path}: {what} {short[0]} has {len(body[short[0]])} fields, expected at least {ncols}")
     try:
         return np.array([r[:ncols] for r in body], dtype=dtype)
-    except ValueError as exc:
-        raise errors.PolyllaError(f"{path}: a {what} line is not numeric: {exc}") from exc
+    except (ValueError, OverflowError, TypeError):
+        for i, r in enumerate(body):  # name the first row that does not convert
+            try:
+                np.array(r[:ncols], dtype=dtype)
+            except (ValueError, OverflowError, TypeError) as exc:
+                raise errors.PolyllaError(
+                    f"{path}: {what} {i} ({' '.join(r[:ncols])}) is not a row of "
+                    f"{np.dtype(dtype).name} numbers: {exc}") from None
+        raise
+
+
+def unit_scale(points: np.ndarray) -> np.ndarray:
+    """``points`` times the power of two that brings the largest coordinate into ``[0.5, 1)``.
+
+    Exact: every sum, product and comparison of the geometric tests scales by a power of two
+    too, so they decide as on the input, but squared lengths no longer overflow (coordinates
+    near 1e160) or fall into subnormals (near 1e-160), where ties changed the polygons."""
+    p = np.asarray(points, dtype=np.float64)
+    big = float(np.max(np.abs(p))) if p.size else 0.0
+    if big == 0.0 or not np.isfinite(big):
+        return p
+    return np.ldexp(p, -int(np.frexp(big)[1]))
 
 
 def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
@@ -116,7 +136,7 @@ def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
     Raises:
       PolyllaError: a triangle of zero area (collinear corners), naming it.
     """
-    p = points[faces]
+    p = unit_scale(points)[faces]
     area2 = ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
              - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
     flat = np.nonzero(area2 == 0)[0]

@@ -502,7 +502,11 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True,
     :class:`PolyllaMesh`; raises :class:`~jaxcds.errors.StructureError` if the successor map
     does not close into cycles covering every frontier dart (a structure bug).
     """
-    pos = np.asarray(positions, dtype=np.float64)[:, :2]
+    from jaxcds.polylla_io import unit_scale
+
+    # scaled by a power of two (exact): the length comparisons decide as on the input, without
+    # overflow or subnormals at extreme coordinate scales
+    pos = unit_scale(np.asarray(positions, dtype=np.float64)[:, :2])
     order = s.vertex_order
     if pos.shape[0] != s.num_vertices:
         raise errors.PolyllaError(

@@ -449,3 +449,38 @@ def test_collinear_points_are_named_in_one_line():
         with pytest.raises(errors.PolyllaError, match="every point lies on one line") as exc:
             io.from_points(pts, "flat")
         assert "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300])
+def test_points50_at_extreme_coordinate_scales(scale, tmp_path):
+    """Polylla does not depend on the scale: squared lengths overflowed (1e160) or fell into
+    subnormals (1e-160) and ties gave 28 polygons instead of 17; now the coordinates are scaled
+    by a power of two first (exact). Through the files too, without overflow warnings."""
+    import warnings
+
+    tri = io.read_triangle(_need(POLYLLA / "points50.1.node"))
+    _, ref = io.read_polygon_off(_need(POLYLLA / "points50.1.off"))
+    scaled = io.Triangulation2D(points=tri.points * scale, faces=tri.faces, source="scaled", flipped=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mesh = run_on(scaled)
+        assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref)
+        node = tmp_path / "big.node"
+        with open(node, "w") as fh:
+            fh.write(f"{tri.num_vertices} 2 0 0\n")
+            for i, (x, y) in enumerate(tri.points * scale):
+                fh.write(f"{i} {float(x)!r} {float(y)!r}\n")
+        ele = tmp_path / "big.ele"
+        with open(ele, "w") as fh:
+            fh.write(f"{tri.num_faces} 3 0\n")
+            for i, f in enumerate(tri.faces):
+                fh.write(f"{i} {f[0]} {f[1]} {f[2]}\n")
+        assert P.run(str(node))["polygons"] == 17
+
+
+def test_a_huge_index_in_a_triangle_file_is_named(tmp_path):
+    """An .ele index past int64 escaped as an OverflowError traceback."""
+    (tmp_path / "h.node").write_text("4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
+    (tmp_path / "h.ele").write_text("2 3 0\n0 0 1 2\n1 0 99999999999999999999 3\n")
+    with pytest.raises(errors.PolyllaError, match=r"h.ele: triangle 1 \(1 0 99999999999999999999 3\)"):
+        io.read_triangle(str(tmp_path / "h.node"))
