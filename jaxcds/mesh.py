@@ -713,8 +713,10 @@ def topology(mesh: TriMesh) -> dict:
         "edges": e,
         "faces": nf,
         "components": ncomp,
-        "boundary_loops": len(loops),
-        "boundary_loop_lengths": sorted((int(len(l)) for l in loops), reverse=True),
+        # loops are only defined on a manifold (a bow-tie vertex joins two): None, as genus
+        "boundary_loops": len(loops) if manifold else None,
+        "boundary_loop_lengths": (sorted((int(len(l)) for l in loops), reverse=True)
+                                  if manifold else None),
         "boundary_edges": int(np.sum(et.count == 1)),
         "euler_characteristic": int(chi),
         "genus": genus,
