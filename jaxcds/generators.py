@@ -51,14 +51,41 @@ __all__ = [
 ]
 
 # ---------------------------------------------------------------------------------- simple ones
+def _count(name: str, value) -> int:
+    """An integer argument (a numpy integer, or a float with an integral value) as an int;
+    :class:`~jaxcds.errors.ArgumentError` naming it otherwise (4.7 was truncated to 4)."""
+    if isinstance(value, (bool, np.bool_)) or value is None:
+        raise errors.ArgumentError(f"{name} must be an integer, got {value!r}")
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)) and float(value).is_integer():
+        return int(value)
+    raise errors.ArgumentError(f"{name} must be an integer, got {value!r}")
+
+
+def _seed(name: str, seed) -> int:
+    """A seed for :func:`numpy.random.default_rng`: an integer >= 0, named otherwise."""
+    s = _count(name, seed)
+    if s < 0:
+        raise errors.ArgumentError(f"{name} must be >= 0 (numpy's seeds are non-negative), got {seed!r}")
+    return s
+
+
 def icosphere(subdivisions: int = 3, radius: float = 1.0) -> TriMesh:
     """Icosahedron subdivided ``subdivisions`` times (loop-style 1:4 splits), projected on the
     sphere: ``10 * 4**s + 2`` vertices, all of degree 6 except the 12 of degree 5.
 
     ``icosphere(8)`` has 655,362 vertices (the benchmark mesh of the issue)."""
-    s = int(subdivisions)
+    s = _count("icosphere: subdivisions", subdivisions)
     if s < 0 or s > 10:
         raise errors.MeshError(f"icosphere: subdivisions must be in [0, 10], got {subdivisions}")
+    try:
+        r = float(radius)
+    except (TypeError, ValueError):
+        r = float("nan")
+    if not (np.isfinite(r) and r > 0):
+        raise errors.ArgumentError(f"icosphere: radius must be a finite number > 0, got {radius!r}")
+    radius = r
     import trimesh
 
     m = trimesh.creation.icosphere(subdivisions=s, radius=float(radius))
@@ -68,8 +95,11 @@ def icosphere(subdivisions: int = 3, radius: float = 1.0) -> TriMesh:
 
 def random_sphere_points(n: int, seed: int = 0) -> np.ndarray:
     """``(n, 3)`` float64 points drawn uniformly on the unit sphere (normalised Gaussians)."""
-    rng = np.random.default_rng(seed)
-    p = rng.standard_normal((int(n), 3))
+    n = _count("random_sphere_points: n", n)
+    if not 0 <= n <= 2**30:
+        raise errors.ArgumentError(f"random_sphere_points: n must be in [0, 2^30], got {n}")
+    rng = np.random.default_rng(_seed("random_sphere_points: seed", seed))
+    p = rng.standard_normal((n, 3))
     p /= np.linalg.norm(p, axis=1, keepdims=True)
     return p
 
@@ -78,7 +108,7 @@ def sphere_hull(n: int, seed: int = 0) -> TriMesh:
     """Convex hull of ``n`` random points on the unit sphere (every point is a hull vertex):
     a closed genus-0 triangulation, faces oriented outward. Random (non-uniform) degrees, so
     a "realistic" irregular mesh of any size."""
-    n = int(n)
+    n = _count("sphere_hull: n", n)
     if n < 4:
         raise errors.MeshError(f"sphere_hull: need at least 4 points, got {n}")
     from scipy.spatial import ConvexHull
@@ -121,7 +151,13 @@ def delaunay_disk(points) -> TriMesh:
     if np.any(counts > 1):
         dup = int(first[np.argmax(counts > 1)])
         raise errors.MeshError(f"delaunay_disk: point {dup} {pts[dup]} appears {counts.max()} times")
-    tri = Delaunay(pts)
+    try:
+        tri = Delaunay(pts)
+    except Exception as exc:  # Qhull: collinear points, coordinates out of its range
+        from jaxcds.polylla_io import qhull_failure_reason
+
+        raise errors.MeshError(f"delaunay_disk: Delaunay triangulation failed: "
+                               f"{qhull_failure_reason(exc, pts)}") from None
     f = np.ascontiguousarray(tri.simplices, dtype=np.int32)
     a, b, c = pts[f[:, 0]], pts[f[:, 1]], pts[f[:, 2]]
     cw = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
@@ -143,10 +179,12 @@ def delaunay_square(n: int, seed: int = 0, closed: bool = False) -> TriMesh:
     ``n``) joined to every hull vertex (:func:`jaxcds.mesh.close_boundaries`, CDS Sec. 4.5):
     a closed genus-0 triangulation with ``n + 1`` vertices whose dummy vertex and faces are
     flagged in ``dummy_vertices`` / ``dummy_faces``."""
-    n = int(n)
+    n = _count("delaunay_square: n", n)
     if n < 3:
         raise errors.MeshError(f"delaunay_square: need at least 3 points, got {n}")
-    rng = np.random.default_rng(seed)
+    if n > 2**30:
+        raise errors.MeshError(f"delaunay_square: n = {n} exceeds int32 ids")
+    rng = np.random.default_rng(_seed("delaunay_square: seed", seed))
     m = delaunay_disk(rng.random((n, 2)))
     m = TriMesh(vertices=m.vertices, faces=m.faces,
                 source=f"delaunay_square({n}, seed={seed}{', closed' if closed else ''})")
@@ -347,14 +385,14 @@ def _close_word(w: np.ndarray, k: int, swap: bool) -> np.ndarray:
 
 def random_planar_triangulation_faces(n: int, seed: int = 0) -> np.ndarray:
     """Faces only (``(2n - 4, 3)`` int32) of :func:`random_planar_triangulation`."""
-    n = int(n)
+    n = _count("random_planar_triangulation: n", n)
     if n < 4:
         raise errors.MeshError(
             f"random_planar_triangulation: need n >= 4 vertices (a simple triangulation of the "
             f"sphere), got {n}")
     if n > 2**30:
         raise errors.MeshError(f"random_planar_triangulation: n = {n} exceeds int32 dart ids")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_seed("random_planar_triangulation: seed", seed))
     k = n - 2
     w = _blossoming_word(k, rng)
     swap = bool(rng.integers(2))

@@ -288,11 +288,12 @@ def read_off_2d(path: str) -> Triangulation2D:
     return _make(pts, faces, os.path.basename(path))
 
 
-def _qhull_reason(exc: Exception, pts: np.ndarray) -> str:
+def qhull_failure_reason(exc: Exception, pts: np.ndarray) -> str:
     """One line for a Qhull failure (its message is a 50-line diagnostic): the cause when it is
     a flat point set, else Qhull's first line."""
     centred = pts - pts.mean(axis=0)
-    if np.linalg.matrix_rank(centred, tol=1e-12 * max(1.0, float(np.abs(centred).max()))) < 2:
+    spread = float(np.abs(centred).max()) if centred.size else 0.0
+    if spread == 0.0 or np.linalg.matrix_rank(centred / spread, tol=1e-12) < 2:
         return "every point lies on one line (or they coincide); a triangulation needs area"
     first = str(exc).strip().splitlines()[:1]
     return first[0] if first else type(exc).__name__
@@ -315,7 +316,7 @@ def from_points(points, source: str = "points") -> Triangulation2D:
         # that tells the points apart at a large offset (200 points at 1e10 read as duplicates)
         tri = Delaunay(pts - (pts.min(axis=0) + pts.max(axis=0)) / 2)
     except Exception as exc:  # Qhull errors: all points collinear, too few distinct points...
-        raise errors.PolyllaError(f"{source}: Delaunay triangulation failed: {_qhull_reason(exc, pts)}") from None
+        raise errors.PolyllaError(f"{source}: Delaunay triangulation failed: {qhull_failure_reason(exc, pts)}") from None
     used = np.zeros(pts.shape[0], bool)
     used[tri.simplices.ravel()] = True
     if not used.all():

@@ -337,3 +337,28 @@ def test_delaunay_disk_is_delaunay_and_refuses_bad_points():
         gen.delaunay_disk(np.array([[0, 0], [1, 0], [np.nan, 1]]))
     with pytest.raises(errors.MeshError, match=r"shape \(n, 2\)"):
         gen.delaunay_disk(np.zeros((5, 3)))
+
+
+def test_generator_arguments_are_checked_by_name():
+    """Bad counts, seeds and radii were plain ValueError / TypeError / MemoryError or silently
+    truncated (4.7 vertices -> 4); collinear points a raw multi-line QhullError."""
+    from jaxcds import generators as G
+
+    for call, msg in [(lambda: G.random_planar_triangulation(10, seed=-1), "seed must be >= 0"),
+                      (lambda: G.random_planar_triangulation(10, seed=1.5), "seed must be an integer"),
+                      (lambda: G.random_planar_triangulation(None), "n must be an integer"),
+                      (lambda: G.random_planar_triangulation(4.7), "n must be an integer, got 4.7"),
+                      (lambda: G.icosphere(2.5), "subdivisions must be an integer"),
+                      (lambda: G.icosphere(1, radius=float("nan")), "radius must be a finite number"),
+                      (lambda: G.icosphere(1, radius="x"), "radius"),
+                      (lambda: G.random_sphere_points(-1), r"n must be in \[0, 2\^30\]")]:
+        with pytest.raises(errors.ArgumentError, match=msg):
+            call()
+    with pytest.raises(errors.MeshError, match="exceeds int32"):
+        G.delaunay_square(10**12)
+    with pytest.raises(errors.MeshError, match="every point lies on one line") as exc:
+        G.delaunay_disk(np.array([[0, 0], [1, 0], [2, 0.0]]))
+    assert "\n" not in str(exc.value)
+    # integral floats and numpy integers are integers
+    assert G.icosphere(2.0).num_vertices == 162
+    assert G.random_planar_triangulation(np.int64(8), seed=np.uint64(3)).num_vertices == 8
