@@ -181,7 +181,35 @@ def _text_of(path: str) -> str:
 def _check_off_counts(text: str, path: str) -> None:
     """The element counts an OFF header declares against the lines that follow (trimesh reads
     fewer faces without a word, and a face line's declared corner count against its indices).
-    Line-based, as trimesh's reader; lines are numbered in the file."""
+    Line-based, as trimesh's reader. A fast pass (lines counted, an all-triangle face block read
+    as one array: about a tenth of trimesh's own parse) clears a good file; anything else is
+    checked line by line (:func:`_check_off_lines`), which names the line."""
+    lines = text.splitlines()
+    if "#" in text:
+        lines = [line.split("#", 1)[0] for line in lines]
+    data = [line for line in lines if line and not line.isspace()]
+    if not data or not data[0].split()[0].upper().endswith("OFF"):
+        return  # not a header this check knows (trimesh names it)
+    head = data[0].split()[1:]
+    start = 1 if head else 2
+    head = head or (data[1].split() if len(data) > 1 else [])
+    try:
+        nv, nf = int(head[0]), int(head[1])
+    except (IndexError, ValueError):
+        nv = nf = -1
+    if nv >= 0 and nf >= 0 and len(data) - start >= nv + nf:
+        face = data[start + nv:start + nv + nf]
+        try:
+            arr = np.array(" ".join(face).split(), dtype=np.int64)
+            if arr.size == 4 * nf and np.all(arr[0::4] == 3):
+                return  # every face line is "3 a b c"
+        except (ValueError, OverflowError):
+            pass
+    _check_off_lines(text, path)
+
+
+def _check_off_lines(text: str, path: str) -> None:
+    """:func:`_check_off_counts` line by line, lines numbered in the file."""
     rows = []  # (line number, tokens) of every line with data, comments removed
     for no, line in enumerate(text.splitlines(), 1):
         tok = line.split("#", 1)[0].split()
