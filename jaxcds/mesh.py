@@ -121,6 +121,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             f"{path}: unknown mesh format {suffix!r} (expected one of {', '.join(SUFFIXES)})")
     import trimesh
 
+    text = None
     try:
         # process=False: we weld ourselves, to count and report it.
         if suffix in (".obj", ".off"):
@@ -141,6 +142,8 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
     except errors.JaxcdsError:
         raise
     except Exception as exc:  # trimesh raises many kinds; all mean "cannot parse"
+        if text is not None:
+            _name_bad_face_index(text, suffix, path)  # raises InvalidIndexError naming the line
         raise errors.UnreadableMeshError(f"{path}: cannot parse as {suffix[1:].upper()}: "
                                          f"{_parse_failure(path, suffix, exc)}") from exc
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
@@ -161,6 +164,57 @@ def _refuse_obj_index_zero(text: str, path: str) -> None:
         line = text.count("\n", 0, hit.start()) + 1
         raise errors.InvalidIndexError(f"{path}: line {line}: face index 0; OBJ vertex indices "
                                        "start at 1 (negative ones count back from the last vertex)")
+
+
+def _name_bad_face_index(text: str, suffix: str, path: str) -> None:
+    """On the error path only: the first face line of an OBJ / OFF text whose vertex index is
+    out of range, as an :class:`~jaxcds.errors.InvalidIndexError` naming the line (trimesh's
+    message was numpy's "index 4 is out of bounds for axis 0 with size 4"). Returns if none."""
+    nv, seen_v, off_faces = 0, 0, None
+    total_v = sum(1 for line in text.splitlines() if line.split()[:1] == ["v"])
+    for no, line in enumerate(text.splitlines(), 1):
+        tok = line.split("#", 1)[0].split()
+        if not tok:
+            continue
+        if suffix == ".obj":
+            if tok[0] == "v":
+                seen_v += 1
+            elif tok[0] == "f":
+                for t in tok[1:]:
+                    try:
+                        i = int(t.split("/")[0])
+                    except ValueError:
+                        continue
+                    # positive indices count in the file's vertices, negative ones back from
+                    # the last vertex defined above the face
+                    ok = 0 < i <= total_v if i > 0 else 0 <= seen_v + i < seen_v
+                    if not ok:
+                        where = (f"{total_v} vertices in the file" if i > 0
+                                 else f"{seen_v} vertices defined above it")
+                        raise errors.InvalidIndexError(
+                            f"{path}: line {no}: face index {i} refers to no vertex ({where})")
+        else:
+            if off_faces is None:  # header, then counts
+                if tok[0].upper().endswith("OFF") and len(tok) == 1:
+                    continue
+                nums = tok[1:] if tok[0].upper().endswith("OFF") else tok
+                try:
+                    nv, off_faces, seen_v = int(nums[0]), int(nums[1]), 0
+                except (IndexError, ValueError):
+                    return
+                continue
+            if seen_v < nv:
+                seen_v += 1
+                continue
+            try:
+                idx = [int(t) for t in tok[1:1 + int(tok[0])]]
+            except ValueError:
+                return
+            bad = [i for i in idx if not 0 <= i < nv]
+            if bad:
+                raise errors.InvalidIndexError(
+                    f"{path}: line {no}: face index {bad[0]} is outside [0, {nv}) (the header "
+                    f"declares {nv} vertices)")
 
 
 def _bytes_of(path: str) -> bytes:

@@ -567,3 +567,17 @@ def test_text_meshes_shorter_than_their_headers_are_named(tmp_path):
     (tmp_path / "short.ply").write_text(head + _TET_TEXT + faces[:16])
     with pytest.raises(errors.UnreadableMeshError, match="PLY header declares 4 vertex, 4 face .8 data lines.; the file has 6"):
         load_mesh(tmp_path / "short.ply")
+
+
+def test_an_out_of_range_face_index_in_a_file_names_its_line(tmp_path):
+    """numpy's "index 4 is out of bounds for axis 0 with size 4" named no face or line."""
+    v = "".join(f"v {r}\n" for r in _TET_TEXT.splitlines())
+    (tmp_path / "a.obj").write_text(v + "f 1 3 2\nf 1 2 4\nf 2 3 5\nf 1 4 3\n")
+    with pytest.raises(errors.InvalidIndexError, match=r"line 7: face index 5 refers to no vertex \(4 vertices in the file\)"):
+        load_mesh(tmp_path / "a.obj")
+    (tmp_path / "b.obj").write_text(v + "f 1 3 2\nf -5 2 4\nf 2 3 4\nf 1 4 3\n")
+    with pytest.raises(errors.InvalidIndexError, match="line 6: face index -5"):
+        load_mesh(tmp_path / "b.obj")
+    (tmp_path / "c.off").write_text("OFF\n4 4 6\n" + _TET_TEXT + "3 0 2 1\n3 0 1 3\n3 1 2 4\n3 0 3 2\n")
+    with pytest.raises(errors.InvalidIndexError, match=r"line 9: face index 4 is outside \[0, 4\)"):
+        load_mesh(tmp_path / "c.off")
