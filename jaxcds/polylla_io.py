@@ -95,11 +95,15 @@ def _count(row: list[str], k: int, path: str, what: str, default: Optional[int] 
 
 
 def _table(rows, n, ncols, path, what, dtype):
-    """``n`` data rows of at least ``ncols`` columns after the header row, as an array."""
+    """``n`` data rows of at least ``ncols`` columns after the header row, as an array (more
+    rows than the header announces are refused too: one of the two is wrong)."""
     body = rows[1:1 + n]
     if len(body) < n:
         raise errors.PolyllaError(
             f"{path}: header announces {n} {what}s but only {len(body)} are present")
+    if len(rows) > 1 + n:
+        raise errors.PolyllaError(
+            f"{path}: header announces {n} {what}s but {len(rows) - 1} rows follow it")
     short = [i for i, r in enumerate(body) if len(r) < ncols]
     if short:
         raise errors.PolyllaError(
@@ -205,6 +209,9 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
     if dim != 2:
         raise errors.PolyllaError(f"{node}: dimension {dim} in the header, Polylla needs 2")
     tab = _table(rows, nv, 3, node, "vertex", np.float64)
+    frac = np.flatnonzero(tab[:, 0] != np.floor(tab[:, 0]))
+    if frac.size:  # a float id was truncated to the next lower integer
+        raise errors.PolyllaError(f"{node}: vertex {int(frac[0])} has id {float(tab[frac[0], 0])!r}; ids are integers")
     ids = tab[:, 0].astype(np.int64)
     base = int(ids[0]) if nv else 0
     if base not in (0, 1) or np.any(ids != np.arange(base, base + nv)):

@@ -632,7 +632,13 @@ def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
     mesh = TriMesh(vertices=np.column_stack([tri.points, np.zeros(tri.num_vertices)]),
                    faces=tri.faces, source=tri.source)
     if check:  # a point in no triangle (in a hole) is fine for the half-edge, not for others
-        validate(mesh, structure=f"Polylla on {structure}", unreferenced_ok=structure == "halfedge")
+        try:
+            validate(mesh, structure=f"Polylla on {structure}", unreferenced_ok=structure == "halfedge")
+        except errors.UnreferencedVertexError as exc:  # load_mesh's hint does not apply here
+            raise errors.UnreferencedVertexError(
+                str(exc).split("; jaxcds.mesh.load_mesh")[0] + f"; {structure} needs every point "
+                "in a triangle: remove it from the input, or run Polylla on the half-edge "
+                "(--structure halfedge), which accepts points in holes") from None
     if structure == "halfedge":
         return HalfEdge.from_faces(tri.faces, tri.num_vertices)
     if structure not in registry.names():

@@ -484,3 +484,25 @@ def test_a_huge_index_in_a_triangle_file_is_named(tmp_path):
     (tmp_path / "h.ele").write_text("2 3 0\n0 0 1 2\n1 0 99999999999999999999 3\n")
     with pytest.raises(errors.PolyllaError, match=r"h.ele: triangle 1 \(1 0 99999999999999999999 3\)"):
         io.read_triangle(str(tmp_path / "h.node"))
+
+
+def test_triangle_files_with_float_ids_or_extra_rows_are_refused(tmp_path):
+    """A float vertex id was truncated, and rows past the header's count were ignored."""
+    (tmp_path / "f.node").write_text("4 2 0 0\n0 0 0\n1.5 1 0\n2 1 1\n3 0 1\n")
+    (tmp_path / "f.ele").write_text("2 3 0\n0 0 1 2\n1 0 2 3\n")
+    with pytest.raises(errors.PolyllaError, match="vertex 1 has id 1.5"):
+        io.read_triangle(str(tmp_path / "f.node"))
+    (tmp_path / "x.node").write_text("4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
+    (tmp_path / "x.ele").write_text("1 3 0\n0 0 1 2\n1 0 2 3\n")
+    with pytest.raises(errors.PolyllaError, match="announces 1 triangles but 2 rows follow"):
+        io.read_triangle(str(tmp_path / "x.node"))
+
+
+def test_a_point_in_no_triangle_on_pemb_gives_a_polylla_hint():
+    """load_mesh's hint ("load_mesh drops them") does not apply to a Polylla input."""
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], float)
+    tri = io.Triangulation2D(points=pts, faces=np.array([[0, 1, 2], [0, 2, 3]]), source="hole", flipped=0)
+    with pytest.raises(errors.UnreferencedVertexError, match="vertex 4 is in no face.*halfedge") as exc:
+        P.run(tri, structure="pemb")
+    assert "load_mesh" not in str(exc.value)
+    assert P.run(tri, structure="halfedge")["polygons"] >= 1
