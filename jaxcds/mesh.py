@@ -149,7 +149,9 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     if faces.size == 0 and os.path.getsize(path) > 0 and vertices.size == 0:
-        raise errors.UnreadableMeshError(f"{path}: no vertices or faces could be read")
+        # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
+        raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
+                                    "empty or unparsable file)")
     return vertices, faces
 
 

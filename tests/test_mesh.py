@@ -581,3 +581,13 @@ def test_an_out_of_range_face_index_in_a_file_names_its_line(tmp_path):
     (tmp_path / "c.off").write_text("OFF\n4 4 6\n" + _TET_TEXT + "3 0 2 1\n3 0 1 3\n3 1 2 4\n3 0 3 2\n")
     with pytest.raises(errors.InvalidIndexError, match=r"line 9: face index 4 is outside \[0, 4\)"):
         load_mesh(tmp_path / "c.off")
+
+
+@pytest.mark.parametrize("suffix,text", [(".obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n"),
+                                         (".off", "OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n")])
+def test_a_file_of_vertices_only_is_an_empty_mesh_in_every_format(suffix, text, tmp_path):
+    """OBJ said "no vertices or faces could be read" (UnreadableMeshError), OFF EmptyMeshError."""
+    p = tmp_path / ("points" + suffix)
+    p.write_text(text)
+    with pytest.raises(errors.EmptyMeshError):
+        load_mesh(p)
