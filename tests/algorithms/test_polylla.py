@@ -478,24 +478,23 @@ def test_points50_at_extreme_coordinate_scales(scale, tmp_path):
         assert P.run(str(node))["polygons"] == 17
 
 
-def test_a_huge_index_in_a_triangle_file_is_named(tmp_path):
-    """An .ele index past int64 escaped as an OverflowError traceback."""
-    (tmp_path / "h.node").write_text("4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
-    (tmp_path / "h.ele").write_text("2 3 0\n0 0 1 2\n1 0 99999999999999999999 3\n")
-    with pytest.raises(errors.PolyllaError, match=r"h.ele: triangle 1 \(1 0 99999999999999999999 3\)"):
-        io.read_triangle(str(tmp_path / "h.node"))
+_NODE4 = "4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n"
 
 
-def test_triangle_files_with_float_ids_or_extra_rows_are_refused(tmp_path):
-    """A float vertex id was truncated, and rows past the header's count were ignored."""
-    (tmp_path / "f.node").write_text("4 2 0 0\n0 0 0\n1.5 1 0\n2 1 1\n3 0 1\n")
-    (tmp_path / "f.ele").write_text("2 3 0\n0 0 1 2\n1 0 2 3\n")
-    with pytest.raises(errors.PolyllaError, match="vertex 1 has id 1.5"):
-        io.read_triangle(str(tmp_path / "f.node"))
-    (tmp_path / "x.node").write_text("4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
-    (tmp_path / "x.ele").write_text("1 3 0\n0 0 1 2\n1 0 2 3\n")
-    with pytest.raises(errors.PolyllaError, match="announces 1 triangles but 2 rows follow"):
-        io.read_triangle(str(tmp_path / "x.node"))
+@pytest.mark.parametrize("node,ele,match", [
+    # an .ele index past int64 escaped as an OverflowError traceback
+    (_NODE4, "2 3 0\n0 0 1 2\n1 0 99999999999999999999 3\n",
+     r"a.ele: triangle 1 \(1 0 99999999999999999999 3\)"),
+    # a float vertex id was truncated
+    ("4 2 0 0\n0 0 0\n1.5 1 0\n2 1 1\n3 0 1\n", "2 3 0\n0 0 1 2\n1 0 2 3\n", "vertex 1 has id 1.5"),
+    # rows past the header's count were ignored
+    (_NODE4, "1 3 0\n0 0 1 2\n1 0 2 3\n", "announces 1 triangles but 2 rows follow"),
+])
+def test_triangle_files_with_huge_indices_float_ids_or_extra_rows(tmp_path, node, ele, match):
+    (tmp_path / "a.node").write_text(node)
+    (tmp_path / "a.ele").write_text(ele)
+    with pytest.raises(errors.PolyllaError, match=match):
+        io.read_triangle(str(tmp_path / "a.node"))
 
 
 def test_a_point_in_no_triangle_on_pemb_gives_a_polylla_hint():
