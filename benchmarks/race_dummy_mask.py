@@ -24,16 +24,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from benchmarks.harness import _edge_degrees  # noqa: E402
 from benchmarks.race_lf_words import race_in_turn  # noqa: E402
 from jaxcds.algorithms import face_list_vertex_normals, vertex_degrees, vertex_normals  # noqa: E402
 from jaxcds.generators import delaunay_square  # noqa: E402
 from jaxcds.structures import registry  # noqa: E402
-
-
-def _edge_degrees(faces, n):
-    d = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]).astype(np.int64)
-    d = np.unique(np.sort(d, axis=1), axis=0)
-    return np.bincount(d.ravel(), minlength=n)
 
 
 def runs_for(n: int, structures, seed: int = 1):

@@ -260,8 +260,11 @@ class PackedBatch(MeshStructure):
         the input meshes' sums, the rows of a structure's dummy vertices (holes closed,
         :meth:`dummy_vertex_mask`) and of their fans' faces left out."""
         self._check_length("per_mesh_sum", values, kind)
+        return self._sum_own(values, kind, self._dummy_rows(kind))
+
+    def _sum_own(self, values, kind: str, dummy):
+        """Per-mesh sums of ``values`` with the rows flagged in ``dummy`` (or none) left out."""
         seg = self.vertex_mesh() if kind == "vertex" else self.face_mesh()
-        dummy = self._dummy_rows(kind)
         if dummy is not None:
             values = jnp.asarray(values)
             values = jnp.where(dummy.reshape((-1,) + (1,) * (values.ndim - 1)), 0, values)
@@ -270,11 +273,12 @@ class PackedBatch(MeshStructure):
     def _dummy_rows(self, kind: str):
         """Rows of ``kind`` that are not the input meshes': a structure's dummy vertices, or
         the faces of their fans (a face with a dummy corner); ``None`` if there are none."""
+        from jaxcds.algorithms.normals import faces_with_dummy_corner
+
         dummy = self.dummy_vertex_mask()
         if dummy is None or kind == "vertex":
             return dummy
-        fv = self.face_vertices()
-        return dummy[fv[:, 0]] | dummy[fv[:, 1]] | dummy[fv[:, 2]]
+        return faces_with_dummy_corner(dummy, self.face_vertices())
 
     def _check_length(self, what: str, values, kind: str) -> None:
         """Raise :class:`~jaxcds.errors.ArgumentError` unless ``values`` has one row per
@@ -290,11 +294,10 @@ class PackedBatch(MeshStructure):
         """Per-mesh means (0 for an empty mesh): the input meshes' (a structure's dummy vertices
         and fan faces neither summed nor counted, as in :meth:`per_mesh_sum`)."""
         self._check_length("per_mesh_mean", values, kind)
-        s = self.per_mesh_sum(values, kind)
-        dummy = self._dummy_rows(kind)
-        if dummy is not None:
-            seg = self.vertex_mesh() if kind == "vertex" else self.face_mesh()
-            cnt = jax.ops.segment_sum((~dummy).astype(jnp.int32), seg, num_segments=self.num_meshes)
+        dummy = self._dummy_rows(kind)  # once: for faces it reads the union's face list
+        s = self._sum_own(values, kind, dummy)
+        if dummy is not None:  # the rows kept, per mesh
+            cnt = self._sum_own(jnp.ones(dummy.shape, jnp.int32), kind, dummy)
         else:
             cnt = self.n_vertex if kind == "vertex" else self.n_face
         c = jnp.maximum(cnt, 1).astype(s.dtype).reshape((-1,) + (1,) * (s.ndim - 1))

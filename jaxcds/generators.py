@@ -85,10 +85,9 @@ def icosphere(subdivisions: int = 3, radius: float = 1.0) -> TriMesh:
         r = float("nan")
     if not (np.isfinite(r) and r > 0):
         raise errors.ArgumentError(f"icosphere: radius must be a finite number > 0, got {radius!r}")
-    radius = r
     import trimesh
 
-    m = trimesh.creation.icosphere(subdivisions=s, radius=float(radius))
+    m = trimesh.creation.icosphere(subdivisions=s, radius=r)
     return TriMesh(vertices=np.ascontiguousarray(m.vertices, dtype=np.float64),
                    faces=np.ascontiguousarray(m.faces, dtype=np.int32), source=f"icosphere({s})")
 

@@ -172,51 +172,30 @@ def _name_bad_face_index(text: str, suffix: str, path: str) -> None:
     """On the error path only: the first face line of an OBJ / OFF text whose vertex index is
     out of range, as an :class:`~jaxcds.errors.InvalidIndexError` naming the line (trimesh's
     message was numpy's "index 4 is out of bounds for axis 0 with size 4"). Returns if none."""
-    nv, seen_v, off_faces = 0, 0, None
+    if suffix == ".off":
+        _check_off_lines(text, path, indices=True)
+        return
+    seen_v = 0
     total_v = sum(1 for line in text.splitlines() if line.split()[:1] == ["v"])
     for no, line in enumerate(text.splitlines(), 1):
         tok = line.split("#", 1)[0].split()
         if not tok:
             continue
-        if suffix == ".obj":
-            if tok[0] == "v":
-                seen_v += 1
-            elif tok[0] == "f":
-                for t in tok[1:]:
-                    try:
-                        i = int(t.split("/")[0])
-                    except ValueError:
-                        continue
-                    # positive indices count in the file's vertices, negative ones back from
-                    # the last vertex defined above the face
-                    ok = 0 < i <= total_v if i > 0 else 0 <= seen_v + i < seen_v
-                    if not ok:
-                        where = (f"{total_v} vertices in the file" if i > 0
-                                 else f"{seen_v} vertices defined above it")
-                        raise errors.InvalidIndexError(
-                            f"{path}: line {no}: face index {i} refers to no vertex ({where})")
-        else:
-            if off_faces is None:  # header, then counts
-                if tok[0].upper().endswith("OFF") and len(tok) == 1:
-                    continue
-                nums = tok[1:] if tok[0].upper().endswith("OFF") else tok
+        if tok[0] == "v":
+            seen_v += 1
+        elif tok[0] == "f":
+            for t in tok[1:]:
                 try:
-                    nv, off_faces, seen_v = int(nums[0]), int(nums[1]), 0
-                except (IndexError, ValueError):
-                    return
-                continue
-            if seen_v < nv:
-                seen_v += 1
-                continue
-            try:
-                idx = [int(t) for t in tok[1:1 + int(tok[0])]]
-            except ValueError:
-                return
-            bad = [i for i in idx if not 0 <= i < nv]
-            if bad:
-                raise errors.InvalidIndexError(
-                    f"{path}: line {no}: face index {bad[0]} is outside [0, {nv}) (the header "
-                    f"declares {nv} vertices)")
+                    i = int(t.split("/")[0])
+                except ValueError:
+                    continue
+                # positive indices count in the file's vertices, negative ones back from the
+                # last vertex defined above the face
+                if not (0 < i <= total_v if i > 0 else 0 <= seen_v + i < seen_v):
+                    where = (f"{total_v} vertices in the file" if i > 0
+                             else f"{seen_v} vertices defined above it")
+                    raise errors.InvalidIndexError(
+                        f"{path}: line {no}: face index {i} refers to no vertex ({where})")
 
 
 def _bytes_of(path: str) -> bytes:
@@ -264,8 +243,9 @@ def _check_off_counts(text: str, path: str) -> None:
     _check_off_lines(text, path)
 
 
-def _check_off_lines(text: str, path: str) -> None:
-    """:func:`_check_off_counts` line by line, lines numbered in the file."""
+def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
+    """:func:`_check_off_counts` line by line, lines numbered in the file; with ``indices``
+    (on trimesh's error path) every face index is checked against the vertex count too."""
     rows = []  # (line number, tokens) of every line with data, comments removed
     for no, line in enumerate(text.splitlines(), 1):
         tok = line.split("#", 1)[0].split()
@@ -297,16 +277,26 @@ def _check_off_lines(text: str, path: str) -> None:
         if len(tok) < want + 1:
             raise errors.UnreadableMeshError(
                 f"{path}: line {no}: face {k} declares {want} corners but lists {len(tok) - 1}")
+        if indices:
+            try:
+                bad = [i for i in map(int, tok[1:1 + want]) if not 0 <= i < nv]
+            except ValueError:
+                return  # not numbers: trimesh's own message says so
+            if bad:
+                raise errors.InvalidIndexError(
+                    f"{path}: line {no}: face index {bad[0]} is outside [0, {nv}) (the header "
+                    f"declares {nv} vertices)")
 
 
 def _check_ascii_ply_counts(path: str) -> None:
     """An ASCII PLY's declared vertex and face counts against its data lines (trimesh reads a
     short file without a word; binary PLYs are checked by size already)."""
     with open(path, "rb") as fh:
-        raw = fh.read()
-    end = raw.find(b"end_header")
-    if end < 0 or b"format ascii" not in raw[:end]:
-        return
+        head = fh.read(1 << 16)  # the header: a binary PLY stops here, unread
+        end = head.find(b"end_header")
+        if end < 0 or b"format ascii" not in head[:end]:
+            return
+        raw = head + fh.read()
     counts = {}
     for line in raw[:end].decode("latin-1").splitlines():
         tok = line.split()

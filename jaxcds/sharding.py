@@ -30,7 +30,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, replace, static_field
-from jaxcds.structures.base import Int, MeshStructure, one_pass_queries
+from jaxcds.structures.base import Int, MeshStructure, integer_array, one_pass_queries
 
 __all__ = ["device_mesh", "ShardedStructure", "shard_structure", "shard_rows", "sharded_query",
            "sharded_vertex_normals", "PAD"]
@@ -237,12 +237,7 @@ def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None
 def _int32_ids(ids, op: str) -> np.ndarray:
     """``ids`` as int32, or :class:`~jaxcds.errors.InvalidIndexError` for non-integers and
     values int32 cannot hold (a cast would truncate 1.7 to 1 or wrap 2^63 silently)."""
-    try:
-        a = np.asarray(ids)
-    except ValueError as exc:
-        raise errors.InvalidIndexError(f"sharded_query({op!r}): ids are not an array: {exc}") from None
-    if a.size and not np.issubdtype(a.dtype, np.integer):
-        raise errors.InvalidIndexError(f"sharded_query({op!r}): ids must be integers, got dtype {a.dtype}")
+    a = integer_array(ids, f"sharded_query({op!r}): ids")
     info = np.iinfo(np.int32)
     wide = (a > info.max) if a.dtype.kind == "u" else (a < info.min) | (a > info.max)
     if np.any(wide):

@@ -44,10 +44,10 @@ def _without_dummy_neighbours(s, deg, dummy):
     border vertex lies on two fan faces of each dummy it is adjacent to (the fan triangles
     before and after it on the hole's loop; a vertex met twice on one loop is non-manifold and
     refused by validation), so it has ``(fan faces at it) / 2`` dummy neighbours."""
-    from jaxcds.algorithms.normals import corner_sums
+    from jaxcds.algorithms.normals import corner_sums, faces_with_dummy_corner
 
     fv, valid = s.face_vertices_padded()
-    fan = dummy[fv[:, 0]] | dummy[fv[:, 1]] | dummy[fv[:, 2]]
+    fan = faces_with_dummy_corner(dummy, fv)
     if valid is not None:  # padding rows are not fan faces
         fan = fan & valid
     fans_at = corner_sums(fan.astype(jnp.int32), fv, s.num_vertices)

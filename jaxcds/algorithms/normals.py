@@ -25,7 +25,7 @@ import numpy as np
 from jaxcds import errors
 
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums",
-           "surface_faces_padded"]
+           "surface_faces_padded", "faces_with_dummy_corner"]
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
@@ -147,6 +147,12 @@ def _scatter_sums(s, positions):
     return corner_sums(fn, fv, s.num_vertices)
 
 
+def faces_with_dummy_corner(dummy, faces):
+    """``(R,)`` bool: the rows of ``faces`` with a corner flagged in ``dummy`` (the fans that
+    closed holes, CDS Sec. 4.5: each holds its hole's dummy vertex)."""
+    return dummy[faces[:, 0]] | dummy[faces[:, 1]] | dummy[faces[:, 2]]
+
+
 def surface_faces_padded(s):
     """``s.face_vertices_padded()`` with the faces of the hole-closing fans (a face with a
     vertex of ``s.dummy_vertex_mask()``) marked invalid too: the input mesh's own faces. A
@@ -156,7 +162,7 @@ def surface_faces_padded(s):
     dummy = s.dummy_vertex_mask()
     if dummy is None:
         return fv, valid
-    own = ~(dummy[fv[:, 0]] | dummy[fv[:, 1]] | dummy[fv[:, 2]])
+    own = ~faces_with_dummy_corner(dummy, fv)
     return fv, own if valid is None else valid & own
 
 

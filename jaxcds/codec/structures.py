@@ -324,9 +324,11 @@ def _blue5(n, r):
 def _run_phase1(words: Words, k: int, L, five: bool) -> np.ndarray:
     _check_size(words)
     n = words.num_vertices
-    if n >= 1 << 30 or 6 * n > 2**31 - 1:
-        raise errors.EncodingError(f"n = {n:,}: a CDS holds at most 357,913,941 vertices (its 6n dart "
-                                   "ids are int32; decode the faces instead)")
+    from jaxcds.structures.base import MAX_DARTS
+
+    if 6 * n > MAX_DARTS:  # also below the 30-bit fields' 2^30 (Sec. 2.1)
+        raise errors.EncodingError(f"n = {n:,}: a CDS holds at most {MAX_DARTS // 6:,} vertices (its 6n "
+                                   "dart ids are int32; decode the faces instead)")
     refs = np.zeros((n, k), dtype=np.int32)
     r = refs.view(np.uint32)
     buf = np.ascontiguousarray(words.bits, dtype=np.uint8)

@@ -277,12 +277,13 @@ def check_seeds(seeds, V, dummy=None):
         raise errors.ArgumentError(f"seeds must be a count >= 1 or a list of corner ids, got {seeds!r}") from None
     if not lst:
         raise errors.ArgumentError("seeds: an empty list of seed corners")
-    nc = int(np.asarray(V).shape[0])
+    tris = np.asarray(V).reshape(-1, 3)
+    nc = 3 * tris.shape[0]
     dm = None if dummy is None else np.asarray(dummy, bool)
     for i, c in enumerate(lst):
         if not _int(c) or not 0 <= c < nc:
             raise errors.ArgumentError(f"seeds[{i}] = {c!r} is not a corner id in [0, {nc})")
-        if dm is not None and dm[np.asarray(V).reshape(-1, 3)[int(c) // 3]].any():
+        if dm is not None and dm[tris[int(c) // 3]].any():
             raise errors.ArgumentError(f"seeds[{i}] = corner {c} is on a hole-closing (dummy) triangle; "
                                        "the ring starts on a triangle of the mesh")
     return [int(c) for c in lst]

@@ -71,6 +71,19 @@ def check_id_space(what: str, num_darts: int) -> None:
             "the 'absent' sentinel included): split the mesh or pack fewer meshes per batch")
 
 
+def integer_array(ids, what: str) -> np.ndarray:
+    """``ids`` as a numpy array of any integer dtype (an empty one of any dtype), or
+    :class:`~jaxcds.errors.InvalidIndexError` naming ``what``: ragged nested lists, floats,
+    strings (a cast would truncate 1.7 to 1)."""
+    try:
+        a = np.asarray(ids)
+    except ValueError as exc:  # ragged nested lists
+        raise errors.InvalidIndexError(f"{what} are not an array: {exc}") from None
+    if a.size and not np.issubdtype(a.dtype, np.integer):
+        raise errors.InvalidIndexError(f"{what} must be integers, got dtype {a.dtype}")
+    return a
+
+
 def as_ids(x) -> jnp.ndarray:
     """Ids as an int32 jnp array (the dtype of every reference in jaxcds)."""
     return jnp.asarray(x, dtype=jnp.int32)
@@ -276,23 +289,16 @@ class MeshStructure:
         an arbitrary value. Call this once on untrusted ids, or mask with :meth:`dart_valid`."""
         if kind not in ("dart", "vertex", "face"):
             raise errors.ArgumentError(f"unknown id kind {kind!r}: 'dart', 'vertex' or 'face'")
-        try:
-            a = np.asarray(ids)
-        except ValueError as exc:  # ragged nested lists
-            raise errors.InvalidIndexError(f"{kind} ids are not an array: {exc}") from None
-        if a.size and not np.issubdtype(a.dtype, np.integer):
-            raise errors.InvalidIndexError(f"{kind} ids must be integers, got dtype {a.dtype}")
+        a = integer_array(ids, f"{kind} ids")
         size = {"dart": self.num_darts, "vertex": self.num_vertices, "face": self.num_faces}[kind]
         # compared in their own dtype: a uint64 past 2^63 must not wrap to a negative int64
         bad = (a >= size) if a.dtype.kind == "u" else (a < 0) | (a >= size)
-        a = np.where(bad, 0, a).astype(np.int64) if a.dtype.kind == "u" else a.astype(np.int64)
-        orig = np.asarray(ids)
         if kind == "dart" and a.size:
             inside = np.where(bad, 0, a).astype(np.int32)
             bad = bad | ~np.asarray(self.dart_valid(jnp.asarray(inside)))
         if bad.any():
             pos = np.unravel_index(int(np.argmax(bad)), a.shape) if a.ndim else ()
-            x = int(orig[pos]) if a.ndim else int(orig)
+            x = int(a[pos]) if a.ndim else int(a)
             why = (f"outside [0, {size})" if not 0 <= x < size
                    else "inside the id space but not a dart (dart_valid is False)")
             where = f" at position {tuple(int(i) for i in pos)}" if a.ndim else ""
