@@ -585,13 +585,14 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
     flagged dummies (LR shows holes as borders) contributes its own vertices only.
 
     Raises:
+      ArgumentError: not one mesh per mesh of the batch.
       MeshError: the positions do not match the batch's vertex counts (naming the mesh).
     """
     from jaxcds.mesh import validate_and_close
 
     want = np.asarray(batch.n_vertex)
     if len(meshes) != want.shape[0]:
-        raise errors.MeshError(
+        raise errors.ArgumentError(
             f"pack_positions: {len(meshes)} meshes for a batch of {want.shape[0]}")
     ps = []
     for i, m in enumerate(meshes):

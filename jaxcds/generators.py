@@ -37,6 +37,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import is_integer
 from jaxcds.mesh import TriMesh
 
 __all__ = [
@@ -54,9 +55,7 @@ __all__ = [
 def _count(name: str, value) -> int:
     """An integer argument (a numpy integer, or a float with an integral value) as an int;
     :class:`~jaxcds.errors.ArgumentError` naming it otherwise (4.7 was truncated to 4)."""
-    if isinstance(value, (bool, np.bool_)) or value is None:
-        raise errors.ArgumentError(f"{name} must be an integer, got {value!r}")
-    if isinstance(value, (int, np.integer)):
+    if is_integer(value):
         return int(value)
     if isinstance(value, (float, np.floating)) and float(value).is_integer():
         return int(value)

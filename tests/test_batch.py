@@ -272,8 +272,10 @@ def test_errors_name_the_mesh():
         B.pack([good], "no-such-structure")
     with pytest.raises(errors.UnsupportedTopologyError, match="one structure kind"):
         B.concatenate([HalfEdge.from_mesh(good), CornerTable.from_mesh(good)])
-    with pytest.raises(errors.MeshError, match="positions"):
+    with pytest.raises(errors.ArgumentError, match="2 meshes for a batch of 1"):
         B.pack_positions(B.pack([good], "halfedge"), [good, good])
+    with pytest.raises(errors.MeshError, match="mesh 0 has 12 positions"):
+        B.pack_positions(B.pack([good], "halfedge"), [np.zeros((12, 3))])
 
 
 def test_class_without_concatenate_is_refused():

@@ -347,6 +347,8 @@ def test_generator_arguments_are_checked_by_name():
     for call, msg in [(lambda: G.random_planar_triangulation(10, seed=-1), "seed must be >= 0"),
                       (lambda: G.random_planar_triangulation(10, seed=1.5), "seed must be an integer"),
                       (lambda: G.random_planar_triangulation(None), "n must be an integer"),
+                      (lambda: G.random_planar_triangulation(True), "n must be an integer, got True"),
+                      (lambda: G.icosphere(np.bool_(True)), "subdivisions must be an integer"),
                       (lambda: G.random_planar_triangulation(4.7), "n must be an integer, got 4.7"),
                       (lambda: G.icosphere(2.5), "subdivisions must be an integer"),
                       (lambda: G.icosphere(1, radius=float("nan")), "radius must be a finite number"),

@@ -28,6 +28,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import is_integer
 
 __all__ = ["ring_expander", "hybrid_ring_expander", "extract_ring", "best_ring", "Ring",
            "lr_tables", "LRTables", "reference_ring_expander"]
@@ -264,11 +265,8 @@ def check_seeds(seeds, V, dummy=None):
     seed corners, each an integer corner id in ``[0, 3F)`` of a triangle without a dummy vertex.
     Returns an int or a list of ints; :class:`~jaxcds.errors.ArgumentError` names a bad value
     (an out-of-range corner crashed the numba kernel)."""
-    def _int(x):
-        return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
-
     if np.isscalar(seeds) or seeds is None:
-        if not _int(seeds) or seeds < 1:
+        if not is_integer(seeds) or seeds < 1:
             raise errors.ArgumentError(f"seeds must be a count >= 1 or a list of corner ids, got {seeds!r}")
         return int(seeds)
     try:
@@ -281,7 +279,7 @@ def check_seeds(seeds, V, dummy=None):
     nc = 3 * tris.shape[0]
     dm = None if dummy is None else np.asarray(dummy, bool)
     for i, c in enumerate(lst):
-        if not _int(c) or not 0 <= c < nc:
+        if not is_integer(c) or not 0 <= c < nc:
             raise errors.ArgumentError(f"seeds[{i}] = {c!r} is not a corner id in [0, {nc})")
         if dm is not None and dm[tris[int(c) // 3]].any():
             raise errors.ArgumentError(f"seeds[{i}] = corner {c} is on a hole-closing (dummy) triangle; "

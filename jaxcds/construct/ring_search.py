@@ -45,6 +45,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import is_integer
 from jaxcds._progress import Progress, want_progress
 from jaxcds.construct.ring_expander import _extract_ring, _n, _p, _tables
 
@@ -322,8 +323,7 @@ MAX_SWEEPS = 100_000
 def check_sweeps(sweeps) -> int:
     """``sweeps`` as an int, or the typed error (booleans, floats, strings, negatives and more
     than :data:`MAX_SWEEPS` refused)."""
-    if (isinstance(sweeps, bool) or not isinstance(sweeps, (int, np.integer)) or sweeps < 0
-            or sweeps > MAX_SWEEPS):
+    if not is_integer(sweeps) or sweeps < 0 or sweeps > MAX_SWEEPS:
         raise errors.ArgumentError(
             f"ring_sweeps must be an integer in [0, {MAX_SWEEPS}], got {sweeps!r}")
     return int(sweeps)

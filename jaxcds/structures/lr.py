@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import is_integer
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
@@ -760,8 +761,7 @@ def _check_k(k) -> list:
     if isinstance(k, str) and k == "auto":
         return list(_AUTO_K)
     ks = [k] if np.isscalar(k) or k is None else (list(k) if hasattr(k, "__iter__") else [k])
-    ok = bool(ks) and all(isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
-                          and x >= 0 for x in ks)
+    ok = bool(ks) and all(is_integer(x) and x >= 0 for x in ks)
     if not ok:
         raise errors.ArgumentError(f"k must be 'auto', an integer >= 0 (0: depth-first) or a "
                                    f"non-empty list of them, got {k!r}")
