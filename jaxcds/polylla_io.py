@@ -38,12 +38,28 @@ class Triangulation2D:
       faces: ``(F, 3)`` int32 vertex ids, counter-clockwise.
       source: where it came from (file name, ``"points"``, ``"arrays"``).
       flipped: how many input triangles were clockwise and were re-oriented.
+      clockwise: ``(F,)`` bool, which ones (None: none, or not known).
     """
 
     points: np.ndarray
     faces: np.ndarray
     source: str = "arrays"
     flipped: int = 0
+    clockwise: Optional[np.ndarray] = None
+
+    @property
+    def input_faces(self) -> np.ndarray:
+        """The triangles as the input listed them (corner order and orientation): ``faces`` with
+        the re-oriented rows turned back. Polylla breaks ties between equally long edges by this
+        corner order, as the reference does (:func:`jaxcds.algorithms.polylla.polylla`)."""
+        if self.clockwise is None or not self.flipped:
+            return self.faces
+        return np.where(np.asarray(self.clockwise, bool)[:, None], self.faces[:, ::-1], self.faces)
+
+    @property
+    def all_clockwise(self) -> bool:
+        """Every input triangle was clockwise (the reference's polygons are then clockwise)."""
+        return self.flipped == self.num_faces > 0
 
     @property
     def num_vertices(self) -> int:
@@ -140,6 +156,12 @@ def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
     Raises:
       PolyllaError: a triangle of zero area (collinear corners), naming it.
     """
+    out, cw = _orient(points, faces, source)
+    return out, int(cw.sum())
+
+
+def _orient(points: np.ndarray, faces: np.ndarray, source: str):
+    """:func:`orient_ccw`, returning which faces were clockwise (a bool mask)."""
     p = unit_scale(points)[faces]
     area2 = ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
              - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
@@ -151,7 +173,7 @@ def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
     cw = area2 < 0
     out = faces.copy()
     out[cw] = out[cw][:, ::-1]
-    return np.ascontiguousarray(out, dtype=np.int32), int(cw.sum())
+    return np.ascontiguousarray(out, dtype=np.int32), cw
 
 
 def _check_faces(faces: np.ndarray, nv: int, source: str) -> None:
@@ -182,10 +204,12 @@ def _make(points, faces, source, ccw: bool = False) -> Triangulation2D:
             f"{source}: vertex {int(bad[0])} has a non-finite coordinate {points[bad[0]].tolist()}")
     _check_faces(faces, points.shape[0], source)
     if ccw:
-        faces, flipped = np.ascontiguousarray(faces, dtype=np.int32), 0
-    else:
-        faces, flipped = orient_ccw(points, faces, source)
-    return Triangulation2D(points=points, faces=faces, source=source, flipped=flipped)
+        return Triangulation2D(points=points, faces=np.ascontiguousarray(faces, dtype=np.int32),
+                               source=source)
+    faces, cw = _orient(points, faces, source)
+    flipped = int(cw.sum())
+    return Triangulation2D(points=points, faces=faces, source=source, flipped=flipped,
+                           clockwise=cw if flipped else None)
 
 
 # ------------------------------------------------------------------------------ readers

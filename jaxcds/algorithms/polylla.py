@@ -45,10 +45,13 @@ the number of frontier darts to size the compacted arrays between phases, sortin
 by their first edge (numpy ``lexsort``, optional), and counting the repaired polygons (connected
 components of the pieces joined by the new middle edges, scipy, one graph edge per tip).
 
-Ties between equally long edges of a triangle are broken by the smaller input vertex-id pair
-``(min id, max id)`` (the reference breaks them by the triangle's corner order, which depends on
-the input file); lengths are squared Euclidean, computed in the dtype of ``positions`` (use
-float64, ``jax.enable_x64``, to reproduce the reference's decisions exactly: :func:`polylla` does).
+Lengths are Euclidean, ``sqrt(dx^2 + dy^2)`` as the reference's ``distance()`` (in the dtype
+of ``positions``; :func:`polylla` uses float64, ``jax.enable_x64``). Ties between equally long
+edges of a triangle go, as in the reference, to the first of ``c0c1, c1c2, c2c0`` in the input's
+corner order (``corners``, :func:`polylla`; without it, to the smaller input vertex-id pair
+``(min id, max id)``, a rule that needs no face order). The reference keeps the input's
+orientation: on an input of clockwise triangles its polygons run clockwise and its repair turns
+the other way (:func:`middle_edges`); :func:`polylla` does the same (``clockwise``).
 """
 
 from __future__ import annotations
@@ -94,19 +97,37 @@ def _tabulated(s, **tables):
 
 # ------------------------------------------------------------------------------ 1. label
 @functools.partial(jax.jit, static_argnames=("tabulate",))
-def _label_phase(s, positions, vertex_ids, tabulate: bool = True):
+def _label_phase(s, positions, vertex_ids, corners=None, tabulate: bool = True):
     """:func:`label_phase` plus ``is_border`` of every dart (the traversal reuses it instead of
-    asking the structure again: a parenthesis search per dart on pemb) and the navigation tables
+    asking the structure again: a parenthesis search per dart on pemb), the navigation tables
     of :func:`_tabulated` (None on a structure without them, or with ``tabulate=False``), for
-    the later phases."""
+    the later phases, and two flags for ``corners`` (see :func:`_label_body`)."""
     if not tabulate:  # the structure's own operators only (pemb: a search per query)
-        return _label_body(s, positions, vertex_ids) + (None,)
+        return _label_body(s, positions, vertex_ids, corners) + (None,)
     # every dart's twin and origin are asked (most several times): tabulate them once
     t = _tabulated(s, twin=True, origin=True)
-    return _label_body(t, positions, vertex_ids) + (getattr(t, "tables", None),)
+    return _label_body(t, positions, vertex_ids, corners) + (getattr(t, "tables", None),)
 
 
-def _label_body(s, positions, vertex_ids):
+def _corner_index(x, corners):
+    """Index of input vertex ``x`` in each row of ``corners`` (3 where it is not there)."""
+    return jnp.where(x == corners[:, 0], 0, jnp.where(x == corners[:, 1], 1,
+                                                      jnp.where(x == corners[:, 2], 2, 3)))
+
+
+def _label_body(s, positions, vertex_ids, corners=None):
+    """Label phase; returns ``(max_edge, frontier, seed, border_any, misplaced, tied)``.
+
+    Lengths are Euclidean (``sqrt``, in the dtype of ``positions``), as the reference computes
+    them: its published outputs (``points50.1.off``, ``pikachu.1.off``) were made so, and two
+    edges 1 ulp apart squared can be equal after the square root (a tie there).
+
+    Ties between equally long edges of a triangle go, as in the reference, to the first of its
+    edges ``c0c1, c1c2, c2c0`` in the input's corner order, given by ``corners`` (``(F, 3)``
+    input vertex ids of face ``f`` of ``s`` as the input listed them); without ``corners``, to
+    the smaller ``(min id, max id)`` input vertex pair (a rule that needs no face order).
+    ``misplaced``: some face of ``s`` is not the triangle of its ``corners`` row (the caller maps
+    them and runs again, if ``tied``: some triangle has a tie for its longest edge)."""
     # longest edge, per triangle: its three darts from edge_of_face / next, lengths from origins
     f = jnp.arange(s.num_faces, dtype=jnp.int32)
     e0 = s.edge_of_face(f)
@@ -116,17 +137,28 @@ def _label_body(s, positions, vertex_ids):
     p0, p1, p2 = positions[v0], positions[v1], positions[v2]
     i0, i1, i2 = vertex_ids[v0], vertex_ids[v1], vertex_ids[v2]
 
-    def sq(a, b):  # squared length, as the reference (no sqrt)
+    def length(a, b):
         d = a - b
-        return jnp.sum(d * d, axis=-1)
+        return jnp.sqrt(jnp.sum(d * d, axis=-1))
 
-    l0, l1, l2 = sq(p0, p1), sq(p1, p2), sq(p2, p0)
-    k0 = (jnp.minimum(i0, i1), jnp.maximum(i0, i1))
-    k1 = (jnp.minimum(i1, i2), jnp.maximum(i1, i2))
-    k2 = (jnp.minimum(i2, i0), jnp.maximum(i2, i0))
+    l0, l1, l2 = length(p0, p1), length(p1, p2), length(p2, p0)
+    top = jnp.maximum(jnp.maximum(l0, l1), l2)
+    tied = jnp.any(((l0 == top).astype(jnp.int32) + (l1 == top) + (l2 == top)) > 1)
+    if corners is None:
+        k0 = (jnp.minimum(i0, i1), jnp.maximum(i0, i1))
+        k1 = (jnp.minimum(i1, i2), jnp.maximum(i1, i2))
+        k2 = (jnp.minimum(i2, i0), jnp.maximum(i2, i0))
+        misplaced = jnp.bool_(False)
+    else:
+        # edge {v_j, v_j+1} is the input's edge c_k c_k+1 with c_k+2 = v_j+2 opposite it: its
+        # rank in the reference's order is k = (index of the opposite corner + 1) mod 3
+        c = jnp.asarray(corners, jnp.int32)
+        x0, x1, x2 = (_corner_index(i, c) for i in (i0, i1, i2))
+        misplaced = jnp.any((x0 == 3) | (x1 == 3) | (x2 == 3))
+        k0, k1, k2 = (((x + 1) % 3, 0) for x in (x2, x0, x1))
 
     def beats(la, ka, lb, kb):
-        # a is longer than b, or as long and with the smaller (min id, max id) vertex pair
+        # a is longer than b, or as long and with the smaller key
         return (la > lb) | ((la == lb) & ((ka[0] < kb[0]) | ((ka[0] == kb[0]) & (ka[1] < kb[1]))))
 
     first = beats(l0, k0, l1, k1) & beats(l0, k0, l2, k2)
@@ -150,18 +182,21 @@ def _label_body(s, positions, vertex_ids):
     # Def. 3 case "terminal edge": longest of both triangles (one dart kept, the smaller id);
     # case "border terminal edge": longest of its only triangle
     seed = inner & max_edge & (border_t | (max_t & (e < tw)))
-    return max_edge, frontier, seed, border_any
+    return max_edge, frontier, seed, border_any, misplaced, tied
 
 
 
 @jax.jit
-def label_phase(s, positions, vertex_ids):
+def label_phase(s, positions, vertex_ids, corners=None):
     """Label phase (paper Alg. 1; slides "Label Phase"), elementwise over all darts.
 
     Args:
       s: a structure with borders (``MeshStructure``).
       positions: ``(V, 2)`` (or ``(V, 3)``) float coordinates in the structure's vertex numbering.
       vertex_ids: ``(V,)`` int32 input id of every structure vertex (tie-breaking only).
+      corners: optional ``(F, 3)`` input vertex ids of each face of ``s`` in the input's corner
+        order: ties between equally long edges go to the first of ``c0c1, c1c2, c2c0``, as in
+        the reference; else to the smaller ``(min id, max id)`` pair.
 
     Returns:
       ``(max_edge, frontier, seed)``: ``(num_darts,)`` bool arrays. ``max_edge[e]``: ``e`` is the
@@ -169,7 +204,7 @@ def label_phase(s, positions, vertex_ids):
       triangle (Def. 4); ``seed[e]``: one dart per terminal edge (the one with the smaller id) and
       the inner dart of every border terminal edge (Def. 3). Jittable.
     """
-    return _label_phase(s, positions, vertex_ids)[:3]
+    return _label_phase(s, positions, vertex_ids, corners)[:3]
 
 
 # ------------------------------------------------------------------------------ 2. traversal
@@ -267,28 +302,37 @@ def _rotate(s, start, stop, step, mask, max_steps):
 
 
 @jax.jit
-def middle_edges(s, tip_darts, mask):
+def middle_edges(s, tip_darts, mask, mirror=False):
     """Middle edge of each barrier-edge tip (reference ``search_middle_edge``, paper Alg. 4).
 
     Args:
       tip_darts: ``(T,)`` darts arriving at the tips (from :func:`barrier_tips`), padded.
       mask: ``(T,)`` bool, the real lanes.
+      mirror: the input's triangles were all clockwise (``s`` holds them turned
+        counter-clockwise). The reference turns ``next(twin)`` on the input as it is, which on
+        such an input is a counter-clockwise turn: at a tip of odd degree it then picks the other
+        one of the two middle edges.
 
     Returns ``(T,)`` int32: the dart leaving the tip after ``deg // 2`` clockwise turns from the
-    barrier edge (``deg`` = degree of the tip; the reference's even/odd cases both reduce to it).
+    barrier edge (``deg`` = degree of the tip; the reference's even/odd cases both reduce to it);
+    with ``mirror``, ``deg // 2`` counter-clockwise turns (``deg - deg // 2`` clockwise ones).
     """
     fe = s.twin(tip_darts)  # the barrier edge, leaving the tip
     limit = s.num_darts
+    mirror = jnp.asarray(mirror, bool)
+
+    def turns(deg):
+        return jnp.where(mirror, deg - deg // 2, deg // 2)
 
     # one loop, one clockwise step per trip (one copy of cw_vertex_edge to compile): first turn
     # until back at the barrier edge counting the tip's degree, then from it again deg // 2 turns
     def cond(c):
         d, deg, k, counting, j = c
-        return jnp.any(mask & (counting | (k < deg // 2))) & (j < 2 * limit)
+        return jnp.any(mask & (counting | (k < turns(deg)))) & (j < 2 * limit)
 
     def body(c):
         d, deg, k, counting, j = c
-        turning = mask & ~counting & (k < deg // 2)
+        turning = mask & ~counting & (k < turns(deg))
         d2 = s.cw_vertex_edge(d)
         back = counting & (d2 == fe)  # a full turn: deg known, start again at the barrier edge
         deg = jnp.where(counting, deg + 1, deg)
@@ -427,8 +471,9 @@ class PolyllaMesh:
     Attributes:
       points: ``(V, 2)`` float64 coordinates (input numbering).
       offsets: ``(P + 1,)`` int64; polygon ``i`` is ``indices[offsets[i]:offsets[i+1]]``.
-      indices: ``(N,)`` int32 input vertex ids, each polygon counter-clockwise from its smallest
-        directed edge; polygons sorted by that edge.
+      indices: ``(N,)`` int32 input vertex ids, each polygon counter-clockwise (clockwise when
+        every input triangle was, as the reference's) from its smallest directed edge; polygons
+        sorted by that edge.
       barrier_edge_tips: number of barrier-edge tips found (before repair).
       repaired_polygons: number of terminal-edge-region polygons that had tips and were split.
       regions: number of terminal-edge regions (= seed edges = polygons before repair).
@@ -483,14 +528,25 @@ def _pad(x: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     return out, mask
 
 
-def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True,
-            tables: bool = True) -> PolyllaMesh:
+def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
+            sync_timings: bool = True, canonical: bool = True, tables: bool = True) -> PolyllaMesh:
     """Run Polylla on structure ``s`` (any structure with borders) and 2D ``positions``.
 
     Args:
       s: e.g. ``HalfEdge.from_faces(faces, V)`` or the ``pemb`` structure of the same mesh.
       positions: ``(V, 2)`` or ``(V, 3)`` coordinates in the *input* numbering (permuted here
         through ``s.vertex_order`` when the structure renumbers vertices).
+      corners: optional ``(F, 3)`` input triangles as the input lists them (corner order and
+        orientation as read, e.g. a ``.ele`` file's rows; :attr:`Triangulation2D.input_faces`).
+        With them the output is the reference's: ties between equally long edges of a triangle
+        go to the first of ``c0c1, c1c2, c2c0`` (without: to the smaller ``(min id, max id)``
+        input vertex pair), and an input of clockwise triangles gives clockwise polygons and the
+        reference's middle edges (``clockwise``, below). Rows in the face order of ``s`` when it
+        keeps the input's (``HalfEdge.from_faces``); otherwise matched to its faces here (a host
+        sort, only when some triangle has a tie).
+      clockwise: every input triangle is clockwise (default: read off ``corners``; False
+        without them). The reference keeps the input's orientation: its polygons are then
+        clockwise, and its barrier-edge repair turns the other way round (:func:`middle_edges`).
 
     ``tables``: let the structure build per-run navigation tables (:func:`_tabulated`; pemb:
     twin, origin and first dart of every face, 41.5 bytes per vertex while the run lasts, its
@@ -527,10 +583,23 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True,
             jax.block_until_ready(x)
         return clock()
 
+    cs = None
+    if corners is not None:
+        cs = _checked_corners(corners, s.num_faces, pos.shape[0])
+        if clockwise is None:
+            clockwise = _all_clockwise(pos, cs)
+    clockwise = bool(clockwise)
     t0 = marks[0][0]
     with jax.enable_x64(True):
-        max_edge, frontier, seed, border, nav_tables = _label_phase(
-            s, jnp.asarray(pos_s, jnp.float64), vids_j, tabulate=bool(tables))
+        pos_j = jnp.asarray(pos_s, jnp.float64)
+        cs_j = None if cs is None else jnp.asarray(cs, jnp.int32)
+        max_edge, frontier, seed, border, misplaced, tied, nav_tables = _label_phase(
+            s, pos_j, vids_j, cs_j, tabulate=bool(tables))
+        if cs is not None and bool(misplaced) and bool(tied):
+            # the structure numbers its faces its own way (pemb): the rows follow them
+            cs_j = jnp.asarray(_corners_of_faces(s, cs, vids), jnp.int32)
+            max_edge, frontier, seed, border, misplaced, tied, nav_tables = _label_phase(
+                s, pos_j, vids_j, cs_j, tabulate=bool(tables))
         t1 = done(seed)
     # the later phases navigate the same structure with the label phase's tables (pemb: twin and
     # origin of every dart, 32 bits per dart and 64 per vertex, alive until the run ends)
@@ -552,7 +621,7 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True,
     new_darts = np.zeros(0, np.int32)
     if T:
         td, tm = _pad(tip_darts, _bucket(T))
-        mid = middle_edges(nav, jnp.asarray(td), jnp.asarray(tm))
+        mid = middle_edges(nav, jnp.asarray(td), jnp.asarray(tm), clockwise)
         frontier, succ, new = repair_phase(nav, frontier, succ, mid, jnp.asarray(tm))
         new_darts = np.asarray(new)
         new_darts = np.concatenate([new_darts[:T], new_darts[td.size: td.size + T]])
@@ -569,6 +638,8 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True,
             f"({total} frontier darts, {regions} seeds, {T} barrier-edge tips)")
     offsets = np.asarray(offsets[: npoly + 1]).astype(np.int64)
     indices = np.asarray(out[:total]).astype(np.int32)
+    if clockwise:  # the reference's polygons run the input's way round
+        indices = _reversed_cycles(offsets, indices, s.num_vertices)
     t4 = clock()
     t["polygons"] = t4 - t3
     if canonical:
@@ -590,6 +661,60 @@ def polylla(s, positions, *, sync_timings: bool = True, canonical: bool = True,
     return PolyllaMesh(points=pos, offsets=offsets, indices=indices, barrier_edge_tips=int(T),
                        repaired_polygons=int(repaired), regions=regions,
                        frontier_edges=n_frontier, triangles=int(s.num_faces), timings=t)
+
+
+def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
+    """``corners`` as an ``(F, 3)`` int64 array of vertex ids, or :class:`PolyllaError`."""
+    try:
+        c = np.asarray(corners)
+    except ValueError as exc:
+        raise errors.PolyllaError(f"corners are not an array: {exc}") from None
+    if c.shape != (num_faces, 3) or (c.size and not np.issubdtype(c.dtype, np.integer)):
+        raise errors.PolyllaError(f"corners must be ({num_faces}, 3) integer vertex ids (one row per "
+                                  f"triangle), got shape {c.shape} of {c.dtype}")
+    bad = np.nonzero((c < 0) | (c >= num_vertices))[0]
+    if bad.size:
+        raise errors.PolyllaError(f"corners row {int(bad[0])} {c[bad[0]].tolist()} refers to a vertex "
+                                  f"outside [0, {num_vertices})")
+    return c.astype(np.int64)
+
+
+def _all_clockwise(pos: np.ndarray, corners: np.ndarray) -> bool:
+    """Every triangle of ``corners`` turns clockwise (negative signed area)."""
+    p = pos[corners]
+    a = ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+         - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    return bool(a.size) and bool(np.all(a < 0))
+
+
+_faces_of = jax.jit(lambda s: s.face_vertices())
+
+
+def _corners_of_faces(s, corners: np.ndarray, vids: np.ndarray) -> np.ndarray:
+    """The rows of ``corners`` in the face order of ``s`` (matched by vertex set, host sort)."""
+    fv = vids[np.asarray(_faces_of(s))]
+    a, b = np.sort(fv, axis=1), np.sort(corners, axis=1)
+    ka, kb = np.lexsort(a.T[::-1]), np.lexsort(b.T[::-1])
+    if not np.array_equal(a[ka], b[kb]):
+        raise errors.PolyllaError("corners are not the triangles of the structure")
+    out = np.empty_like(corners)
+    out[ka] = corners[kb]
+    return out
+
+
+def _reversed_cycles(offsets: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
+    """Every cycle of the CSR reversed, then rotated to start at its smallest directed edge."""
+    sizes = np.diff(offsets)
+    start = np.repeat(offsets[:-1], sizes)
+    end = np.repeat(offsets[1:], sizes)
+    pos = np.arange(indices.size)
+    rev = indices[start + end - 1 - pos]
+    nxt = np.where(pos + 1 < end, pos + 1, start)
+    key = rev.astype(np.int64) * n + rev[nxt]
+    lowest = np.repeat(np.minimum.reduceat(key, offsets[:-1]), sizes)
+    first = pos[key == lowest]  # one per cycle: a cycle passes each directed edge once
+    rot = start + (pos - start + np.repeat(first - offsets[:-1], sizes)) % np.maximum(end - start, 1)
+    return rev[rot]
 
 
 def _count_components(a: np.ndarray, b: np.ndarray) -> int:
@@ -680,7 +805,8 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     t0 = time.perf_counter()
     s = build_structure(tri, structure, check=check)
     t_build = time.perf_counter() - t0
-    mesh = polylla(s, tri.points, tables=tables)
+    # the input's corner order and orientation: ties and clockwise inputs as the reference
+    mesh = polylla(s, tri.points, corners=tri.input_faces, clockwise=tri.all_clockwise, tables=tables)
     if output is not None:
         polylla_io.write_polygon_off(str(output), tri.points, mesh.offsets, mesh.indices)
     out = mesh.summary()

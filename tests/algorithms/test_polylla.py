@@ -4,6 +4,7 @@ slow sequential port of the reference algorithm, invariants, I/O and errors, eve
 from __future__ import annotations
 
 import json
+import math
 import os
 import pathlib
 
@@ -36,7 +37,8 @@ def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = 
     """Sequential port of the reference (Polylla-Mesh-DCEL ``polylla.hpp``): seeds in dart order,
     ``travel_triangles``, ``has_BarrierEdgeTip`` (poly[i] == poly[i+2]), ``search_middle_edge``
     with its even/odd cases, ``barrieredge_tip_reparation``. Plain Python dicts, no protocol.
-    Differences, on purpose: walks close on the starting dart (the reference also stops when it
+    The faces are taken as given: corner order (ties go to the first of ``c0c1, c1c2, c2c0``)
+    and orientation (clockwise faces give clockwise polygons). Differences, on purpose: walks close on the starting dart (the reference also stops when it
     meets the starting *vertex* again, which truncates non-simple polygons), repaired pieces are
     de-duplicated as cycles, and (unless ``sequential``) the middle edges of all tips of a polygon
     are chosen before any is marked frontier. The reference marks each one at once, so a tip
@@ -50,9 +52,9 @@ def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = 
     where = {(org[d], org[nxt[d]]): d for d in range(nd)}
     tw = [where.get((org[nxt[d]], org[d]), -1) for d in range(nd)]
 
-    def length(d):
+    def length(d):  # the reference's distance(): sqrt(pow(dx, 2) + pow(dy, 2))
         a, b = points[org[d]], points[org[nxt[d]]]
-        return float((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2)
+        return math.sqrt(float((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2))
 
     mx = [False] * nd
     for f in range(faces.shape[0]):
@@ -286,6 +288,87 @@ def test_output_independent_of_structure_and_face_order(structure):
     np.testing.assert_array_equal(a.offsets, b.offsets)
     np.testing.assert_array_equal(a.indices, b.indices)
     assert (a.barrier_edge_tips, a.repaired_polygons) == (b.barrier_edge_tips, b.repaired_polygons)
+
+
+# ------------------------------------------------------------------------ ties, orientation
+def tie_lattice(k: int = 7):
+    """Rows of points offset by half a step, ``(2i + j % 2, 3j)``: every triangle is isosceles
+    with its two long sides exactly equal (sqrt 10 against 2), so every longest edge is a tie."""
+    pts = np.array([(2 * i + j % 2, 3 * j) for j in range(k) for i in range(k)], float)
+    vid = lambda i, j: j * k + i  # noqa: E731
+    faces = []
+    for j in range(k - 1):
+        for i in range(k - 1):
+            a, b, c, d = vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1)
+            faces += [[a, b, d], [b, c, d]] if j % 2 == 0 else [[a, b, c], [a, c, d]]
+    return io.Triangulation2D(points=pts, faces=np.array(faces, np.int32), source="ties")
+
+
+@pytest.mark.parametrize("rotation", [0, 1, 2, "random"])
+def test_ties_follow_the_input_corner_order(rotation):
+    """The reference breaks a tie between equally long edges by its triangle's corner order
+    (the first of c0c1, c1c2, c2c0). Each rotation of the corners is a different input, with its
+    own polygons; the run follows it, on the half-edge and on pemb (whose faces are numbered
+    its own way: the rows are matched to them)."""
+    tri = tie_lattice()
+    rot = (np.random.default_rng(5).integers(0, 3, tri.num_faces) if rotation == "random"
+           else np.full(tri.num_faces, rotation))
+    faces = np.stack([np.roll(f, -r) for f, r in zip(tri.faces, rot)]).astype(np.int32)
+    t = io.Triangulation2D(tri.points, faces, "ties")
+    ref, tips, _ = reference_polylla(t.points, t.faces)
+    got = {st: P.run(t, structure=st) for st in ("halfedge", "pemb")}
+    for st in got:
+        mesh = P.polylla(P.build_structure(t, st), t.points, corners=t.input_faces)
+        assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref), st
+        assert mesh.barrier_edge_tips == tips
+        check_partition(t, mesh)
+    assert got["halfedge"] == {**got["pemb"], "structure": "halfedge", "timings": got["halfedge"]["timings"]}
+
+
+def test_tie_lattice_is_not_vacuous():
+    """The corner order decides: rotations of the triangles' corners give different polygons
+    (a leg that neither of its triangles picks splits a row of the lattice)."""
+    tri = tie_lattice()
+    seen = set()
+    s = P.build_structure(tri)
+    for seed in range(3):
+        rot = np.random.default_rng(seed).integers(0, 3, tri.num_faces)
+        faces = np.stack([np.roll(f, -r) for f, r in zip(tri.faces, rot)])
+        mesh = P.polylla(s, tri.points, corners=faces)  # same faces, other corner order
+        seen.add(tuple(P.polygons_as_cycles(mesh.polygons())))
+    assert len(seen) > 1
+
+
+def test_clockwise_input_gives_the_reference_output():
+    """A clockwise input (every triangle, as ``pikachu.1.ele`` of the reference's data): the
+    reference keeps the orientation, so its polygons run clockwise, and its barrier-edge repair
+    turns ``next(twin)``, counter-clockwise on such input: at a tip of odd degree that is the
+    other middle edge."""
+    tri = random_tri(1)
+    cw = io._make(tri.points, tri.faces[:, ::-1], "clockwise")
+    assert cw.all_clockwise and cw.flipped == cw.num_faces
+    np.testing.assert_array_equal(cw.input_faces, tri.faces[:, ::-1])
+    ref, tips, repaired = reference_polylla(cw.points, cw.input_faces)
+    for st in STRUCTURES:
+        st = st.values[0]
+        mesh = P.polylla(P.build_structure(cw, st), cw.points, corners=cw.input_faces)
+        assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref), st
+        assert (mesh.barrier_edge_tips, mesh.repaired_polygons) == (tips, repaired)
+        areas = [signed_area(cw.points, p) for p in mesh.polygons()]
+        assert max(areas) < 0
+        np.testing.assert_allclose(sum(areas), -sum(signed_area(tri.points, f) for f in tri.faces))
+    # not vacuous: as polygons (vertex sets), the clockwise run differs from the ccw one
+    ccw = run_on(tri)
+    assert (sorted(map(sorted, ccw.polygons())) != sorted(map(sorted, mesh.polygons())))
+
+
+def test_corners_are_checked():
+    tri = random_tri(0)
+    s = P.build_structure(tri)
+    for bad, match in [(tri.faces[:5], r"must be \(\d+, 3\)"), (tri.faces + 10**6, "outside"),
+                       (tri.faces.astype(float), "integer")]:
+        with pytest.raises(errors.PolyllaError, match=match):
+            P.polylla(s, tri.points, corners=bad)
 
 
 def test_phases_same_without_jit():
