@@ -744,15 +744,9 @@ def polygons_as_cycles(polys) -> list:
 
 
 # ------------------------------------------------------------------------------ file to file
-def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
-    """The structure ``structure`` (``halfedge``, ``pemb``, any registered name accepting borders)
-    of a :class:`~jaxcds.polylla_io.Triangulation2D`, input vertex numbering kept.
-
-    With ``check`` the triangulation is validated first (typed :class:`~jaxcds.errors.MeshError`
-    naming the bad face, edge or vertex: non-manifold edges, bow-tie vertices, duplicates...)."""
+def _checked_mesh(tri, structure: str, check: bool):
+    """``tri`` as a :class:`~jaxcds.mesh.TriMesh`, validated when ``check`` (typed errors)."""
     from jaxcds.mesh import TriMesh, validate
-    from jaxcds.structures import registry
-    from jaxcds.structures.halfedge import HalfEdge
 
     mesh = TriMesh(vertices=np.column_stack([tri.points, np.zeros(tri.num_vertices)]),
                    faces=tri.faces, source=tri.source)
@@ -764,12 +758,75 @@ def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
                 str(exc).split("; jaxcds.mesh.load_mesh")[0] + f"; {structure} needs every point "
                 "in a triangle: remove it from the input, or run Polylla on the half-edge "
                 "(--structure halfedge), which accepts points in holes") from None
+    return mesh
+
+
+def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
+    """The structure ``structure`` (``halfedge``, ``pemb``, any registered name accepting borders)
+    of a :class:`~jaxcds.polylla_io.Triangulation2D`, input vertex numbering kept.
+
+    With ``check`` the triangulation is validated first (typed :class:`~jaxcds.errors.MeshError`
+    naming the bad face, edge or vertex: non-manifold edges, bow-tie vertices, duplicates...)."""
+    from jaxcds.structures import registry
+    from jaxcds.structures.halfedge import HalfEdge
+
+    mesh = _checked_mesh(tri, structure, check)
     if structure == "halfedge":
         return HalfEdge.from_faces(tri.faces, tri.num_vertices)
     if structure not in registry.names():
         raise errors.PolyllaError(
             f"unknown structure {structure!r} for Polylla; available: {', '.join(registry.names())}")
     return registry.build(structure, mesh)
+
+
+def _components_of(tri):
+    """``(count, face label)`` of the connected components of ``tri`` when it has several, else
+    None (the triangles of one piece share edges with each other only)."""
+    from jaxcds.mesh import TriMesh, _components
+
+    mesh = TriMesh(vertices=np.column_stack([tri.points, np.zeros(tri.num_vertices)]),
+                   faces=tri.faces, source=tri.source)
+    ncomp, label = _components(mesh)
+    return (ncomp, label) if ncomp > 1 else None
+
+
+def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool):
+    """Polylla on each connected piece of ``tri`` (its own structure, vertices renumbered in
+    order, which keeps every polygon's smallest directed edge first), the polygons merged in
+    input ids and sorted as one run's. Returns ``(PolyllaMesh, build seconds)``."""
+    from jaxcds import polylla_io
+
+    ncomp, label = parts
+    _checked_mesh(tri, structure, check)  # the whole input, as one structure would check it
+    cw = None if tri.clockwise is None else np.asarray(tri.clockwise, bool)
+    offs, idx, t, t_build = [np.zeros(1, np.int64)], [], {}, 0.0
+    counts = dict(barrier_edge_tips=0, repaired_polygons=0, regions=0, frontier_edges=0)
+    for c in range(ncomp):
+        sel = label == c
+        used = np.unique(tri.faces[sel])
+        remap = np.full(tri.num_vertices, -1, np.int64)
+        remap[used] = np.arange(used.size)
+        part_cw = None if cw is None else cw[sel]
+        flipped = 0 if part_cw is None else int(part_cw.sum())
+        sub = polylla_io.Triangulation2D(
+            points=tri.points[used], faces=remap[tri.faces[sel]].astype(np.int32),
+            source=f"{tri.source}[component {c}]", flipped=flipped,
+            clockwise=part_cw if flipped else None)
+        t0 = time.perf_counter()
+        s = build_structure(sub, structure, check=False)  # a piece of a valid input
+        t_build += time.perf_counter() - t0
+        m = polylla(s, sub.points, corners=sub.input_faces, clockwise=tri.all_clockwise,
+                    tables=tables, canonical=False)
+        offs.append(m.offsets[1:] + offs[-1][-1])
+        idx.append(used[m.indices].astype(np.int32))
+        for k in counts:
+            counts[k] += getattr(m, k)
+        for k, v in m.timings.items():
+            t[k] = t.get(k, 0.0) + v
+    offsets, indices, _ = _canonical_order(np.concatenate(offs), np.concatenate(idx))
+    mesh = PolyllaMesh(points=tri.points, offsets=offsets, indices=indices,
+                       triangles=tri.num_faces, timings=t, **counts)
+    return mesh, t_build
 
 
 def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
@@ -803,10 +860,15 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     else:
         tri, name = polylla_io.from_points(source), "points"
     t0 = time.perf_counter()
-    s = build_structure(tri, structure, check=check)
-    t_build = time.perf_counter() - t0
-    # the input's corner order and orientation: ties and clockwise inputs as the reference
-    mesh = polylla(s, tri.points, corners=tri.input_faces, clockwise=tri.all_clockwise, tables=tables)
+    parts = _components_of(tri) if structure != "halfedge" else None
+    if parts is not None:  # pemb is one connected planar embedding: one run per piece
+        mesh, t_build = _run_by_component(tri, parts, structure, check=check, tables=tables)
+    else:
+        s = build_structure(tri, structure, check=check)
+        t_build = time.perf_counter() - t0
+        # the input's corner order and orientation: ties and clockwise inputs as the reference
+        mesh = polylla(s, tri.points, corners=tri.input_faces, clockwise=tri.all_clockwise,
+                       tables=tables)
     if output is not None:
         polylla_io.write_polygon_off(str(output), tri.points, mesh.offsets, mesh.indices)
     out = mesh.summary()

@@ -362,6 +362,31 @@ def test_clockwise_input_gives_the_reference_output():
     assert (sorted(map(sorted, ccw.polygons())) != sorted(map(sorted, mesh.polygons())))
 
 
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_pemb_runs_each_piece_of_a_disconnected_input(clockwise):
+    """pemb is one connected planar embedding: a triangulation in several pieces (the reference's
+    pikachu has three) runs piece by piece and gives the half-edge's polygons, arrays and counts
+    included."""
+    a, b = random_tri(0, 60), tie_lattice(4)
+    pts = np.concatenate([a.points, b.points + [2.0, 0.0]])
+    faces = np.concatenate([a.faces, b.faces + a.num_vertices])
+    if clockwise:
+        faces = faces[:, ::-1]
+    tri = io._make(pts, faces, "pieces")
+    assert tri.all_clockwise == clockwise
+    he, pe = P.run(tri, structure="halfedge"), P.run(tri, structure="pemb")
+    for k in ("polygons", "barrier_edge_tips", "repaired_polygons", "regions", "frontier_edges",
+              "vertices", "triangles"):
+        assert he[k] == pe[k], k
+    s = P.build_structure(tri)
+    ref = P.polylla(s, tri.points, corners=tri.input_faces, clockwise=clockwise)
+    with pytest.raises(errors.UnsupportedTopologyError, match="2 components"):
+        P.build_structure(tri, "pemb")
+    out = P._run_by_component(tri, P._components_of(tri), "pemb", check=True, tables=True)[0]
+    np.testing.assert_array_equal(out.offsets, ref.offsets)
+    np.testing.assert_array_equal(out.indices, ref.indices)
+
+
 def test_corners_are_checked():
     tri = random_tri(0)
     s = P.build_structure(tri)
@@ -468,6 +493,75 @@ def test_bad_inputs(tmp_path):
                   "3 0 1 2\n3 1 0 3\n3 0 1 4\n")
     with pytest.raises(errors.MeshError, match="edge"):
         P.run(str(nm))
+
+
+_SQUARE = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+
+
+@pytest.mark.parametrize("name,content,match", [
+    # the fifth sweep: each of these was a traceback (ValueError, OverflowError) or no line named
+    ("short.off", "OFF\n4 2 0\n" + _SQUARE + "3 0 1 2\n3 1 3\n", r"face 1 lists 2 of its 3 vertices"),
+    ("big.off", "OFF\n4 2 0\n" + _SQUARE + "3 0 1 2\n3 1 3 99999999999999999999999\n",
+     r"face 1 .* outside \[0, 4\)"),
+    ("v.off", "OFF\n4 2 0\n0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n", r"vertex 0 has 1 coordinate"),
+    ("ragged.xy", "0 0\n1\n1 1\n0 1\n", r"point 1 has 1 coordinate"),
+])
+def test_bad_off_and_point_lines_are_named(tmp_path, name, content, match):
+    (tmp_path / name).write_text(content)
+    with pytest.raises(errors.PolyllaError, match=match):
+        P.run(str(tmp_path / name))
+
+
+def test_off_counts_on_the_keyword_line_and_bom(tmp_path):
+    """``OFF 4 2 0`` (counts on the keyword's line, which load_mesh reads) was read with the
+    first vertex as the counts: 3 vertices, 1 triangle, exit 0. A UTF-8 BOM before a ``.node``
+    header was refused as a non-integer count."""
+    off = tmp_path / "sq.off"
+    off.write_text("OFF 4 2 0\n" + _SQUARE + "3 0 1 2\n3 0 2 3\n")
+    d = P.run(str(off))
+    assert (d["vertices"], d["triangles"], d["polygons"]) == (4, 2, 1)
+    (tmp_path / "b.node").write_bytes(b"\xef\xbb\xbf4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
+    (tmp_path / "b.ele").write_text("2 3 0\n0 0 1 2\n1 0 2 3\n")
+    assert P.run(str(tmp_path / "b.node"))["triangles"] == 2
+
+
+def test_inputs_that_are_not_files_are_refused(tmp_path):
+    """A directory was reported as an *output* error; a FIFO blocked forever and /dev/zero filled
+    memory. A .neigh naming a triangle as its own neighbour passed its check."""
+    (tmp_path / "d.off").mkdir()
+    with pytest.raises(errors.PolyllaError, match="d.off: is a directory"):
+        P.run(str(tmp_path / "d.off"))
+    os.mkfifo(tmp_path / "fifo.xy")
+    with pytest.raises(errors.PolyllaError, match="not a regular file"):
+        P.run(str(tmp_path / "fifo.xy"))
+    os.symlink("/dev/zero", tmp_path / "zero.npy")
+    with pytest.raises(errors.PolyllaError, match="not a regular file"):
+        P.run(str(tmp_path / "zero.npy"))
+    (tmp_path / "s.node").write_text(_NODE4)
+    (tmp_path / "s.ele").write_text("2 3 0\n0 0 1 2\n1 0 2 3\n")
+    (tmp_path / "s.neigh").write_text("2 3\n0 0 -1 -1\n1 -1 -1 1\n")
+    with pytest.raises(errors.PolyllaError, match="triangle 0 lists itself"):
+        P.run(str(tmp_path / "s.node"))
+
+
+@pytest.mark.parametrize("points,match", [
+    (np.array([["a", "b"], ["c", "d"], ["e", "f"]]), "real numbers"),
+    (np.zeros(3, dtype=[("x", "f8"), ("y", "f8")]), "real numbers"),
+    (np.array([[0, 0], [1, 0], [0, 1j]]), "real numbers"),
+])
+def test_point_arrays_of_other_kinds_are_refused(points, match):
+    with pytest.raises(errors.PolyllaError, match=match):
+        io.from_points(points)
+
+
+@pytest.mark.parametrize("scale", [1e300, 1e-300, 1e-310])
+def test_point_sets_at_extreme_scales_triangulate(scale):
+    """Qhull refused the same five points at 1e300, 1e-300 and subnormal 1e-310 ("can not scale
+    last coordinate"); points near 1e308 failed inside the collinearity diagnosis (LinAlgError)."""
+    pts = np.array([(0, 0), (1, 0), (0, 1), (1, 1), (0.5, 0.3)])
+    assert P.run(pts * scale)["polygons"] == P.run(pts)["polygons"]
+    with pytest.raises(errors.PolyllaError, match="one line"):
+        io.from_points(np.array([[0, 0], [1e308, 1e308], [-1e308, -1e308]]))
 
 
 def test_cw_input_triangles_are_reoriented():
