@@ -177,6 +177,29 @@ def machine_info() -> dict:
     }
 
 
+def _seconds(text: str) -> float:
+    """An argparse type: a finite number of seconds > 0 (NaN failed every op, exit 0)."""
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not np.isfinite(x) or x <= 0:
+        raise argparse.ArgumentTypeError(f"{text} must be a finite number of seconds > 0")
+    return x
+
+
+#: the op names --ops takes (as prefixes): the structures' ops and the peers' normals
+OP_NAMES = ("vertex_degrees", "vertex_normals", "target", "face_left", "adjacent")
+
+
+def _op_prefix(text: str) -> str:
+    """An argparse type: a prefix of one of :data:`OP_NAMES` (comma lists accepted)."""
+    for x in (y for y in text.split(",") if y):
+        if not any(op.startswith(x) for op in OP_NAMES):
+            raise argparse.ArgumentTypeError(f"{x!r} is not (a prefix of) one of {', '.join(OP_NAMES)}")
+    return text
+
+
 def _positive(text: str) -> int:
     """An argparse type: an integer >= 1 (0 and negatives used to turn silently into the
     default, or a traceback)."""
@@ -601,13 +624,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--mesh", nargs="+", metavar="SPEC",
                    help="icosphere:S, random:N[:SEED], hull:N[:SEED], square:N[:SEED] or a mesh file "
                         f"(default: {' '.join(DEFAULT_MESHES)})")
-    p.add_argument("--ops", nargs="+", metavar="OP",
+    p.add_argument("--ops", nargs="+", metavar="OP", type=_op_prefix,
                    help="only these ops (prefixes): vertex_degrees vertex_normals target face_left adjacent")
     p.add_argument("--repeats", type=_positive, help="timed runs per op, median reported (default 7, quick 3)")
     p.add_argument("--queries", type=_positive, help="batch size of the query ops (default 2^20, quick 4096)")
-    p.add_argument("--budget", type=float, default=30.0, metavar="S",
+    p.add_argument("--budget", type=_seconds, default=30.0, metavar="S",
                    help="at most about S seconds of timed runs per op (fewer repeats for slow ops)")
-    p.add_argument("--max-call", type=float, default=60.0, metavar="S",
+    p.add_argument("--max-call", type=_seconds, default=60.0, metavar="S",
                    help="skip an op predicted (from a smaller mesh) to take more than S s per call")
     p.add_argument("--generators", type=float, nargs="*", metavar="N",
                    help="time the Poulalhon-Schaeffer sampler at these sizes (default: 1e6 1e7; "
@@ -634,6 +657,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``jaxcds bench`` / ``python -m benchmarks``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     a = _parser().parse_args(argv)
+    out_dir = a.out if a.out else (None if a.quick else os.path.dirname(os.path.abspath(__file__)))
+    if out_dir and os.path.exists(out_dir) and not os.path.isdir(out_dir):  # before any timing
+        print(f"jaxcds bench: error: --out {out_dir!r} is a file, not a folder", file=sys.stderr)
+        return 2
     if a.dtype == "float64":
         import jax
 
@@ -656,7 +683,6 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except errors.JaxcdsError as exc:
         print(f"jaxcds bench: error: {exc}", file=sys.stderr)
         return 2
-    out_dir = a.out if a.out else (None if a.quick else os.path.dirname(os.path.abspath(__file__)))
     if out_dir:
         from benchmarks.report import write_report
 

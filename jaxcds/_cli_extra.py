@@ -64,6 +64,8 @@ def _writing(path: str):
     def ctx():
         try:
             yield
+        except errors.JaxcdsError:  # typed already (an OutputError is an OSError too)
+            raise
         except OSError as exc:
             raise errors.OutputError(f"cannot write {path!r}: {exc.strerror or exc}") from exc
 

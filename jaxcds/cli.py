@@ -65,10 +65,12 @@ def cmd_info(args) -> int:
 
 
 # ------------------------------------------------------------------------------ build
-def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: int = 0) -> dict:
+def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: int = 0,
+                 return_structure: bool = False):
     """Build ``structure_name`` on ``mesh``; the dict ``jaxcds build --json`` prints.
     ``ring_sweeps``: the LR ring search (``lr`` / ``lr-bits`` only, see
-    :func:`jaxcds.structures.lr.build_lr`)."""
+    :func:`jaxcds.structures.lr.build_lr`). ``return_structure``: ``(dict, structure, mesh)``,
+    the mesh being the one built on (holes closed for a structure that needs a closed mesh)."""
     from jaxcds.mesh import close_boundaries, load_mesh
     from jaxcds.structures import registry
 
@@ -130,7 +132,7 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
         out["checked"] = rep.checked
         out["mismatches"] = rep.mismatches
         out["mismatches_by_operator"] = {k: v for k, v in rep.by_operator.items() if v}
-    return out
+    return (out, s, mesh) if return_structure else out
 
 
 def cmd_build(args) -> int:
@@ -145,48 +147,73 @@ def cmd_build(args) -> int:
 
 
 # ------------------------------------------------------------------------------ demo
+def _degrees_and_normals(s, mesh):
+    """Vertex degrees and normals of structure ``s`` of ``mesh``, rows in the mesh's order."""
+    import numpy as np
+
+    from jaxcds.algorithms import vertex_degrees, vertex_normals
+
+    order = s.vertex_order
+    v = np.asarray(mesh.vertices)
+    if s.num_vertices > v.shape[0]:  # holes closed by the builder: dummies at their loops' centroid
+        from jaxcds.mesh import close_boundaries
+
+        v = np.asarray(close_boundaries(mesh).vertices)
+    pos = v if order is None else v[np.asarray(order)]
+    deg = np.asarray(vertex_degrees(s))
+    nrm = np.asarray(vertex_normals(s, pos.astype(np.float32)))
+    if order is not None:
+        inv = np.empty_like(np.asarray(order))
+        inv[np.asarray(order)] = np.arange(inv.size)
+        deg, nrm = deg[inv], nrm[inv]
+    return deg, nrm
+
+
 def cmd_demo(args) -> int:
     """Load the bundled bunny, report its topology, build every registered structure, verify
     each against the half-edge and compute degrees and normals on each."""
     import numpy as np
 
-    from jaxcds.algorithms import vertex_degrees, vertex_normals
     from jaxcds.mesh import load_mesh, topology
     from jaxcds.structures import registry
 
-    path = args.mesh or default_mesh_path()
+    path = default_mesh_path() if args.mesh is None else args.mesh
     mesh = load_mesh(path)
     topo = topology(mesh)
     print(f"mesh: {os.path.basename(path)}  V={topo['vertices']} E={topo['edges']} F={topo['faces']} "
           f"genus={topo['genus']} closed={topo['closed']} manifold={topo['manifold']}")
     print(f"{'structure':<14}{'refs/vertex':>12}{'bytes/vertex':>14}{'build s':>9}"
           f"{'checked':>10}{'mismatch':>9}{'degree ok':>10}{'normal err':>12}")
-    reference = None
-    failures = 0
+    references = {}  # the half-edge's degrees and normals, per mesh built on (open / closed)
+    failures = refused = 0
     for name in registry.names():
         try:
-            rep = build_report(name, mesh, verify=True)
+            rep, s, built_on = build_report(name, mesh, verify=True, return_structure=True)
         except errors.JaxcdsError as exc:
             print(f"{name:<14} refused: {exc}")
+            refused += 1
             continue
-        s = registry.STRUCTURES[name].builder(mesh)
-        pos = mesh.vertices if s.vertex_order is None else mesh.vertices[np.asarray(s.vertex_order)]
-        deg = np.asarray(vertex_degrees(s))
-        nrm = np.asarray(vertex_normals(s, pos.astype(np.float32)))
-        if s.vertex_order is not None:
-            inv = np.empty_like(np.asarray(s.vertex_order))
-            inv[np.asarray(s.vertex_order)] = np.arange(inv.size)
-            deg, nrm = deg[inv], nrm[inv]
-        if reference is None:
-            reference = (deg, nrm)
-        deg_ok = bool(np.array_equal(deg[: mesh.num_vertices], reference[0][: mesh.num_vertices]))
-        err = float(np.abs(nrm[: mesh.num_vertices] - reference[1][: mesh.num_vertices]).max())
+        # a structure built on the closed copy answers for it (its dummies are vertices), unless
+        # it knows its dummies (the CDS family: the open mesh's answers)
+        if built_on is not mesh and s.dummy_vertex_mask() is not None:
+            built_on = mesh
+        deg, nrm = _degrees_and_normals(s, built_on)
+        if id(built_on) not in references:
+            he = registry.build("halfedge", built_on)
+            references[id(built_on)] = _degrees_and_normals(he, built_on)
+        ref_deg, ref_nrm = references[id(built_on)]
+        n = mesh.num_vertices
+        deg_ok = bool(np.array_equal(deg[:n], ref_deg[:n]))
+        err = float(np.abs(nrm[:n] - ref_nrm[:n]).max())
         failures += rep["mismatches"] > 0 or not deg_ok or err > 1e-4
         print(f"{name:<14}{rep['references_per_vertex']:>12.2f}{rep['bytes_per_vertex']:>14.1f}"
               f"{rep['build_seconds']:>9.3f}{rep['checked']:>10}{rep['mismatches']:>9}"
               f"{str(deg_ok):>10}{err:>12.2e}")
-    print("all structures agree with the half-edge" if not failures
-          else f"{failures} structure(s) disagree with the half-edge")
+    if refused == len(registry.names()):
+        raise errors.MeshError(f"{path}: no structure accepts this mesh (see the reasons above)")
+    tail = f" ({refused} refused the mesh)" if refused else ""
+    print(f"all structures agree with the half-edge{tail}" if not failures
+          else f"{failures} structure(s) disagree with the half-edge{tail}")
     return 1 if failures else 0
 
 
@@ -258,6 +285,21 @@ def _extend_parser(sub) -> None:
     _cli_extra.add_commands(sub)
 
 
+#: exit status when the report cannot be written to standard output
+EXIT_OUTPUT = 74  # EX_IOERR of sysexits.h
+_STDOUT_ERRNOS = (28, 5, 32)  # ENOSPC, EIO, EPIPE
+
+
+def _silence_stdout() -> None:
+    """Point standard output at /dev/null: the interpreter's last flush would fail again and
+    print a second error (the recipe of Python's ``signal`` documentation for SIGPIPE)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # no real file descriptor (a test's captured stdout)
+        pass
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
@@ -268,6 +310,18 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except errors.JaxcdsError as exc:
         print(f"jaxcds: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # `jaxcds info ... | head`: the reader left; nothing to report
+        _silence_stdout()
+        return EXIT_OUTPUT
+    except OSError as exc:
+        # output files are written atomically and name themselves (OutputError); an OSError
+        # with no file name out of a full disk or a broken device is the report's own print
+        if exc.errno not in _STDOUT_ERRNOS or exc.filename is not None:
+            raise
+        _silence_stdout()
+        print(f"jaxcds: error: cannot write the report to standard output: {exc.strerror}",
+              file=sys.stderr)
+        return EXIT_OUTPUT
     except KeyboardInterrupt:  # pragma: no cover
         return 130
 

@@ -71,16 +71,35 @@ class Triangulation2D:
 
 
 # ------------------------------------------------------------------------------ helpers
+def _input_file(path: str) -> None:
+    """``path`` is a regular file (not a directory, FIFO or device: a FIFO would block forever
+    and ``/dev/zero`` fill memory), or :class:`PolyllaError` naming it."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise errors.PolyllaError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise errors.PolyllaError(f"{path}: cannot read it: {exc.strerror}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a directory" if stat.S_ISDIR(mode) else "not a regular file (a FIFO or a device)"
+        raise errors.PolyllaError(f"{path}: is {kind}; Polylla reads a file")
+
+
 def _rows(path: str) -> list[list[str]]:
-    """Non-empty, non-comment lines of a text file, split on whitespace."""
-    if not os.path.exists(path):
-        raise errors.PolyllaError(f"{path}: no such file")
+    """Non-empty, non-comment lines of a text file, split on whitespace (a UTF-8 byte-order mark
+    before the first line is dropped)."""
+    _input_file(path)
     rows = []
-    with open(path, "r", encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            line = line.split("#", 1)[0].strip()
-            if line:
-                rows.append(line.split())
+    try:
+        with open(path, "r", encoding="utf-8-sig", errors="replace") as fh:
+            for line in fh:
+                line = line.split("#", 1)[0].strip()
+                if line:
+                    rows.append(line.split())
+    except OSError as exc:
+        raise errors.PolyllaError(f"{path}: cannot read it: {exc.strerror}") from None
     if not rows:
         raise errors.PolyllaError(f"{path}: empty file")
     return rows
@@ -267,6 +286,9 @@ def _check_neigh(path: str, faces: np.ndarray, nf: int, base: int) -> None:
     if np.any(nb >= nf):
         t = int(np.nonzero((nb >= nf).any(axis=1))[0][0])
         raise errors.PolyllaError(f"{path}: triangle {t} lists a neighbour outside [0, {nf})")
+    own = np.nonzero((nb == np.arange(nf)[:, None]).any(axis=1))[0]
+    if own.size:
+        raise errors.PolyllaError(f"{path}: triangle {int(own[0])} lists itself as its neighbour")
     t, k = np.nonzero(nb >= 0)
     if t.size:
         a = faces[t, (k + 1) % 3]
@@ -285,12 +307,15 @@ def read_off_2d(path: str) -> Triangulation2D:
     """A 2D triangulation in OFF (``z`` ignored); every face must be a triangle."""
     rows = _rows(path)
     i = 0
-    if rows[0][0].upper().endswith("OFF") and rows[0][0].upper() in ("OFF", "COFF", "NOFF", "STOFF"):
+    if rows[0][0].upper() in ("OFF", "COFF", "NOFF", "STOFF"):
         i = 1
     elif rows[0][0] == "{":  # geomview LIST wrapper as written by the reference Polylla
         while i < len(rows) and rows[i][0].upper() != "OFF":
             i += 1
         i += 1
+    if i > 0 and i <= len(rows) and len(rows[i - 1]) > 1:
+        # the counts on the keyword's line ("OFF 4 2 0"): the vertices start on the next one
+        rows = rows[:i - 1] + [rows[i - 1][:1], rows[i - 1][1:]] + rows[i:]
     if i >= len(rows):
         raise errors.PolyllaError(f"{path}: no OFF header")
     try:
@@ -305,6 +330,10 @@ def read_off_2d(path: str) -> Triangulation2D:
     if len(vrows) < nv or len(frows) < nf:
         raise errors.PolyllaError(
             f"{path}: header announces {nv} vertices and {nf} faces, the file is shorter")
+    short = [j for j, r in enumerate(vrows) if len(r) < 2]
+    if short:
+        raise errors.PolyllaError(f"{path}: vertex {short[0]} has {len(vrows[short[0]])} coordinate(s) "
+                                  f"{vrows[short[0]]}, expected x y (z)")
     try:
         pts = np.array([r[:2] for r in vrows], dtype=np.float64)
     except ValueError as exc:
@@ -315,16 +344,26 @@ def read_off_2d(path: str) -> Triangulation2D:
         if k != 3:
             raise errors.PolyllaError(
                 f"{path}: face {j} has {k} vertices; Polylla needs a triangulation")
-        faces[j] = _ints(r[1:4], path, j, "face")
+        idx = _ints(r[1:4], path, j, "face")
+        if len(idx) < 3:
+            raise errors.PolyllaError(f"{path}: face {j} lists {len(idx)} of its 3 vertices: {r}")
+        if any(not 0 <= x < nv for x in idx):
+            raise errors.PolyllaError(f"{path}: face {j} {idx} refers to a vertex outside [0, {nv})")
+        faces[j] = idx
     return _make(pts, faces, os.path.basename(path))
 
 
 def qhull_failure_reason(exc: Exception, pts: np.ndarray) -> str:
     """One line for a Qhull failure (its message is a 50-line diagnostic): the cause when it is
     a flat point set, else Qhull's first line."""
-    centred = pts - pts.mean(axis=0)
+    q = unit_scale(pts)  # no overflow in the mean and the rank below (points near 1e308)
+    centred = q - q.mean(axis=0)
     spread = float(np.abs(centred).max()) if centred.size else 0.0
-    if spread == 0.0 or np.linalg.matrix_rank(centred / spread, tol=1e-12) < 2:
+    try:
+        flat = spread == 0.0 or np.linalg.matrix_rank(centred / spread, tol=1e-12) < 2
+    except np.linalg.LinAlgError:
+        flat = False
+    if flat:
         return "every point lies on one line (or they coincide); a triangulation needs area"
     first = str(exc).strip().splitlines()[:1]
     return first[0] if first else type(exc).__name__
@@ -334,7 +373,13 @@ def from_points(points, source: str = "points") -> Triangulation2D:
     """Delaunay triangulation (scipy.spatial.Delaunay, Qhull) of a 2D point set."""
     from scipy.spatial import Delaunay
 
-    pts = np.asarray(points, dtype=np.float64)
+    try:
+        raw = np.asarray(points)
+        if raw.dtype.fields is not None or np.iscomplexobj(raw) or raw.dtype.kind in "USOVMm":
+            raise TypeError(f"dtype {raw.dtype}")
+        pts = raw.astype(np.float64)
+    except (TypeError, ValueError) as exc:
+        raise errors.PolyllaError(f"{source}: points must be real numbers, got {exc}") from None
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise errors.PolyllaError(f"{source}: points must have shape (N, 2), got {pts.shape}")
     if pts.shape[0] < 3:
@@ -344,8 +389,11 @@ def from_points(points, source: str = "points") -> Triangulation2D:
         raise errors.PolyllaError(f"{source}: point {int(bad[0])} is not finite")
     try:
         # centred first: Qhull lifts the points to a paraboloid, whose heights lose every digit
-        # that tells the points apart at a large offset (200 points at 1e10 read as duplicates)
-        tri = Delaunay(pts - (pts.min(axis=0) + pts.max(axis=0)) / 2)
+        # that tells the points apart at a large offset (200 points at 1e10 read as duplicates);
+        # scaled by a power of two (exact) so that tiny or huge coordinates (1e-300, 1e300)
+        # neither underflow nor overflow there
+        q = unit_scale(pts)
+        tri = Delaunay(unit_scale(q - (q.min(axis=0) + q.max(axis=0)) / 2))
     except Exception as exc:  # Qhull errors: all points collinear, too few distinct points...
         raise errors.PolyllaError(f"{source}: Delaunay triangulation failed: {qhull_failure_reason(exc, pts)}") from None
     used = np.zeros(pts.shape[0], bool)
@@ -370,18 +418,20 @@ def read_input(path: str) -> Triangulation2D:
     if low.endswith(".off"):
         return read_off_2d(path)
     if low.endswith(".npy"):
-        if not os.path.exists(path):
-            raise errors.PolyllaError(f"{path}: no such file")
+        _input_file(path)
         try:
             pts = np.load(path, allow_pickle=False)
         except (ValueError, OSError, EOFError) as exc:
             raise errors.PolyllaError(f"{path}: not a numeric .npy array: {exc}") from exc
         return from_points(pts, os.path.basename(path))
     if low.endswith((".xy", ".txt", ".csv", ".pts")):
-        rows = _rows(path)
+        rows = [[c for c in ",".join(r).split(",") if c] for r in _rows(path)]
+        short = [j for j, r in enumerate(rows) if len(r) < 2]
+        if short:
+            raise errors.PolyllaError(f"{path}: point {short[0]} has {len(rows[short[0]])} "
+                                      f"coordinate(s) {rows[short[0]]}, expected x y")
         try:
-            pts = np.array([[float(x) for x in r[:2]] for r in
-                            ([c for c in ",".join(r).split(",") if c] for r in rows)])
+            pts = np.array([[float(x) for x in r[:2]] for r in rows])
         except ValueError as exc:
             raise errors.PolyllaError(f"{path}: a point line is not numeric: {exc}") from exc
         return from_points(pts, os.path.basename(path))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
 
 import numpy as np
@@ -96,6 +97,26 @@ def test_cli_bench_entry_and_bad_names(capsys):
     rc = cli.main(["bench", "--quick", "--structures", "no-such-structure", "--peers"])
     assert rc != 0
     assert "no-such-structure" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args,match", [
+    (["--budget", "nan"], "finite number of seconds"),  # every op failed, exit 0
+    (["--budget", "-1"], "finite number of seconds"),
+    (["--max-call", "nan"], "finite number of seconds"),
+    (["--ops", "nonsense"], "not \\(a prefix of\\) one of"),  # nothing timed, exit 0
+])
+def test_bench_options_are_checked(capsys, args, match):
+    with pytest.raises(SystemExit) as exc:
+        harness.main(["--quick", "--structures", "halfedge", "--peers"] + args)
+    assert exc.value.code == 2
+    assert re.search(match, capsys.readouterr().err)
+
+
+def test_bench_out_naming_a_file_is_refused_before_timing(capsys, tmp_path):
+    f = tmp_path / "afile"
+    f.write_text("")
+    assert harness.main(["--quick", "--structures", "halfedge", "--peers", "--out", str(f)]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
 
 
 def test_peers_agree_with_reference():

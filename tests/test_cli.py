@@ -66,13 +66,41 @@ def test_build_lr_ring_sweeps(capsys):
     assert "--ring-sweeps applies to lr and lr-bits" in capsys.readouterr().err
 
 
-def test_demo_on_a_small_mesh(capsys):
+def test_demo_on_a_small_mesh(capsys, tmp_path):
     """The demo's whole job (every structure built, verified, degrees and normals compared) on
-    the cube; the bundled bunny is `make demo` itself and the slow test below."""
-    assert main(["demo", mesh_path("cube.off")]) == 0
+    the cube with one side open (a hole: the corner table is built on the closed copy, the CDS
+    close it themselves, LR and pemb take it open; the demo stopped at the corner table with
+    exit 2 before); the bundled bunny is `make demo` itself and the slow test below."""
+    from jaxcds.mesh import load_mesh
+
+    cube = load_mesh(mesh_path("cube.off"))
+    f = cube.faces
+    # face 0 and the face across its first edge: a quad hole
+    nb = next(i for i in range(1, len(f)) if {f[0][0], f[0][1]} <= set(f[i].tolist()))
+    keep = [x for i, x in enumerate(f.tolist()) if i not in (0, nb)]
+    box = tmp_path / "box.off"
+    with open(box, "w") as fh:
+        fh.write(f"OFF\n{cube.num_vertices} {len(keep)} 0\n")
+        fh.writelines(f"{x!r} {y!r} {z!r}\n" for x, y, z in cube.vertices.tolist())
+        fh.writelines(f"3 {a} {b} {c}\n" for a, b, c in keep)
+    assert main(["demo", str(box)]) == 0
     out = capsys.readouterr().out
-    assert "all structures agree with the half-edge" in out
+    assert "closed=False" in out and "refused" not in out
+    assert "all structures agree with the half-edge\n" in out
     assert all(name in out for name in ("halfedge", "corner-table", "cds5n", "lr", "pemb"))
+    # a mesh no structure takes is an error, not "all agree"
+    bow = tmp_path / "bow.off"
+    bow.write_text("OFF\n5 2 0\n0 0 0\n1 0 0\n0 1 0\n-1 0 0\n0 -1 0\n3 0 1 2\n3 0 3 4\n")
+    assert main(["demo", str(bow)]) == 2
+    assert "no structure accepts this mesh" in capsys.readouterr().err
+
+
+def test_a_report_that_cannot_be_printed_is_one_line():
+    """``> /dev/full``: the report's print failed with an OSError traceback."""
+    r = subprocess.run(f"{sys.executable} -m jaxcds info {mesh_path('cube.off')} > /dev/full",
+                       shell=True, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 74, r.stderr
+    assert "cannot write the report to standard output" in r.stderr and "Traceback" not in r.stderr
 
 
 @pytest.mark.slow

@@ -157,7 +157,14 @@ def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometr
 
 
 def _read_bytes(path) -> bytes:
+    """The file's bytes; a directory, FIFO or device is refused by name (a FIFO would block, a
+    link to ``/dev/urandom`` fill memory)."""
+    import stat
+
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            raise errors.FormatError(f"{os.fspath(path)!r} is not a regular file (a directory, FIFO "
+                                     "or device); a .cds input is a file")
         with open(path, "rb") as fh:
             return fh.read()
     except OSError as exc:
