@@ -11,6 +11,8 @@ import dataclasses
 import io
 import os
 import re
+import stat
+import struct
 from typing import Any, Optional, Sequence
 
 import numba
@@ -119,6 +121,12 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
     if suffix not in SUFFIXES:
         raise errors.UnreadableMeshError(
             f"{path}: unknown mesh format {suffix!r} (expected one of {', '.join(SUFFIXES)})")
+    raw = read_regular_file(path)
+    if not raw.strip():
+        raise errors.EmptyMeshError(f"{path}: the file is empty")
+    if suffix != ".stl" and raw[:2] == b"\x1f\x8b":  # (a binary STL's header is free text)
+        raise errors.UnreadableMeshError(f"{path}: gzip-compressed data (bytes 0-1 are 0x1f 0x8b), "
+                                         f"not {suffix[1:].upper()} text: decompress it first")
     import trimesh
 
     text = None
@@ -128,34 +136,133 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             # text formats, read as text here: trimesh guesses a non-UTF-8 file's encoding with
             # an optional package (charset_normalizer) and fails without it; the numbers are
             # ASCII in every encoding, so Latin-1 (which decodes any byte) reads a legacy comment
-            text = _text_of(path)
+            text = _decode_text(raw)
             if suffix == ".obj":
-                _refuse_obj_index_zero(text, path)
+                text = _prepare_obj(text, path)
             else:
                 _check_off_counts(text, path)
             loaded = trimesh.load(io.StringIO(text), file_type=suffix[1:], process=False,
                                   force="mesh")
         else:
             if suffix == ".ply":
-                _check_ascii_ply_counts(path)
-            loaded = trimesh.load(path, process=False, force="mesh")
+                mixed = _check_ply(raw, path)
+                if mixed is not None:  # a binary PLY of mixed polygons (trimesh cannot read it)
+                    return mixed
+            # the bytes read above, not the path again: it may have changed in between
+            loaded = trimesh.load(io.BytesIO(raw), file_type=suffix[1:], process=False,
+                                  force="mesh")
     except errors.JaxcdsError:
         raise
     except Exception as exc:  # trimesh raises many kinds; all mean "cannot parse"
-        if text is not None:
-            _name_bad_face_index(text, suffix, path)  # raises InvalidIndexError naming the line
+        if text is not None:  # raises a typed error naming the line where it can
+            (_diagnose_obj if suffix == ".obj" else _diagnose_off)(text, path)
+        elif suffix == ".stl":
+            _diagnose_ascii_stl(raw, path)
         raise errors.UnreadableMeshError(f"{path}: cannot parse as {suffix[1:].upper()}: "
-                                         f"{_parse_failure(path, suffix, exc)}") from exc
+                                         f"{_parse_failure(raw, suffix, exc)}") from exc
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
-    if faces.size == 0 and os.path.getsize(path) > 0 and vertices.size == 0:
+    if (suffix == ".obj" and vertices.size and vertices.shape[1:] != (3,)
+            and (vertices.shape[1:] != (2,) or re.search(r"(?m)^v +\S+ +\S+ +\S", text))):
+        # trimesh cut every vertex to the shortest "v" line: a 2-D file loads with z = 0 as
+        # before, a 2-D line among 3-D ones had flattened them all
+        _diagnose_obj(text, path)
+    if faces.size == 0 and len(raw) > 0 and vertices.size == 0:
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")
     return vertices, faces
 
 
-_OBJ_INDEX_ZERO = re.compile(r"(?m)^[ \t]*f[ \t](?:[^\n]*?[ \t])?0(?=[/ \t\r]|$)")
+def _file_kind(mode: int) -> str:
+    for test, kind in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "not a plain file"
+
+
+def read_regular_file(path: Any, *, error: type = errors.UnreadableMeshError) -> bytes:
+    """The bytes of the input file ``path``, refusing with ``error`` (a :mod:`jaxcds.errors`
+    class; the message names the path and what it is) anything that is not a regular file,
+    before a byte is read: a FIFO (a read with no writer blocks forever), a device such as
+    ``/dev/zero`` or ``/dev/urandom`` (a read never ends and takes all memory), a socket, a
+    directory, also when reached through a symlink. The file is opened without blocking and
+    checked again on the open descriptor (it may have been replaced in between)."""
+    path = os.fspath(path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise error(f"{path}: no such file") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise error(f"{path}: is {_file_kind(st.st_mode)}, not a regular file (only files "
+                    "are read: a device or a pipe may never end)")
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except OSError as exc:
+        raise error(f"{path}: cannot read: {exc.strerror or exc}") from None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise error(f"{path}: is {_file_kind(st.st_mode)}, not a regular file (only files "
+                        "are read: a device or a pipe may never end)")
+        try:
+            return fh.read()
+        except OSError as exc:
+            raise error(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+
+def _decode_text(raw: bytes) -> str:
+    if raw.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark: it hid an OBJ's first line
+        raw = raw[3:]
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+# ---- OBJ. Every rewrite keeps the lines (and their numbers) where they were.
+_OBJ_INDENT = re.compile(r"(?m)^ +")
+# a comment after data on its line ("v 0 0 0 # first"): trimesh's reader fails on it
+_OBJ_TRAILING_COMMENT = re.compile(r"[^\s#][^\S\n]*#")
+_OBJ_COMMENT = re.compile(r"#[^\n]*")
+# a face index 0, also written "-0", "+0" or "00" (OBJ indices start at 1)
+_OBJ_INDEX_ZERO = re.compile(r"(?m)^f (?:[^\n]*? )?[-+]?0+(?=[/ \r]|$)")
+_OBJ_NEGATIVE = re.compile(r"(?m)^f [^\n-]*-")
+
+
+def _prepare_obj(text: str, path: str) -> str:
+    """The OBJ text as trimesh's reader can take it, checked: tabs read as spaces and indented
+    lines unindented (trimesh skipped "v<TAB>x y z" and "  f 1 2 3" without a word), comments
+    after data removed, relative (negative) indices made absolute where vertices follow a
+    face, and a face index 0 refused naming its line. Each step runs only where a cheap
+    test finds its case."""
+    if "\t" in text:
+        text = text.replace("\t", " ")
+    if text[:1] == " " or "\n " in text:
+        text = _OBJ_INDENT.sub("", text)
+    if "#" in text and _obj_trailing_comment(text):
+        text = _OBJ_COMMENT.sub("", text)
+    _refuse_obj_index_zero(text, path)
+    first_face = 0 if text.startswith("f ") else text.find("\nf ")
+    if first_face >= 0 and text.rfind("\nv") > first_face and _OBJ_NEGATIVE.search(text, first_face):
+        text = _absolute_obj_indices(text, path)
+    return text
+
+
+def _obj_trailing_comment(text: str) -> bool:
+    """Whether a '#' follows data on its line (a few comments looked at one by one, many with
+    a regex scan)."""
+    if text.count("#") > 1000:
+        return _OBJ_TRAILING_COMMENT.search(text) is not None
+    for hit in re.finditer("#", text):
+        i = hit.start()
+        if text[text.rfind("\n", 0, i) + 1:i].strip():
+            return True
+    return False
 
 
 def _refuse_obj_index_zero(text: str, path: str) -> None:
@@ -168,27 +275,81 @@ def _refuse_obj_index_zero(text: str, path: str) -> None:
                                        "start at 1 (negative ones count back from the last vertex)")
 
 
-def _name_bad_face_index(text: str, suffix: str, path: str) -> None:
-    """On the error path only: the first face line of an OBJ / OFF text whose vertex index is
-    out of range, as an :class:`~jaxcds.errors.InvalidIndexError` naming the line (trimesh's
-    message was numpy's "index 4 is out of bounds for axis 0 with size 4"). Returns if none."""
-    if suffix == ".off":
-        _check_off_lines(text, path, indices=True)
-        return
+def _absolute_obj_indices(text: str, path: str) -> str:
+    """Relative (negative) face indices count back from the last vertex (texture coordinate,
+    normal) defined *above* the face; trimesh counts from the file's last one, which differs
+    once more vertices follow a face. Rewritten as absolute indices, line by line (only taken
+    when a negative index and a vertex after a face are both present)."""
+    lines = text.split("\n")
+    seen = [0, 0, 0]  # v, vt, vn defined so far
+    kinds = {"v": 0, "vt": 1, "vn": 2}
+    for no, line in enumerate(lines):
+        if line[:1] == "v":
+            k = kinds.get(line.split(None, 1)[0] if line.strip() else "")
+            if k is not None:
+                seen[k] += 1
+        elif line[:2] == "f " and "-" in line:
+            corners = []
+            for tok in line[2:].split():
+                parts = tok.split("/")
+                for j, part in enumerate(parts[:3]):
+                    if part[:1] != "-":
+                        continue
+                    try:
+                        i = int(part)
+                    except ValueError:
+                        continue  # not a number: the diagnosis names it
+                    if seen[j] + i < 0:
+                        if j == 0:
+                            raise errors.InvalidIndexError(
+                                f"{path}: line {no + 1}: face index {i} refers to no vertex "
+                                f"({seen[0]} vertices defined above it)")
+                        continue
+                    parts[j] = str(seen[j] + i + 1)
+                corners.append("/".join(parts))
+            lines[no] = "f " + " ".join(corners)
+    return "\n".join(lines)
+
+
+def _obj_number_error(path: str, no: int, what: str, tok: str) -> errors.UnreadableMeshError:
+    return errors.UnreadableMeshError(f"{path}: line {no}: {what} {tok!r} is not a number")
+
+
+def _diagnose_obj(text: str, path: str) -> None:
+    """On trimesh's error path only: the first line of the (prepared) OBJ text that is not a
+    well-formed vertex or face, as a typed error naming the line and the problem (trimesh's
+    messages named neither). Returns if it finds none."""
+    lines = text.split("\n")
+    total_v = sum(1 for line in lines if line[:2] == "v ")
+    if not text.strip():
+        raise errors.EmptyMeshError(f"{path}: the file is empty")
     seen_v = 0
-    total_v = sum(1 for line in text.splitlines() if line.split()[:1] == ["v"])
-    for no, line in enumerate(text.splitlines(), 1):
+    for no, line in enumerate(lines, 1):
         tok = line.split("#", 1)[0].split()
         if not tok:
             continue
-        if tok[0] == "v":
-            seen_v += 1
+        if tok[0] in ("v", "vt", "vn"):
+            for t in tok[1:]:
+                try:
+                    float(t)
+                except ValueError:
+                    raise _obj_number_error(path, no, "coordinate", t) from None
+            if tok[0] == "v":
+                seen_v += 1
+                if len(tok) < 4:
+                    raise errors.UnreadableMeshError(
+                        f"{path}: line {no}: a vertex needs 3 coordinates (v x y z), got "
+                        f"{len(tok) - 1}")
         elif tok[0] == "f":
+            if len(tok) < 4:
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {no}: a face needs at least 3 vertex indices, got {len(tok) - 1}")
             for t in tok[1:]:
                 try:
                     i = int(t.split("/")[0])
                 except ValueError:
-                    continue
+                    raise errors.InvalidIndexError(
+                        f"{path}: line {no}: face index {t.split('/')[0]!r} is not an integer") from None
                 # positive indices count in the file's vertices, negative ones back from the
                 # last vertex defined above the face
                 if not (0 < i <= total_v if i > 0 else 0 <= seen_v + i < seen_v):
@@ -198,21 +359,40 @@ def _name_bad_face_index(text: str, suffix: str, path: str) -> None:
                         f"{path}: line {no}: face index {i} refers to no vertex ({where})")
 
 
-def _bytes_of(path: str) -> bytes:
-    with open(path, "rb") as fh:
-        return fh.read()
 
 
-def _text_of(path: str) -> str:
-    raw = _bytes_of(path)
-    if raw.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark: it hid an OBJ's first line
-        raw = raw[3:]
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
+def _diagnose_ascii_stl(raw: bytes, path: str) -> None:
+    """On trimesh's error path only: the first line of an ASCII STL whose vertex is not three
+    numbers, or whose loop is not three vertices, named (trimesh's messages were numpy's)."""
+    if not raw.lstrip()[:5].lower() == b"solid":
+        return
+    count, loop = 0, 0
+    for no, line in enumerate(raw.split(b"\n"), 1):
+        tok = line.split()
+        if not tok:
+            continue
+        key = tok[0].lower()
+        if key == b"outer":
+            count, loop = 0, no
+        elif key == b"vertex":
+            count += 1
+            if len(tok) != 4:
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {no}: a vertex line is 'vertex x y z', got {len(tok) - 1} values")
+            for t in tok[1:]:
+                try:
+                    float(t)
+                except ValueError:
+                    raise errors.UnreadableMeshError(
+                        f"{path}: line {no}: coordinate {t.decode('latin-1')[:40]!r} is not a "
+                        "number") from None
+        elif key == b"endloop" and count != 3:
+            raise errors.UnreadableMeshError(
+                f"{path}: line {no}: the loop from line {loop} has {count} vertices; an STL facet "
+                "is a triangle (3)")
 
 
+# ---- OFF
 def _check_off_counts(text: str, path: str) -> None:
     """The element counts an OFF header declares against the lines that follow (trimesh reads
     fewer faces without a word, and a face line's declared corner count against its indices).
@@ -245,14 +425,26 @@ def _check_off_counts(text: str, path: str) -> None:
 
 def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
     """:func:`_check_off_counts` line by line, lines numbered in the file; with ``indices``
-    (on trimesh's error path) every face index is checked against the vertex count too."""
+    (on trimesh's error path, :func:`_diagnose_off`) the header's spelling, every vertex's
+    coordinates and every face index (an integer, below the vertex count) too."""
     rows = []  # (line number, tokens) of every line with data, comments removed
     for no, line in enumerate(text.splitlines(), 1):
         tok = line.split("#", 1)[0].split()
         if tok:
             rows.append((no, tok))
-    if not rows or not rows[0][1][0].upper().endswith("OFF"):
+    if not rows:
+        if indices:
+            raise errors.EmptyMeshError(f"{path}: no data, only comments or blank lines")
+        return
+    key = rows[0][1][0]
+    if not key.upper().endswith("OFF"):
+        if indices:
+            raise errors.UnreadableMeshError(
+                f"{path}: line {rows[0][0]}: an OFF file starts with 'OFF', got {key[:40]!r}")
         return  # not a header this check knows (trimesh names it)
+    if indices and "OFF" not in key:
+        raise errors.UnreadableMeshError(
+            f"{path}: line {rows[0][0]}: the header must be 'OFF' in capitals, got {key[:40]!r}")
     head = rows[0][1][1:] or (rows[1][1] if len(rows) > 1 else [])
     body = rows[1:] if rows[0][1][1:] else rows[2:]
     try:
@@ -268,59 +460,377 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
         raise errors.UnreadableMeshError(
             f"{path}: the OFF header declares {nv} vertices and {nf} faces; the file has "
             f"{min(len(body), nv)} vertex lines and {have_f} face lines (truncated?)")
+    if indices:
+        for k, (no, tok) in enumerate(body[:nv]):
+            if len(tok) < 3:
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {no}: vertex {k} needs 3 coordinates (x y z), got {len(tok)}")
+            for t in tok[:3]:
+                try:
+                    float(t)
+                except ValueError:
+                    raise errors.UnreadableMeshError(
+                        f"{path}: line {no}: vertex {k}: coordinate {t!r} is not a number") from None
     for k, (no, tok) in enumerate(body[nv:nv + nf]):
         try:
             want = int(tok[0])
         except ValueError:
             raise errors.UnreadableMeshError(
                 f"{path}: line {no}: face {k} must start with its number of corners, got {tok[0]!r}") from None
+        if want < 3:  # trimesh dropped such a face without a word
+            raise errors.UnreadableMeshError(
+                f"{path}: line {no}: face {k} declares {want} corners (a face has at least 3)")
         if len(tok) < want + 1:
             raise errors.UnreadableMeshError(
                 f"{path}: line {no}: face {k} declares {want} corners but lists {len(tok) - 1}")
         if indices:
-            try:
-                bad = [i for i in map(int, tok[1:1 + want]) if not 0 <= i < nv]
-            except ValueError:
-                return  # not numbers: trimesh's own message says so
-            if bad:
-                raise errors.InvalidIndexError(
-                    f"{path}: line {no}: face index {bad[0]} is outside [0, {nv}) (the header "
-                    f"declares {nv} vertices)")
+            for t in tok[1:1 + want]:
+                try:
+                    i = int(t)
+                except ValueError:
+                    raise errors.InvalidIndexError(
+                        f"{path}: line {no}: face {k}: vertex index {t!r} is not an integer") from None
+                if not 0 <= i < nv:
+                    raise errors.InvalidIndexError(
+                        f"{path}: line {no}: face index {i} is outside [0, {nv}) (the header "
+                        f"declares {nv} vertices)")
 
 
-def _check_ascii_ply_counts(path: str) -> None:
-    """An ASCII PLY's declared vertex and face counts against its data lines (trimesh reads a
-    short file without a word; binary PLYs are checked by size already)."""
-    with open(path, "rb") as fh:
-        head = fh.read(1 << 16)  # the header: a binary PLY stops here, unread
-        end = head.find(b"end_header")
-        if end < 0 or b"format ascii" not in head[:end]:
-            return
-        raw = head + fh.read()
-    counts = {}
-    for line in raw[:end].decode("latin-1").splitlines():
-        tok = line.split()
-        if len(tok) == 3 and tok[0] == "element":
-            try:
-                counts[tok[1]] = int(tok[2])
-            except ValueError:
-                return  # trimesh names a malformed header
-    data = raw[end:].split(b"\n", 1)[1] if b"\n" in raw[end:] else b""
-    lines = sum(1 for line in data.splitlines() if line.strip())
-    want = sum(counts.values())
-    if lines < want:
-        declared = ", ".join(f"{v} {k}" for k, v in counts.items())
+def _diagnose_off(text: str, path: str) -> None:
+    """On trimesh's error path only: the first defect of an OFF text as a typed error naming
+    its line (trimesh's messages were Python's: "not enough values to unpack"...)."""
+    _check_off_lines(text, path, indices=True)
+
+
+# ---- PLY
+_PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4",
+              "uint": "u4", "float": "f4", "double": "f8", "int8": "i1", "uint8": "u1",
+              "int16": "i2", "uint16": "u2", "int32": "i4", "uint32": "u4", "int64": "i8",
+              "uint64": "u8", "float16": "f2", "float32": "f4", "float64": "f8"}
+_WHITESPACE = np.zeros(256, dtype=bool)
+_WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
+
+
+@dataclasses.dataclass
+class _PlyElement:
+    name: str
+    count: int
+    line: int  # header line number
+    props: list  # (name, numpy code) or (name, (count code, item code)) for a list
+
+
+def _check_ply(raw: bytes, path: str) -> Optional[tuple[np.ndarray, np.ndarray]]:
+    """A PLY's header (all of it) and data against each other, before trimesh reads it: a
+    truncated file, a face line whose corner count disagrees with its indices or a
+    non-integer index (ASCII), a corner count other than the others (binary; trimesh reads
+    every face with the first face's count). Returns ``(vertices, faces)`` for a well-formed
+    binary PLY of mixed polygons (trimesh refuses them), else None (trimesh reads it)."""
+    if not raw[:20].lstrip().lower().startswith(b"ply"):
+        return None  # trimesh names it
+    end = raw.find(b"end_header")
+    if end < 0:
         raise errors.UnreadableMeshError(
-            f"{path}: the PLY header declares {declared} ({want} data lines); the file has "
-            f"{lines} (truncated?)")
+            f"{path}: the PLY header has no 'end_header' line (the file's {len(raw)} bytes hold "
+            "no end of header)")
+    nl = raw.find(b"\n", end)
+    start = len(raw) if nl < 0 else nl + 1
+    head = raw[:end].decode("latin-1").split("\n")
+    fmt = head[1].strip().lower() if len(head) > 1 else ""
+    elements: list[_PlyElement] = []
+    for no, line in enumerate(head, 1):
+        tok = line.split()
+        if not tok:
+            continue
+        if tok[0] == "element":
+            if len(tok) != 3 or not tok[2].isdigit():
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {no}: an element line is 'element NAME COUNT', got {line.strip()[:80]!r}")
+            elements.append(_PlyElement(tok[1], int(tok[2]), no, []))
+        elif tok[0] == "property":
+            if not elements:
+                raise errors.UnreadableMeshError(f"{path}: line {no}: a property before any element")
+            if len(tok) == 3 and tok[1] in _PLY_TYPES:
+                elements[-1].props.append((tok[2], _PLY_TYPES[tok[1]]))
+            elif (len(tok) == 5 and tok[1] == "list" and tok[2] in _PLY_TYPES
+                  and tok[3] in _PLY_TYPES and _PLY_TYPES[tok[2]][0] in "iu"):
+                elements[-1].props.append((tok[4], (_PLY_TYPES[tok[2]], _PLY_TYPES[tok[3]])))
+            else:
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {no}: cannot read the property line {line.strip()[:80]!r} "
+                    "('property TYPE NAME' or 'property list COUNT_TYPE TYPE NAME')")
+    if "ascii" in fmt:
+        _check_ply_ascii(raw[start:], elements, raw.count(b"\n", 0, start) + 1, path)
+        return None
+    return _check_ply_binary(raw, start, elements, ">" if "big" in fmt else "<", path)
 
 
-def _parse_failure(path: str, suffix: str, exc: Exception) -> str:
+def _ply_declared(elements: list) -> str:
+    return ", ".join(f"{e.count} {e.name}" for e in elements)
+
+
+def _check_ply_ascii(data: bytes, elements: list, first_line: int, path: str) -> None:
+    """Every data line of an ASCII PLY against its element's properties (trimesh reads one
+    line per element, and a list's count from its first line only): vectorised over the whole
+    data (whitespace runs counted with numpy, the numbers read in one call); the lines of an
+    element with several lists are checked one by one."""
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    want = sum(e.count for e in elements)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    ends = np.flatnonzero(buf == 10)
+    nrows = ends.size + (1 if buf.size and buf[-1] != 10 else 0)
+    if nrows < want:
+        ws = _WHITESPACE[buf]
+        starts = np.flatnonzero(~ws & np.concatenate([[True], ws[:-1]]))
+        lines = np.unique(np.searchsorted(ends, starts)).size
+        raise errors.UnreadableMeshError(
+            f"{path}: the PLY header declares {_ply_declared(elements)} ({want} data lines); "
+            f"the file has {lines} (truncated?)")
+    if want == 0:
+        return
+    stop = int(ends[want - 1]) if want - 1 < ends.size else buf.size
+    buf = buf[:stop]
+    ws = _WHITESPACE[buf]
+    tok_start = np.flatnonzero(~ws & np.concatenate([[True], ws[:-1]]))
+    per_row = np.bincount(np.searchsorted(ends[:want], tok_start), minlength=want)
+    row_tok = np.concatenate([[0], np.cumsum(per_row)])  # first token of each row
+    try:
+        vals = np.fromstring(data[:stop], dtype=np.float64, sep=" ")
+        if vals.size != tok_start.size:
+            raise ValueError
+    except ValueError:
+        vals = None  # a token that is not a number: found and named line by line below
+
+    def token(t: int) -> str:
+        s = int(tok_start[t])
+        m = re.match(rb"\S+", data[s:s + 64])
+        return m.group().decode("latin-1") if m else ""
+
+    row0 = 0
+    for e in elements:
+        rows = slice(row0, row0 + e.count)
+        lists = [i for i, (_, t) in enumerate(e.props) if isinstance(t, tuple)]
+        noun = e.name
+        bad, why = None, ""
+        if vals is None or len(lists) > 1:
+            bad, why = _ply_ascii_rows_slow(data, ends, row0, e, vals is None)
+        elif not lists:
+            wrong = np.flatnonzero(per_row[rows] != len(e.props))
+            if wrong.size:
+                bad = int(wrong[0])
+                why = (f"has {int(per_row[row0 + bad])} values; the header declares "
+                       f"{len(e.props)} properties")
+        else:
+            p = lists[0]
+            q = len(e.props) - p - 1
+            n_row = per_row[rows]
+            first = row_tok[rows]
+            has_count = n_row > p
+            cnt = np.where(has_count, vals[np.minimum(first + p, vals.size - 1)], -1.0)
+            least = 3 if e.name == "face" else 0
+            problem = ~has_count | (cnt != np.floor(cnt)) | (cnt < least) | (n_row != p + 1 + cnt + q)
+            if problem.any():
+                bad = int(np.flatnonzero(problem)[0])
+                r = row0 + bad
+                c = cnt[bad]
+                if not has_count[bad]:
+                    why = f"has {int(n_row[bad])} values, no list count"
+                elif c != np.floor(c):
+                    why = f"the list count {token(int(first[bad]) + p)!r} is not an integer"
+                elif c < least:
+                    why = f"declares {int(c)} corners (a face has at least 3)"
+                else:
+                    listed = int(n_row[bad]) - p - 1 - q
+                    c = token(int(first[bad]) + p)
+                    why = (f"declares {c} corners but lists {listed}" if e.name == "face"
+                           else f"declares a list of {c} but the line holds {listed}")
+            elif np.dtype(e.props[p][1][1]).kind in "iu":
+                c = cnt.astype(np.int64)
+                total = int(c.sum())
+                at = np.repeat(first + p + 1 - np.concatenate([[0], np.cumsum(c)[:-1]]), c)
+                at += np.arange(total)
+                frac = np.flatnonzero(vals[at] != np.floor(vals[at]))
+                if frac.size:
+                    t = int(at[frac[0]])
+                    bad = int(np.searchsorted(row_tok, t, side="right")) - 1 - row0
+                    why = f"has the vertex index {token(t)!r}, not an integer"
+        if bad is not None:
+            raise errors.UnreadableMeshError(
+                f"{path}: line {first_line + row0 + bad}: {noun} {bad} {why}")
+        row0 += e.count
+
+
+def _ply_ascii_rows_slow(data: bytes, ends: np.ndarray, row0: int, e: _PlyElement,
+                         numbers: bool) -> tuple[Optional[int], str]:
+    """:func:`_check_ply_ascii` for one element, line by line: ``(row in the element, why)``
+    of its first bad line, or ``(None, "")``."""
+    begin = 0 if row0 == 0 else int(ends[row0 - 1]) + 1
+    for k in range(e.count):
+        r = row0 + k
+        stop = int(ends[r]) if r < ends.size else len(data)
+        tok = data[begin:stop].split()
+        begin = stop + 1
+        if numbers:
+            for t in tok:
+                try:
+                    float(t)
+                except ValueError:
+                    return k, f"value {t.decode('latin-1')[:40]!r} is not a number"
+        at = 0
+        for _, t in e.props:
+            if at >= len(tok):
+                return k, f"has {len(tok)} values; its properties need more"
+            if not isinstance(t, tuple):
+                at += 1
+                continue
+            if not _integral(tok[at]) or int(float(tok[at])) < (3 if e.name == "face" else 0):
+                return k, f"has the list count {tok[at].decode('latin-1')[:40]!r}"
+            c = int(float(tok[at]))
+            if np.dtype(t[1]).kind in "iu":
+                for x in tok[at + 1:at + 1 + c]:
+                    if not _integral(x):
+                        return k, f"has the index {x.decode('latin-1')[:40]!r}, not an integer"
+            at += 1 + int(c)
+        if at > len(tok):
+            return k, f"has {len(tok)} values; its properties need {at}"
+        if at < len(tok):
+            return k, f"has {len(tok)} values; its properties take {at}"
+    return None, ""
+
+
+def _integral(tok: bytes) -> bool:
+    try:
+        x = float(tok)
+        return x == int(x)
+    except (ValueError, OverflowError):
+        return False
+
+
+_STRUCT = {"i1": "b", "u1": "B", "i2": "h", "u2": "H", "i4": "i", "u4": "I", "i8": "q", "u8": "Q"}
+
+
+def _check_ply_binary(raw: bytes, start: int, elements: list, endian: str,
+                      path: str) -> Optional[tuple[np.ndarray, np.ndarray]]:
+    """A binary PLY's sizes: trimesh reads every list with the first item's count (a corrupted
+    count read as a triangle; mixed polygons refused as "unexpected length"). With one list per
+    element the counts are checked in one strided view; when they differ, or the sizes do not
+    add up, :func:`_walk_ply_binary` reads item by item, names the first bad one, or returns
+    the mesh of a well-formed file of mixed polygons."""
+    pos = start
+    uniform = True
+    for e in elements:
+        lists = [i for i, (_, t) in enumerate(e.props) if isinstance(t, tuple)]
+        if not lists or e.count == 0:
+            pos += e.count * sum(np.dtype(t).itemsize for _, t in e.props)
+            continue
+        if len(lists) > 1:
+            uniform = False
+            break
+        p = lists[0]
+        pre = sum(np.dtype(t).itemsize for _, t in e.props[:p])
+        post = sum(np.dtype(t).itemsize for _, t in e.props[p + 1:])
+        cdt, idt = (np.dtype(endian + c) for c in e.props[p][1])
+        if pos + pre + cdt.itemsize > len(raw):
+            uniform = False
+            break
+        c0 = int(np.frombuffer(raw, cdt, 1, pos + pre)[0])
+        item = pre + cdt.itemsize + c0 * idt.itemsize + post
+        if c0 < (3 if e.name == "face" else 0) or pos + e.count * item > len(raw):
+            uniform = False
+            break
+        counts = np.ndarray((e.count,), cdt, raw, pos + pre, (item,))
+        if np.any(counts != c0):
+            uniform = False
+            break
+        pos += e.count * item
+    if uniform and pos == len(raw):
+        return None  # trimesh reads it as it is
+    return _walk_ply_binary(raw, start, elements, endian, path)
+
+
+def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
+                     path: str) -> Optional[tuple[np.ndarray, np.ndarray]]:
+    """Item by item through a binary PLY (only where :func:`_check_ply_binary` found sizes or
+    counts that do not fit one count per list): raises naming the first item that runs past
+    the end, a face with fewer than 3 corners, or bytes left over; returns ``(vertices,
+    faces)`` (polygons fanned as trimesh does) for a well-formed file."""
+    pos = start
+    size = len(raw)
+    blocks = {}
+    faces = None
+    for e in elements:
+        lists = [i for i, (_, t) in enumerate(e.props) if isinstance(t, tuple)]
+        if not lists:
+            width = sum(np.dtype(t).itemsize for _, t in e.props)
+            if pos + e.count * width > size:
+                k = (size - pos) // width if width else 0
+                raise errors.UnreadableMeshError(
+                    f"{path}: the file ends inside {e.name} {k} (byte {pos + k * width}): the "
+                    f"PLY header declares {_ply_declared(elements)}, the file has {size} bytes "
+                    "(truncated?)")
+            blocks[e.name] = (pos, e)
+            pos += e.count * width
+            continue
+        keep = []  # (offset, count) of the vertex index list of each face
+        names = [n for n, _ in e.props]
+        want = next((n for n in ("vertex_indices", "vertex_index") if n in names), None)
+        fields = []
+        for n, t in e.props:
+            if isinstance(t, tuple):
+                c, i = (np.dtype(endian + x) for x in t)
+                fields.append((n, endian + _STRUCT[t[0]], c.itemsize, i.itemsize))
+            else:
+                fields.append((n, None, np.dtype(t).itemsize, 0))
+        for k in range(e.count):
+            at = pos
+            for n, fmt, width, isz in fields:
+                if fmt is None:
+                    pos += width
+                    continue
+                if pos + width > size:
+                    pos = size + 1
+                    break
+                c = struct.unpack_from(fmt, raw, pos)[0]
+                if e.name == "face" and c < 3:
+                    raise errors.UnreadableMeshError(
+                        f"{path}: face {k} (byte {pos}) declares {c} corners (a face has at least 3)")
+                if n == want:
+                    keep.append((pos + width, c))
+                pos += width + c * isz
+            if pos > size:
+                raise errors.UnreadableMeshError(
+                    f"{path}: the file ends inside {e.name} {k} (byte {at}), which declares "
+                    f"{keep[-1][1] if keep and e.name == 'face' else 'more'} corners: the PLY "
+                    f"header declares {_ply_declared(elements)}, the file has {size} bytes "
+                    "(a corrupted corner count, or truncated)")
+        if e.name == "face" and want is not None:
+            idt = np.dtype(endian + dict(e.props)[want][1])
+            faces = [np.frombuffer(raw, idt, c, o) for o, c in keep]
+    if pos != size:
+        raise errors.UnreadableMeshError(
+            f"{path}: {size - pos} bytes after the last PLY element (byte {pos} on): the header "
+            f"declares {_ply_declared(elements)}; a corrupted corner count?")
+    vert = blocks.get("vertex")
+    if faces is None or vert is None or not faces:
+        raise errors.UnreadableMeshError(
+            f"{path}: a PLY of mixed polygons without a plain vertex element and a face "
+            "'vertex_indices' list cannot be read")
+    v0, ve = vert
+    dt = np.dtype([(n, endian + t) for n, t in ve.props])
+    if not {"x", "y", "z"} <= set(dt.names):
+        raise errors.UnreadableMeshError(f"{path}: the PLY vertex element has no x, y, z")
+    rec = np.frombuffer(raw, dt, ve.count, v0)
+    vertices = np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float64)
+    from trimesh.geometry import triangulate_quads
+
+    return vertices, np.asarray(triangulate_quads(faces), dtype=np.int64).reshape(-1, 3)
+
+
+def _parse_failure(raw: bytes, suffix: str, exc: Exception) -> str:
     """What went wrong, in words: trimesh's message, or, where trimesh fell back to guessing a
     text encoding (a binary file it could not read as binary), the byte that is not text."""
     if not (isinstance(exc, ImportError) and "charset_normalizer" in str(exc)):
         return str(exc)
-    raw = _bytes_of(path)
     try:
         raw.decode("utf-8")
         where = "its text"
@@ -334,6 +844,9 @@ def _parse_failure(path: str, suffix: str, exc: Exception) -> str:
 
 
 def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMesh:
+    if np.iscomplexobj(vertices):
+        raise errors.UnreadableMeshError(f"{source}: vertex coordinates must be real numbers, "
+                                         f"got {np.asarray(vertices).dtype}")
     try:
         v = np.asarray(vertices, dtype=np.float64)
         f = np.asarray(faces)
@@ -351,6 +864,11 @@ def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMe
         if not np.issubdtype(f.dtype, np.number) or not np.all(np.equal(np.mod(f, 1), 0)):
             raise errors.InvalidIndexError(f"{source}: face indices must be integers, got "
                                            f"{f.dtype} (first face {f[0].tolist()})")
+        huge = np.nonzero(np.abs(f) >= 2.0**62)
+        if huge[0].size:  # the cast below would wrap it to another number
+            fi, k = int(huge[0][0]), int(huge[1][0])
+            raise errors.InvalidIndexError(f"{source}: face {fi} refers to vertex {float(f[fi, k]):g}, "
+                                           f"outside [0, {v.shape[0]})")
         f = f.astype(np.int64)
     if np.issubdtype(f.dtype, np.unsignedinteger) and f.size and f.max() >= 2**63:
         fi, k = (int(x[0]) for x in np.nonzero(f >= 2**63))

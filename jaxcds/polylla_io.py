@@ -71,35 +71,23 @@ class Triangulation2D:
 
 
 # ------------------------------------------------------------------------------ helpers
-def _input_file(path: str) -> None:
-    """``path`` is a regular file (not a directory, FIFO or device: a FIFO would block forever
-    and ``/dev/zero`` fill memory), or :class:`PolyllaError` naming it."""
-    import stat
+def _input_file(path: str) -> bytes:
+    """The bytes of ``path``, a regular file (not a directory, FIFO or device: a FIFO would
+    block forever and ``/dev/zero`` fill memory), or :class:`PolyllaError` naming it."""
+    from jaxcds.mesh import read_regular_file
 
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise errors.PolyllaError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise errors.PolyllaError(f"{path}: cannot read it: {exc.strerror}") from None
-    if not stat.S_ISREG(mode):
-        kind = "a directory" if stat.S_ISDIR(mode) else "not a regular file (a FIFO or a device)"
-        raise errors.PolyllaError(f"{path}: is {kind}; Polylla reads a file")
+    return read_regular_file(path, error=errors.PolyllaError)
 
 
 def _rows(path: str) -> list[list[str]]:
     """Non-empty, non-comment lines of a text file, split on whitespace (a UTF-8 byte-order mark
     before the first line is dropped)."""
-    _input_file(path)
+    text = _input_file(path).decode("utf-8-sig", errors="replace")
     rows = []
-    try:
-        with open(path, "r", encoding="utf-8-sig", errors="replace") as fh:
-            for line in fh:
-                line = line.split("#", 1)[0].strip()
-                if line:
-                    rows.append(line.split())
-    except OSError as exc:
-        raise errors.PolyllaError(f"{path}: cannot read it: {exc.strerror}") from None
+    for line in text.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if line:
+            rows.append(line.split())
     if not rows:
         raise errors.PolyllaError(f"{path}: empty file")
     return rows
@@ -418,9 +406,11 @@ def read_input(path: str) -> Triangulation2D:
     if low.endswith(".off"):
         return read_off_2d(path)
     if low.endswith(".npy"):
-        _input_file(path)
+        import io
+
+        data = _input_file(path)
         try:
-            pts = np.load(path, allow_pickle=False)
+            pts = np.load(io.BytesIO(data), allow_pickle=False)
         except (ValueError, OSError, EOFError) as exc:
             raise errors.PolyllaError(f"{path}: not a numeric .npy array: {exc}") from exc
         return from_points(pts, os.path.basename(path))

@@ -171,7 +171,7 @@ def test_bad_meshes_and_outputs_write_nothing(capsys, tmp_path):
     _refused(capsys, ["encode", mesh_path("cube.off"), "-o", nodir], str(tmp_path / "x"),
              "does not exist")
     _refused(capsys, ["decode", str(tmp_path / "missing.cds"), "-o", str(tmp_path / "m.off")],
-             str(tmp_path / "m.off"), "cannot read")
+             str(tmp_path / "m.off"), "missing.cds: no such file")
     # an existing output is left untouched when the input is bad
     keep = tmp_path / "keep.off"
     keep.write_text("old")

@@ -157,18 +157,11 @@ def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometr
 
 
 def _read_bytes(path) -> bytes:
-    """The file's bytes; a directory, FIFO or device is refused by name (a FIFO would block, a
-    link to ``/dev/urandom`` fill memory)."""
-    import stat
+    """The file's bytes; a directory, FIFO or device is refused by name before a byte is read (a
+    FIFO would block, a link to ``/dev/urandom`` fill memory)."""
+    from jaxcds.mesh import read_regular_file
 
-    try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
-            raise errors.FormatError(f"{os.fspath(path)!r} is not a regular file (a directory, FIFO "
-                                     "or device); a .cds input is a file")
-        with open(path, "rb") as fh:
-            return fh.read()
-    except OSError as exc:
-        raise errors.FormatError(f"cannot read .cds file {os.fspath(path)!r}: {exc.strerror}") from exc
+    return read_regular_file(path, error=errors.FormatError)
 
 
 def _with_file_offset(exc: errors.EncodingError) -> errors.EncodingError:

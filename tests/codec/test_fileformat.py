@@ -212,8 +212,11 @@ def test_non_finite_geometry(tmp_path):
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(errors.FormatError, match="cannot read"):
+    with pytest.raises(errors.FormatError, match="nope.cds: no such file"):
         read_cds(tmp_path / "nope.cds")
+    (tmp_path / "dir.cds").mkdir()  # a directory, FIFO or device: refused before reading
+    with pytest.raises(errors.FormatError, match="dir.cds: is a directory, not a regular file"):
+        read_cds(tmp_path / "dir.cds")
 
 
 # ------------------------------------------------------------------------- fuzzing

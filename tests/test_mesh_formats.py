@@ -1,0 +1,220 @@
+"""Mesh files that are malformed or unusual (jaxcds/mesh.py readers): each is read as the format
+says or refused with a typed error naming the line, face or byte."""
+
+from __future__ import annotations
+
+import gzip
+import os
+import struct
+
+import numpy as np
+import pytest
+
+from jaxcds import errors
+from jaxcds.mesh import load_mesh, read_regular_file
+
+_TET_V = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+_TET_F = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+_TET_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+
+def _write(tmp_path, name, data):
+    p = tmp_path / name
+    (p.write_bytes if isinstance(data, bytes) else p.write_text)(data)
+    return str(p)
+
+
+# ------------------------------------------------------------------------------------ OBJ
+@pytest.mark.parametrize("text", [
+    _TET_OBJ.replace("f 2 3 4", "f\t2 3 4"),
+    _TET_OBJ.replace("f 2 3 4", "  f 2 3 4"),
+    _TET_OBJ.replace("v 0 0 0", "v\t0 0 0"),
+    _TET_OBJ.replace("v 1 0 0", "\tv 1\t0 0"),
+    _TET_OBJ.replace("v 0 0 0", "v 0 0 0 # first").replace("f 2 3 4", "f 2 3 4  # last"),
+], ids=["tab-f", "indent-f", "tab-v", "indent-tab-v", "trailing-comment"])
+def test_obj_whitespace_and_trailing_comments_read_as_the_plain_file(text, tmp_path):
+    """Tabs and indentation were skipped (vertices shifted, faces lost) and a trailing comment
+    failed with trimesh's "could not be read to its end"."""
+    m = load_mesh(_write(tmp_path, "t.obj", text))
+    plain = load_mesh(_write(tmp_path, "plain.obj", _TET_OBJ))
+    np.testing.assert_array_equal(m.vertices, plain.vertices)
+    np.testing.assert_array_equal(m.faces, plain.faces)
+    assert m.num_faces == 4
+
+
+def test_obj_relative_indices_count_back_from_the_vertices_above_the_face(tmp_path):
+    p = _write(tmp_path, "rel.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\n"
+                                    "f -4 -1 -3\nf -4 -2 -1\nf -3 -2 -1\n")
+    assert load_mesh(p).faces.tolist() == [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 2, 3]]
+    bad = _write(tmp_path, "bad.obj", "v 0 0 0\nv 1 0 0\nf -3 -2 -1\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(errors.InvalidIndexError, match=r"line 3: face index -3 refers to no vertex \(2 vertices"):
+        load_mesh(bad)
+
+
+@pytest.mark.parametrize("zero", ["0", "-0", "00", "+0"])
+def test_obj_face_index_zero_in_any_spelling_is_named(zero, tmp_path):
+    p = _write(tmp_path, "z.obj", f"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 2 3 {zero}\n")
+    with pytest.raises(errors.InvalidIndexError, match="line 5: face index 0"):
+        load_mesh(p)
+
+
+@pytest.mark.parametrize("text,kind,match", [
+    ("v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", errors.UnreadableMeshError, "line 2: coordinate 'x' is not a number"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3.5\n", errors.InvalidIndexError, "line 4: face index '3.5' is not an integer"),
+    ("v 0 0 0\nv 1\nv 0 1 0\nf 1 2 3\n", errors.UnreadableMeshError, "line 2: a vertex needs 3 coordinates"),
+    ("v 0 0 5\nv 1 0\nv 0 1 5\nf 1 2 3\n", errors.UnreadableMeshError, "line 2: a vertex needs 3 coordinates"),
+], ids=["bad-number", "float-index", "one-column", "two-columns-among-three"])
+def test_obj_lines_trimesh_cannot_read_are_named(text, kind, match, tmp_path):
+    with pytest.raises(kind, match=match):
+        load_mesh(_write(tmp_path, "bad.obj", text))
+
+
+# ------------------------------------------------------------------------------------ OFF
+_OFF_HEAD = "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+
+
+@pytest.mark.parametrize("text,kind,match", [
+    (_OFF_HEAD + "-3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n", errors.UnreadableMeshError, "line 7: face 0 declares -3 corners"),
+    (_OFF_HEAD + "0\n3 0 1 3\n3 0 3 2\n3 1 2 3\n", errors.UnreadableMeshError, "line 7: face 0 declares 0 corners"),
+    (_OFF_HEAD + "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3.0\n", errors.InvalidIndexError, r"line 10: face 3: vertex index '3.0' is not an integer"),
+    ("OFF\n4 2 0\n0 0\n1 0\n0 1\n1 1\n3 0 1 2\n3 1 3 2\n", errors.UnreadableMeshError, "line 3: vertex 0 needs 3 coordinates"),
+    ("off\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", errors.UnreadableMeshError, "line 1: the header must be 'OFF' in capitals"),
+    ("", errors.EmptyMeshError, "the file is empty"),
+    (gzip.compress((_OFF_HEAD + "3 0 2 1\n").encode()), errors.UnreadableMeshError, "gzip-compressed"),
+], ids=["negative-count", "zero-count", "float-index", "2d-vertices", "lower-case", "empty", "gzip"])
+def test_off_defects_are_named(text, kind, match, tmp_path):
+    with pytest.raises(kind, match=match):
+        load_mesh(_write(tmp_path, "bad.off", text))
+
+
+# ------------------------------------------------------------------------------------ PLY
+def _ascii_ply(faces: str, nv=5, nf=3, comments=0) -> str:
+    return ("ply\nformat ascii 1.0\n" + "".join(f"comment {'x' * 60}\n" for _ in range(comments)) +
+            f"element vertex {nv}\nproperty float x\nproperty float y\nproperty float z\n"
+            f"element face {nf}\nproperty list uchar int vertex_indices\nend_header\n"
+            + "0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n"[:6 * nv] + faces)
+
+
+@pytest.mark.parametrize("first,match", [
+    ("4 0 2 1", "line 15: face 0 declares 4 corners but lists 3"),
+    ("3 0 2 1.9", "line 15: face 0 has the vertex index '1.9', not an integer"),
+    ("3 0 2 1 4 4", "line 15: face 0 declares 3 corners but lists 5"),
+    ("2 0 2 1", "line 15: face 0 declares 2 corners"),
+    ("3 0 x 1", "line 15: face 0 value 'x' is not a number"),
+])
+def test_ascii_ply_face_lines_that_disagree_with_their_count_are_named(first, match, tmp_path):
+    p = _write(tmp_path, "f.ply", _ascii_ply(first + "\n3 0 1 3\n3 1 2 3\n"))
+    with pytest.raises(errors.UnreadableMeshError, match=match):
+        load_mesh(p)
+
+
+def test_ascii_ply_with_mixed_polygons_and_extra_properties_still_loads(tmp_path):
+    p = _write(tmp_path, "q.ply", _ascii_ply("4 0 1 4 2\n3 0 1 3\n3 1 2 3\n"))
+    assert load_mesh(p, weld=False).num_faces == 4
+    head = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+            "property float z\nproperty uchar red\nelement face 4\nproperty uchar flags\n"
+            "property list uchar int vertex_indices\nproperty float quality\nend_header\n")
+    body = "0 0 0 1\n1 0 0 2\n0 1 0 3\n0 0 1 4\n" + "".join(f"7 3 {a} {b} {c} 0.5\n" for a, b, c in _TET_F)
+    assert load_mesh(_write(tmp_path, "props.ply", head + body)).faces.tolist() == [list(f) for f in _TET_F]
+
+
+def test_ascii_ply_counts_are_checked_past_a_long_header(tmp_path):
+    """The check read only the first 64 KiB: a truncated file behind a long header loaded."""
+    short = _ascii_ply("3 0 2 1\n3 0 1 3\n", nv=4, nf=4, comments=1100)
+    with pytest.raises(errors.UnreadableMeshError, match=r"declares 4 vertex, 4 face \(8 data lines\); the file has 6"):
+        load_mesh(_write(tmp_path, "long.ply", short))
+    whole = _ascii_ply("3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n", nv=4, nf=4, comments=1100)
+    assert load_mesh(_write(tmp_path, "ok.ply", whole)).num_faces == 4
+    huge = _ascii_ply("3 0 2 1\n", nv=10**12, nf=1).replace("0 0 1\n1 1 1\n", "")
+    with pytest.raises(errors.UnreadableMeshError, match="declares 1000000000000 vertex"):
+        load_mesh(_write(tmp_path, "huge.ply", huge))
+
+
+def test_ply_without_end_header_is_named(tmp_path):
+    p = _write(tmp_path, "h.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n0\n")
+    with pytest.raises(errors.UnreadableMeshError, match="no 'end_header' line"):
+        load_mesh(p)
+
+
+def _binary_ply(V, F, nv=None):
+    h = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(V) if nv is None else nv}\n"
+         "property float x\nproperty float y\nproperty float z\n"
+         f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n").encode()
+    return h + b"".join(struct.pack("<3f", *v) for v in V) + b"".join(
+        struct.pack("<B", len(f)) + struct.pack(f"<{len(f)}i", *f) for f in F)
+
+
+@pytest.mark.parametrize("count,match", [
+    (255, r"the file ends inside face 3 \(byte \d+\), which declares 255 corners"),
+    (0, r"face 3 \(byte \d+\) declares 0 corners"),
+    (4, r"ends inside face 3"),
+])
+def test_binary_ply_corrupted_corner_count_is_named(count, match, tmp_path):
+    """trimesh reads every face with the first face's count: the corrupted one loaded as a
+    triangle."""
+    good = _binary_ply(_TET_V, _TET_F)
+    assert load_mesh(_write(tmp_path, "good.ply", good)).faces.tolist() == [list(f) for f in _TET_F]
+    bad = good[:-13] + bytes([count]) + good[-12:]
+    with pytest.raises(errors.UnreadableMeshError, match=match):
+        load_mesh(_write(tmp_path, "bad.ply", bad))
+
+
+def test_binary_ply_of_mixed_polygons_loads_as_its_ascii_twin(tmp_path):
+    V = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 2, 0)]
+    F = [(0, 1, 2, 3), (1, 4, 2)]
+    m = load_mesh(_write(tmp_path, "mixed.ply", _binary_ply(V, F)))
+    twin = ("ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n"
+            + "".join(f"{x} {y} {z}\n" for x, y, z in V) + "4 0 1 2 3\n3 1 4 2\n")
+    a = load_mesh(_write(tmp_path, "twin.ply", twin))
+    assert m.num_faces == 3
+    np.testing.assert_array_equal(m.faces, a.faces)
+    np.testing.assert_array_equal(m.vertices, a.vertices)
+
+
+def test_binary_ply_declaring_more_vertices_than_it_holds_is_named(tmp_path):
+    p = _write(tmp_path, "huge.ply", _binary_ply(_TET_V, _TET_F, nv=10**12))
+    with pytest.raises(errors.UnreadableMeshError, match="ends inside vertex .* declares 1000000000000 vertex"):
+        load_mesh(p)
+
+
+# ------------------------------------------------------------------------------------ STL
+@pytest.mark.parametrize("loop,match", [
+    ("vertex 0 0 0\nvertex 1 x 0\nvertex 0 1 0\n", "line 5: coordinate 'x' is not a number"),
+    ("vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nvertex 1 1 0\n", "line 8: the loop from line 3 has 4 vertices"),
+])
+def test_ascii_stl_defects_are_named(loop, match, tmp_path):
+    text = f"solid t\nfacet normal 0 0 1\nouter loop\n{loop}endloop\nendfacet\nendsolid t\n"
+    with pytest.raises(errors.UnreadableMeshError, match=match):
+        load_mesh(_write(tmp_path, "bad.stl", text))
+
+
+# ------------------------------------------------------------------------- non-regular files
+@pytest.mark.parametrize("suffix", [".off", ".obj", ".ply", ".stl"])
+def test_devices_and_fifos_are_refused_before_reading(suffix, tmp_path):
+    """/dev/zero through a symlink was read until memory ran out; a FIFO hung."""
+    link = tmp_path / f"zero{suffix}"
+    os.symlink("/dev/zero", link)
+    with pytest.raises(errors.UnreadableMeshError, match="is a character device, not a regular file"):
+        load_mesh(str(link))
+    fifo = tmp_path / f"fifo{suffix}"
+    os.mkfifo(fifo)
+    with pytest.raises(errors.UnreadableMeshError, match=r"is a FIFO \(named pipe\), not a regular file"):
+        load_mesh(str(fifo))
+
+
+def test_read_regular_file_raises_the_callers_error_class(tmp_path):
+    fifo = tmp_path / "in.cds"
+    os.mkfifo(fifo)
+    with pytest.raises(errors.FormatError, match="in.cds: is a FIFO"):
+        read_regular_file(fifo, error=errors.FormatError)
+    (tmp_path / "f").write_bytes(b"abc")
+    assert read_regular_file(tmp_path / "f") == b"abc"
+
+
+# ------------------------------------------------------------------------------ Python API
+def test_array_input_names_a_huge_float_index_and_refuses_complex_vertices():
+    with pytest.raises(errors.InvalidIndexError, match=r"face 0 refers to vertex 1e\+30"):
+        load_mesh(np.array(_TET_V, float), np.array([[0.0, 1.0, 1e30]]))
+    with pytest.raises(errors.UnreadableMeshError, match="must be real numbers, got complex128"):
+        load_mesh(np.array(_TET_V, float) + 5j, _TET_F)
