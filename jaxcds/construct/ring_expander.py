@@ -253,7 +253,7 @@ def extract_ring(V, O, tm, num_vertices: int, seed: int = -1, k=None) -> Ring:
     if order.size < 4:
         raise errors.UnsupportedTopologyError(
             f"the ring from seed corner {seed} has {order.size} vertices (need >= 4): mesh too "
-            "small for LR (use corner-table)" if order.size else
+            "small for LR (use halfedge or corner-table)" if order.size else
             f"the invaded region from seed corner {seed} is not bounded by one simple loop")
     return Ring(order=order, right_corner=corners, seed=int(seed), k=k,
                 num_isolated=int(num_vertices) - int(order.size),

@@ -885,6 +885,15 @@ class _CDS(MeshStructure):
         """``(3n,)`` ``Target(u_c)`` of every edge id ``3u + c`` (garbage on absent ids)."""
         return jnp.stack(self._targets_cols(), axis=1).reshape(-1).astype(jnp.int32)
 
+    def target_table(self) -> Int:
+        """``(num_darts,)`` Target of every dart id (garbage on invalid ids), for whole-mesh loops
+        that ask Target of the darts around every vertex (the gather normals): one pass of
+        :meth:`all_edge_targets` (pointer jumping, O(n log d)) instead of Thm 2's O(d) walk per
+        dart and turn, which made such a loop O(n d^2)."""
+        d = jnp.arange(self.num_darts, dtype=jnp.int32)
+        e = d >> 1
+        return jnp.where((d & 1) == 0, self.all_edge_targets()[e], e // 3).astype(jnp.int32)
+
     # ---- whole mesh: faces and degrees in O(1) per face / edge (Thm 7)
     def _slot_faces(self):
         """``(2n, 3)``: the vertices, ccw, of the face in every Thm 7 slot, in O(1) per face from
@@ -1604,6 +1613,7 @@ class CDS5nO1(CDS4n):
 
     name = "cds5n-o1"
     _fusible_targets = True
+    target_table = None  # Target is O(1) here (Thm 6): loops ask it directly
     # the second row read and case analysis, fused into the chunk's in-place output update, ran
     # on one core: written apart, Target at 100K vertices 6.1 -> 4.2 ns per query, 2.5M 17.3 ->
     # 12.2 (races in shuffled order). Origin and Face_left showed no clear gain; an operator

@@ -150,21 +150,46 @@ def test_a_vertex_in_no_face_from_trusted_faces(cls):
         np.testing.assert_allclose(np.linalg.norm(n[:4], axis=1), 1.0, rtol=1e-5)
 
 
-@pytest.mark.parametrize("scale", [1e10, 1e-10, 1e-11])
+@pytest.mark.parametrize("scale", [1e10, 1e-10, 1e-11, 1e20, 1e30, 1e-25, 1e-30])
 def test_normals_and_gradients_at_extreme_coordinate_scales(scale):
     """Squared in float32, the sums of face normals overflowed near 1e10 (every normal came out
-    zero) and flushed to zero near 1e-10; the normals are scale invariant and now say so, with
-    finite gradients (of size 1 / scale)."""
+    zero) and flushed to zero near 1e-10; the face cross products themselves overflowed past
+    about 1e19 (NaN normals at 1e20) and underflowed under 1e-19 (zero normals at 1e-25): the
+    positions are now scaled by a power of two first. The normals are scale invariant and now
+    say so, with finite gradients (of size 1 / scale), on both routes."""
     v, f = octahedron()
     he = HalfEdge.from_mesh(load_mesh(v, f))
     unit = np.asarray(vertex_normals(he, jnp.asarray(v, jnp.float32)))
     p = jnp.asarray(np.asarray(v) * scale, jnp.float32)
     np.testing.assert_allclose(np.asarray(vertex_normals(he, p)), unit, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(vertex_normals(he, p, method="gather")), unit, atol=1e-6)
     np.testing.assert_allclose(np.asarray(face_list_vertex_normals(p, jnp.asarray(f))), unit, atol=1e-6)
     g = jax.grad(lambda q: jnp.sum(vertex_normals(he, q)[:, 2]))(p)
     g1 = jax.grad(lambda q: jnp.sum(vertex_normals(he, q)[:, 2]))(jnp.asarray(v, jnp.float32))
     assert np.isfinite(np.asarray(g)).all()
     np.testing.assert_allclose(np.asarray(g) * scale, np.asarray(g1), rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize("structure", ["cds6n", "cds5n", "cds4n", "cds5n-o1"])
+def test_cds_gather_normals_on_vertices_of_high_degree(structure):
+    """The gather route asked Thm 2's O(d) Target inside its turn around every vertex: O(n d^2)
+    (a bipyramid with poles of degree 800: 6 s; 2,000: no end). It now reads every dart's target
+    from one pass (``target_table``); the table equals Target on every valid dart."""
+    from jaxcds.structures import registry
+
+    k = 300
+    t = 2 * np.pi * np.arange(k) / k
+    v = np.concatenate([np.c_[np.cos(t), np.sin(t), np.zeros(k)], [[0, 0, 1.0], [0, 0, -1.0]]])
+    a = np.arange(k)
+    f = np.concatenate([np.c_[a, (a + 1) % k, np.full(k, k)], np.c_[(a + 1) % k, a, np.full(k, k + 1)]])
+    m = load_mesh(v, f)
+    s = registry.build(structure, m)
+    if s.target_table is not None:
+        d = jnp.asarray(s.all_darts())
+        np.testing.assert_array_equal(np.asarray(s.target_table())[np.asarray(d)], np.asarray(s.target(d)))
+    p = jnp.asarray(v if s.vertex_order is None else v[np.asarray(s.vertex_order)], jnp.float32)
+    np.testing.assert_allclose(np.asarray(vertex_normals(s, p, method="gather")),
+                               np.asarray(vertex_normals(s, p)), atol=1e-5)
 
 
 def test_normalize_derivative_is_the_projection():
