@@ -58,6 +58,14 @@ def test_obj_face_index_zero_in_any_spelling_is_named(zero, tmp_path):
         load_mesh(p)
 
 
+@pytest.mark.parametrize("face", ["f 1 2", "f 1", "f", "f 1/1 2/2\r", "f 1 2 "])
+def test_obj_face_of_fewer_than_three_corners_is_named(face, tmp_path):
+    """trimesh dropped such a face line without a word (a triangle of the mesh went missing)."""
+    p = _write(tmp_path, "s.obj", f"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nf 1 2 3\n{face}\nf 2 3 4\n")
+    with pytest.raises(errors.InvalidIndexError, match="line 6: a face of [0-2] corner"):
+        load_mesh(p)
+
+
 @pytest.mark.parametrize("text,kind,match", [
     ("v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", errors.UnreadableMeshError, "line 2: coordinate 'x' is not a number"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3.5\n", errors.InvalidIndexError, "line 4: face index '3.5' is not an integer"),
