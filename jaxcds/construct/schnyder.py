@@ -693,9 +693,11 @@ def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
     if f.ndim != 2 or f.shape[1] != 3:
         raise errors.InvalidIndexError(f"faces must be (F, 3), got shape {f.shape}")
     if n < 3 or nf != 2 * n - 4:
+        chi = n - 3 * nf // 2 + nf
+        genus = f"genus {(2 - chi) // 2} if closed and connected, " if chi % 2 == 0 and chi <= 2 else ""
         raise errors.UnsupportedTopologyError(
             f"a Schnyder wood needs a closed genus-0 triangulation with F = 2n - 4 faces; got "
-            f"n = {n} vertices and F = {nf} faces (Euler characteristic {n - 3 * nf // 2 + nf}); "
+            f"n = {n} vertices and F = {nf} faces ({genus}Euler characteristic {chi}); "
             "use the 'lr' or 'halfedge' structure for other topologies")
     root = 0 if root_face is None else int(root_face)
     if not 0 <= root < nf:
