@@ -140,6 +140,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             if suffix == ".obj":
                 text = _prepare_obj(text, path)
             else:
+                text = _prepare_off(text)  # first: splitlines() breaks at \v and \f too
                 _check_off_counts(text, path)
             loaded = trimesh.load(io.StringIO(text), file_type=suffix[1:], process=False,
                                   force="mesh")
@@ -148,6 +149,11 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                 mixed = _check_ply(raw, path)
                 if mixed is not None:  # a binary PLY of mixed polygons (trimesh cannot read it)
                     return mixed
+                if ((b"\v" in raw or b"\f" in raw or b"\t" in raw)
+                        and b"format ascii" in raw[:raw.find(b"end_header")]):
+                    # ASCII values split on any blank (trimesh dropped a face line with a
+                    # vertical tab); a binary body may hold those bytes, so ASCII only
+                    raw = raw.translate(bytes.maketrans(b"\t\v\f", b"   "))
             # the bytes read above, not the path again: it may have changed in between
             loaded = trimesh.load(io.BytesIO(raw), file_type=suffix[1:], process=False,
                                   force="mesh")
@@ -236,14 +242,28 @@ _OBJ_INDEX_ZERO = re.compile(r"(?m)^f (?:[^\n]*? )?[-+]?0+(?=[/ \r]|$)")
 _OBJ_NEGATIVE = re.compile(r"(?m)^f [^\n-]*-")
 
 
+#: tab, vertical tab and form feed read as spaces (trimesh splits OBJ and OFF lines on spaces)
+_BLANKS = str.maketrans("\t\v\f", "   ")
+
+
+def _prepare_off(text: str) -> str:
+    """The OFF text as trimesh's reader can take it: comments after data removed (OFF allows
+    them; trimesh read "0 0 0 # first" as a bad number) and blanks read as spaces."""
+    if "\t" in text or "\v" in text or "\f" in text:
+        text = text.translate(_BLANKS)
+    if "#" in text:
+        text = _OBJ_COMMENT.sub("", text)
+    return text
+
+
 def _prepare_obj(text: str, path: str) -> str:
     """The OBJ text as trimesh's reader can take it, checked: tabs read as spaces and indented
     lines unindented (trimesh skipped "v<TAB>x y z" and "  f 1 2 3" without a word), comments
     after data removed, relative (negative) indices made absolute where vertices follow a
     face, and a face index 0 refused naming its line. Each step runs only where a cheap
     test finds its case."""
-    if "\t" in text:
-        text = text.replace("\t", " ")
+    if "\t" in text or "\v" in text or "\f" in text:  # every whitespace a space
+        text = text.translate(_BLANKS)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)
     if "#" in text and _obj_trailing_comment(text):

@@ -155,7 +155,7 @@ class ShardedStructure(MeshStructure):
 
 #: a structure's own whole-mesh routes that generic code looks up by name; a sharded structure
 #: runs them on its unpadded arrays (like face_vertices above)
-_WHOLE_MESH_ROUTES = frozenset({"vertex_degrees", "all_edge_targets"})
+_WHOLE_MESH_ROUTES = frozenset({"vertex_degrees", "all_edge_targets", "target_table"})
 
 
 def _forward(op):

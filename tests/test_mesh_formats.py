@@ -226,3 +226,20 @@ def test_array_input_names_a_huge_float_index_and_refuses_complex_vertices():
         load_mesh(np.array(_TET_V, float), np.array([[0.0, 1.0, 1e30]]))
     with pytest.raises(errors.UnreadableMeshError, match="must be real numbers, got complex128"):
         load_mesh(np.array(_TET_V, float) + 5j, _TET_F)
+
+
+@pytest.mark.parametrize("name,content", [
+    ("vt.obj", "v 0 0 0\nv 1 0 0\nv\f0 1 0\nv\v5 5 5\nf 1 2 3\n"),
+    ("c.off", "OFF\n4 1 0\n0 0 0 # first\n1 0 0\n0 1 0\n5 5 5\n3 0 1 2 # a face\n"),
+    ("ff.off", "OFF\n4 1 0\n0\f0 0\n1 0 0\n0\v1 0\n5 5 5\n3 0 1 2\n"),
+    ("vt.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+               "0\t0 0\n1 0 0\n0 1 0\n5 5 5\n3\v0 1\f2\n"),
+])
+def test_blanks_and_comments_read_as_in_the_plain_file(name, content, tmp_path):
+    """A vertical tab or form feed between values (OBJ: the vertex line was skipped and the
+    face took the wrong vertices; ASCII PLY: the face line was dropped) and a comment after a
+    vertex of an OFF file (refused with trimesh's "invalid literal for int()")."""
+    m = load_mesh(_write(tmp_path, name, content), weld=False)
+    np.testing.assert_array_equal(m.faces, [[0, 1, 2]])
+    np.testing.assert_array_equal(m.vertices[:3], [[0, 0, 0], [1, 0, 0], [0, 1, 0]])

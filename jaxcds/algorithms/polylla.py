@@ -545,7 +545,7 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         keeps the input's (``HalfEdge.from_faces``); otherwise matched to its faces here (a host
         sort, only when some triangle has a tie).
       clockwise: every input triangle is clockwise (default: read off ``corners``; False
-        without them). The reference keeps the input's orientation: its polygons are then
+        without them). Given, it is taken as the caller's word (``run`` passes what it read). The reference keeps the input's orientation: its polygons are then
         clockwise, and its barrier-edge repair turns the other way round (:func:`middle_edges`).
 
     ``tables``: let the structure build per-run navigation tables (:func:`_tabulated`; pemb:
@@ -584,6 +584,8 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         return clock()
 
     cs = None
+    if clockwise is not None and not isinstance(clockwise, (bool, np.bool_)):
+        raise errors.PolyllaError(f"clockwise must be True, False or None, got {clockwise!r}")
     if corners is not None:
         cs = _checked_corners(corners, s.num_faces, pos.shape[0])
         if clockwise is None:

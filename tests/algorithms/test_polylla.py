@@ -394,6 +394,10 @@ def test_corners_are_checked():
                        (tri.faces.astype(float), "integer")]:
         with pytest.raises(errors.PolyllaError, match=match):
             P.polylla(s, tri.points, corners=bad)
+    # "no" read as True (clockwise polygons), an array as an untyped ValueError
+    for bad in ("no", np.array([True, False]), 1):
+        with pytest.raises(errors.PolyllaError, match="clockwise must be True, False or None"):
+            P.polylla(s, tri.points, corners=tri.faces, clockwise=bad)
 
 
 def test_phases_same_without_jit():
