@@ -243,3 +243,29 @@ def test_blanks_and_comments_read_as_in_the_plain_file(name, content, tmp_path):
     m = load_mesh(_write(tmp_path, name, content), weld=False)
     np.testing.assert_array_equal(m.faces, [[0, 1, 2]])
     np.testing.assert_array_equal(m.vertices[:3], [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+
+
+_PLY_HEAD = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+             "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n")
+_PLY_REST = "1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n"
+
+
+@pytest.mark.parametrize("row", ["0 1.2.3 0", "0 1-2 0", "0 1e5e3 0", "0 1+2 0"])
+def test_ascii_ply_tokens_that_read_as_two_numbers_are_named(row, tmp_path):
+    """The byte-level fast check (no number parsed) must not clear a token that a number
+    reader would split in two, shifting every later value."""
+    p = _write(tmp_path, "t.ply", _PLY_HEAD + row + "\n" + _PLY_REST)
+    with pytest.raises(errors.UnreadableMeshError, match="line 10: vertex 0 value .* is not a number"):
+        load_mesh(p, weld=False)
+
+
+def test_a_clean_ascii_ply_is_cleared_by_the_fast_check(tmp_path, monkeypatch):
+    import jaxcds.mesh as M
+
+    seen = []
+    real = M._ply_ascii_plain
+    monkeypatch.setattr(M, "_ply_ascii_plain", lambda *a: seen.append(real(*a)) or seen[-1])
+    m = load_mesh(_write(tmp_path, "c.ply", _PLY_HEAD + "-0.5 1e-5 +2\n" + _PLY_REST), weld=False)
+    assert seen == [True]
+    np.testing.assert_allclose(m.vertices[0], [-0.5, 1e-5, 2.0], rtol=1e-6)
+    np.testing.assert_array_equal(m.faces, [[0, 1, 2], [0, 2, 3]])
