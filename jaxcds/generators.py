@@ -39,6 +39,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._args import is_integer
 from jaxcds.mesh import TriMesh
+from jaxcds.polylla_io import qhull_failure_reason, twice_signed_areas
 
 __all__ = [
     "icosphere",
@@ -152,13 +153,10 @@ def delaunay_disk(points) -> TriMesh:
     try:
         tri = Delaunay(pts)
     except Exception as exc:  # Qhull: collinear points, coordinates out of its range
-        from jaxcds.polylla_io import qhull_failure_reason
-
         raise errors.MeshError(f"delaunay_disk: Delaunay triangulation failed: "
                                f"{qhull_failure_reason(exc, pts)}") from None
     f = np.ascontiguousarray(tri.simplices, dtype=np.int32)
-    a, b, c = pts[f[:, 0]], pts[f[:, 1]], pts[f[:, 2]]
-    cw = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]) < 0
+    cw = twice_signed_areas(pts, f) < 0
     f[cw] = f[cw][:, [0, 2, 1]]
     used = np.zeros(pts.shape[0], bool)
     used[f.ravel()] = True

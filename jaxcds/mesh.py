@@ -246,11 +246,17 @@ _OBJ_NEGATIVE = re.compile(r"(?m)^f [^\n-]*-")
 _BLANKS = str.maketrans("\t\v\f", "   ")
 
 
+def _blanks_as_spaces(text: str) -> str:
+    """Every tab, vertical tab and form feed a space (only scanned for when one is there)."""
+    if "\t" in text or "\v" in text or "\f" in text:
+        return text.translate(_BLANKS)
+    return text
+
+
 def _prepare_off(text: str) -> str:
     """The OFF text as trimesh's reader can take it: comments after data removed (OFF allows
     them; trimesh read "0 0 0 # first" as a bad number) and blanks read as spaces."""
-    if "\t" in text or "\v" in text or "\f" in text:
-        text = text.translate(_BLANKS)
+    text = _blanks_as_spaces(text)
     if "#" in text:
         text = _OBJ_COMMENT.sub("", text)
     return text
@@ -262,8 +268,7 @@ def _prepare_obj(text: str, path: str) -> str:
     after data removed, relative (negative) indices made absolute where vertices follow a
     face, and a face index 0 refused naming its line. Each step runs only where a cheap
     test finds its case."""
-    if "\t" in text or "\v" in text or "\f" in text:  # every whitespace a space
-        text = text.translate(_BLANKS)
+    text = _blanks_as_spaces(text)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)
     if "#" in text and _obj_trailing_comment(text):
@@ -361,10 +366,10 @@ def _diagnose_obj(text: str, path: str) -> None:
     """On trimesh's error path only: the first line of the (prepared) OBJ text that is not a
     well-formed vertex or face, as a typed error naming the line and the problem (trimesh's
     messages named neither). Returns if it finds none."""
-    lines = text.split("\n")
-    total_v = sum(1 for line in lines if line[:2] == "v ")
     if not text.strip():
         raise errors.EmptyMeshError(f"{path}: the file is empty")
+    lines = text.split("\n")
+    total_v = sum(1 for line in lines if line[:2] == "v ")
     seen_v = 0
     for no, line in enumerate(lines, 1):
         tok = line.split("#", 1)[0].split()
@@ -399,8 +404,6 @@ def _diagnose_obj(text: str, path: str) -> None:
                              else f"{seen_v} vertices defined above it")
                     raise errors.InvalidIndexError(
                         f"{path}: line {no}: face index {i} refers to no vertex ({where})")
-
-
 
 
 def _diagnose_ascii_stl(raw: bytes, path: str) -> None:
@@ -441,9 +444,7 @@ def _check_off_counts(text: str, path: str) -> None:
     Line-based, as trimesh's reader. A fast pass (lines counted, an all-triangle face block read
     as one array: about a tenth of trimesh's own parse) clears a good file; anything else is
     checked line by line (:func:`_check_off_lines`), which names the line."""
-    lines = text.splitlines()
-    if "#" in text:
-        lines = [line.split("#", 1)[0] for line in lines]
+    lines = text.splitlines()  # comments are gone already (_prepare_off)
     data = [line for line in lines if line and not line.isspace()]
     if not data or not data[0].split()[0].upper().endswith("OFF"):
         return  # not a header this check knows (trimesh names it)
@@ -718,7 +719,7 @@ def _ply_ascii_plain(buf, ws, tok_start, per_row, row_tok, ends, elements) -> bo
     byte a blank or part of a decimal number, no '.' or exponent in the face rows, every face
     row's count one digit >= 3 and equal to its number of indices. False sends the file to the
     full check, which names the first bad line."""
-    if not (_WHITESPACE[buf] | _NUMBER_BYTES[buf]).all():
+    if not (ws | _NUMBER_BYTES[buf]).all():
         return False
     # a token that would read as two numbers ("1.2.3", "1-2", "1e5e3"): trimesh would shift
     # every value after it; the full check names it

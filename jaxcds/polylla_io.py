@@ -26,7 +26,7 @@ import numpy as np
 from jaxcds import errors
 
 __all__ = ["Triangulation2D", "read_triangle", "read_off_2d", "from_points", "read_input",
-           "write_polygon_off", "read_polygon_off", "orient_ccw"]
+           "write_polygon_off", "read_polygon_off", "orient_ccw", "twice_signed_areas"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,11 +167,17 @@ def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
     return out, int(cw.sum())
 
 
+def twice_signed_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(F,)`` twice the signed area of every triangle of ``faces`` (2-D ``points``):
+    positive counter-clockwise, negative clockwise, zero for collinear corners."""
+    p = points[faces]
+    return ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+            - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+
+
 def _orient(points: np.ndarray, faces: np.ndarray, source: str):
     """:func:`orient_ccw`, returning which faces were clockwise (a bool mask)."""
-    p = unit_scale(points)[faces]
-    area2 = ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-             - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    area2 = twice_signed_areas(unit_scale(points), faces)
     flat = np.nonzero(area2 == 0)[0]
     if flat.size:
         raise errors.PolyllaError(

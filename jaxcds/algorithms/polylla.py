@@ -545,8 +545,9 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         keeps the input's (``HalfEdge.from_faces``); otherwise matched to its faces here (a host
         sort, only when some triangle has a tie).
       clockwise: every input triangle is clockwise (default: read off ``corners``; False
-        without them). Given, it is taken as the caller's word (``run`` passes what it read). The reference keeps the input's orientation: its polygons are then
-        clockwise, and its barrier-edge repair turns the other way round (:func:`middle_edges`).
+        without them). Given, it is taken as the caller's word (``run`` passes what it read).
+        The reference keeps the input's orientation: its polygons are then clockwise, and its
+        barrier-edge repair turns the other way round (:func:`middle_edges`).
 
     ``tables``: let the structure build per-run navigation tables (:func:`_tabulated`; pemb:
     twin, origin and first dart of every face, 41.5 bytes per vertex while the run lasts, its
@@ -683,9 +684,9 @@ def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
 
 def _all_clockwise(pos: np.ndarray, corners: np.ndarray) -> bool:
     """Every triangle of ``corners`` turns clockwise (negative signed area)."""
-    p = pos[corners]
-    a = ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-         - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    from jaxcds.polylla_io import twice_signed_areas
+
+    a = twice_signed_areas(pos, corners)
     return bool(a.size) and bool(np.all(a < 0))
 
 
@@ -746,12 +747,19 @@ def polygons_as_cycles(polys) -> list:
 
 
 # ------------------------------------------------------------------------------ file to file
+def _as_trimesh(tri):
+    """``tri`` as a :class:`~jaxcds.mesh.TriMesh` (``z = 0``)."""
+    from jaxcds.mesh import TriMesh
+
+    return TriMesh(vertices=np.column_stack([tri.points, np.zeros(tri.num_vertices)]),
+                   faces=tri.faces, source=tri.source)
+
+
 def _checked_mesh(tri, structure: str, check: bool):
     """``tri`` as a :class:`~jaxcds.mesh.TriMesh`, validated when ``check`` (typed errors)."""
-    from jaxcds.mesh import TriMesh, validate
+    from jaxcds.mesh import validate
 
-    mesh = TriMesh(vertices=np.column_stack([tri.points, np.zeros(tri.num_vertices)]),
-                   faces=tri.faces, source=tri.source)
+    mesh = _as_trimesh(tri)
     if check:  # a point in no triangle (in a hole) is fine for the half-edge, not for others
         try:
             validate(mesh, structure=f"Polylla on {structure}", unreferenced_ok=structure == "halfedge")
@@ -784,11 +792,9 @@ def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
 def _components_of(tri):
     """``(count, face label)`` of the connected components of ``tri`` when it has several, else
     None (the triangles of one piece share edges with each other only)."""
-    from jaxcds.mesh import TriMesh, _components
+    from jaxcds.mesh import _components
 
-    mesh = TriMesh(vertices=np.column_stack([tri.points, np.zeros(tri.num_vertices)]),
-                   faces=tri.faces, source=tri.source)
-    ncomp, label = _components(mesh)
+    ncomp, label = _components(_as_trimesh(tri))
     return (ncomp, label) if ncomp > 1 else None
 
 
