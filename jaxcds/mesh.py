@@ -168,8 +168,6 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                                          f"{_parse_failure(raw, suffix, exc)}") from exc
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
-    if suffix == ".obj":
-        _refuse_obj_short_face(text, faces.shape[0], path)
     if (suffix == ".obj" and vertices.size and vertices.shape[1:] != (3,)
             and (vertices.shape[1:] != (2,) or re.search(r"(?m)^v +\S+ +\S+ +\S", text))):
         # trimesh cut every vertex to the shortest "v" line: a 2-D file loads with z = 0 as
@@ -266,14 +264,15 @@ def _prepare_obj(text: str, path: str) -> str:
     """The OBJ text as trimesh's reader can take it, checked: tabs read as spaces and indented
     lines unindented (trimesh skipped "v<TAB>x y z" and "  f 1 2 3" without a word), comments
     after data removed, relative (negative) indices made absolute where vertices follow a
-    face, and a face index 0 refused naming its line. Each step runs only where a cheap
-    test finds its case."""
+    face, and a face index 0 or a face line of fewer than three corners refused naming its
+    line. Each step runs only where a cheap test finds its case."""
     text = _blanks_as_spaces(text)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)
     if "#" in text and _obj_trailing_comment(text):
         text = _OBJ_COMMENT.sub("", text)
     _refuse_obj_index_zero(text, path)
+    _refuse_obj_short_face(text, path)
     first_face = 0 if text.startswith("f ") else text.find("\nf ")
     if first_face >= 0 and text.rfind("\nv") > first_face and _OBJ_NEGATIVE.search(text, first_face):
         text = _absolute_obj_indices(text, path)
@@ -292,8 +291,12 @@ def _obj_trailing_comment(text: str) -> bool:
     return False
 
 
-#: a face line of fewer than three corners ("f 1 2"), which trimesh drops without a word
-_OBJ_SHORT_FACE = re.compile(r"(?m)^f(?: +[^ \n\r]+){0,2} *\r?$")
+#: a face line of fewer than three corners ("f 1 2"), which trimesh drops without a word: a
+#: line of "f" and a blank (or nothing) that does not go on with three tokens. The text is
+#: searched once for "\nf"; the negative lookahead fails a good line at its third token
+#: without backtracking (0.11 s on a 1M-face OBJ; a numpy pass over the bytes took 0.4 s).
+#: Blanks are str.split()'s, as trimesh's; the first line is matched after a "\n" put before it.
+_OBJ_SHORT_FACE = re.compile(r"\nf(?![^\S\n]+\S+[^\S\n]+\S+[^\S\n]+\S)(?:\s|\Z)")
 
 
 def _refuse_obj_index_zero(text: str, path: str) -> None:
@@ -306,20 +309,34 @@ def _refuse_obj_index_zero(text: str, path: str) -> None:
                                        "start at 1 (negative ones count back from the last vertex)")
 
 
-def _refuse_obj_short_face(text: str, num_faces: int, path: str) -> None:
-    """A face line of fewer than three corners ("f 1 2"), which trimesh drops without a word,
-    named by line. Every other face line gives at least one triangle, so the search (40 ms on a
-    3 MB file) only runs when trimesh returned fewer faces than there are face lines. (In a file
-    that also has polygons, their extra triangles can hide a dropped line: it then goes
-    unnamed.)"""
-    lines = text.count("\nf ") + text.count("\nf\n") + text.count("\nf\r") + (text[:2] in ("f ", "f\n"))
-    if num_faces >= lines:
-        return
-    hit = _OBJ_SHORT_FACE.search(text)
-    if hit:
-        line = text.count("\n", 0, hit.start()) + 1
-        raise errors.InvalidIndexError(f"{path}: line {line}: a face of {len(hit.group().split()) - 1} "
-                                       "corner(s); a face needs at least 3")
+def _refuse_obj_short_face(text: str, path: str) -> None:
+    """A face line of fewer than three corners ("f 1 2"; trimesh drops it without a word), named
+    by line, whatever else the file holds (trimesh's face count against the face lines missed
+    one where a polygon's extra triangles made up for it). Lines continued by a trailing
+    backslash are joined first, as trimesh joins them, and named by the line they start on."""
+    joins = None
+    if "\\" in text:  # (one byte searched for: rare in an OBJ)
+        if "\\\r\n" in text:
+            text = text.replace("\r\n", "\n")  # as trimesh does first (the lines stay)
+        if "\\\n" in text:
+            # where each removed backslash-newline was, in the joined text
+            at = np.array([m.start() for m in re.finditer(r"\\\n", text)], dtype=np.int64)
+            joins = at - 2 * np.arange(at.size)
+            text = text.replace("\\\n", "")
+    if _OBJ_SHORT_FACE.match("\n" + text[:text.find("\n") + 1 or len(text)]):
+        at = 0
+    else:
+        hit = _OBJ_SHORT_FACE.search(text)
+        if hit is None:
+            return
+        at = hit.start() + 1
+    stop = text.find("\n", at)
+    corners = len(text[at + 1:stop if stop >= 0 else len(text)].split())
+    line = text.count("\n", 0, at) + 1
+    if joins is not None:
+        line += int(np.searchsorted(joins, at, side="right"))
+    raise errors.InvalidIndexError(f"{path}: line {line}: a face of {corners} corner(s); a face "
+                                   "needs at least 3")
 
 
 def _absolute_obj_indices(text: str, path: str) -> str:
@@ -564,9 +581,10 @@ class _PlyElement:
 
 def _check_ply(raw: bytes, path: str) -> Optional[tuple[np.ndarray, np.ndarray]]:
     """A PLY's header (all of it) and data against each other, before trimesh reads it: a
-    truncated file, a face line whose corner count disagrees with its indices or a
-    non-integer index (ASCII), a corner count other than the others (binary; trimesh reads
-    every face with the first face's count). Returns ``(vertices, faces)`` for a well-formed
+    blank header line, a truncated file, a face line whose corner count disagrees with its
+    indices, a non-integer index or data past the declared rows (ASCII), a corner count other
+    than the others or bytes left over (binary; trimesh reads every face with the first face's
+    count). Returns ``(vertices, faces)`` for a well-formed
     binary PLY of mixed polygons (trimesh refuses them), else None (trimesh reads it)."""
     if not raw[:20].lstrip().lower().startswith(b"ply"):
         return None  # trimesh names it
@@ -583,7 +601,13 @@ def _check_ply(raw: bytes, path: str) -> Optional[tuple[np.ndarray, np.ndarray]]
     for no, line in enumerate(head, 1):
         tok = line.split()
         if not tok:
-            continue
+            if no == len(head):
+                continue  # what comes before 'end_header' on its own line
+            # trimesh took it as the format line ("truncated") or failed on it ("list index
+            # out of range")
+            raise errors.UnreadableMeshError(
+                f"{path}: line {no}: the PLY header has a blank line (every line from 'ply' "
+                "to 'end_header' holds a keyword)")
         if tok[0] == "element":
             if len(tok) != 3 or not tok[2].isdigit():
                 raise errors.UnreadableMeshError(
@@ -615,7 +639,8 @@ def _check_ply_ascii(data: bytes, elements: list, first_line: int, path: str) ->
     """Every data line of an ASCII PLY against its element's properties (trimesh reads one
     line per element, and a list's count from its first line only): vectorised over the whole
     data (whitespace runs counted with numpy, the numbers read in one call); the lines of an
-    element with several lists are checked one by one."""
+    element with several lists are checked one by one. Anything but blanks after the last
+    declared row is refused (trimesh ignored it), after the rows themselves."""
     if b"\r" in data:
         data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     want = sum(e.count for e in elements)
@@ -629,15 +654,22 @@ def _check_ply_ascii(data: bytes, elements: list, first_line: int, path: str) ->
         raise errors.UnreadableMeshError(
             f"{path}: the PLY header declares {_ply_declared(elements)} ({want} data lines); "
             f"the file has {lines} (truncated?)")
+    stop = 0 if want == 0 else int(ends[want - 1]) if want - 1 < ends.size else buf.size
+    # anything but blanks after the declared rows (trimesh ignored it): refused once the rows
+    # themselves are checked (a miscounted element is named where its rows go wrong)
+    extra = _ply_ascii_past_rows(data, buf, stop, want, elements, first_line, path)
     if want == 0:
+        if extra is not None:
+            raise extra
         return
-    stop = int(ends[want - 1]) if want - 1 < ends.size else buf.size
     buf = buf[:stop]
     ws = _WHITESPACE[buf]
     tok_start = np.flatnonzero(~ws & np.concatenate([[True], ws[:-1]]))
     per_row = np.bincount(np.searchsorted(ends[:want], tok_start), minlength=want)
     row_tok = np.concatenate([[0], np.cumsum(per_row)])  # first token of each row
     if _ply_ascii_plain(buf, ws, tok_start, per_row, row_tok, ends, elements):
+        if extra is not None:
+            raise extra
         return  # the common file, cleared without reading a number
     try:
         vals = np.fromstring(data[:stop], dtype=np.float64, sep=" ")
@@ -703,6 +735,22 @@ def _check_ply_ascii(data: bytes, elements: list, first_line: int, path: str) ->
             raise errors.UnreadableMeshError(
                 f"{path}: line {first_line + row0 + bad}: {noun} {bad} {why}")
         row0 += e.count
+    if extra is not None:
+        raise extra
+
+
+def _ply_ascii_past_rows(data: bytes, buf: np.ndarray, stop: int, want: int, elements: list,
+                         first_line: int, path: str) -> Optional[errors.UnreadableMeshError]:
+    """The error for anything but blanks after the declared rows of an ASCII PLY (its data
+    from byte ``stop`` on; trimesh ignored it), naming its first line, or None. Only the bytes
+    past the rows are looked at (a final newline, usually)."""
+    extra = np.flatnonzero(~_WHITESPACE[buf[stop:]])
+    if extra.size == 0:
+        return None
+    line = first_line + data.count(b"\n", 0, stop + int(extra[0]))
+    return errors.UnreadableMeshError(
+        f"{path}: line {line}: data past the last row the header declares: "
+        f"{_ply_declared(elements) or 'no element'} ({want} data lines)")
 
 
 #: bytes of a plain decimal number (digits, sign, point, exponent) and of an integer

@@ -66,6 +66,35 @@ def test_obj_face_of_fewer_than_three_corners_is_named(face, tmp_path):
         load_mesh(p)
 
 
+_QUAD_V = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 2 0\nv 2 0 0\n"  # lines 1-6
+
+
+@pytest.mark.parametrize("text,line,corners", [
+    (_QUAD_V + "f 1 2 3 4\nf 1 2\nf 2 5 3\n", 8, 2),
+    (_QUAD_V + "f 1 2\nf 1 2 3 4\n", 7, 2),
+    (_QUAD_V + "f 1 2 3 4 6\nf\nf 2 5 3\n", 8, 0),
+    (_QUAD_V + "vt 0 0\nvt 1 0\nvt 1 1\nf 1/1 2/2 3/3 4/1\nf 5/2 3/3\n", 11, 2),
+    (_QUAD_V + "vn 0 0 1\nf 1//1 2//1 3//1 4//1\nf 5//1\n", 9, 1),
+    (_QUAD_V + "f 1 2 3 4\n\tf 2\t5\n  f 2 5 3\n", 8, 2),
+    ((_QUAD_V + "f 1 2 3 4\nf 1 2 \nf 2 5 3\n").replace("\n", "\r\n"), 8, 2),
+    (_QUAD_V + "f 1 2 3 4 # a quad\nf 1 2 # two\n", 8, 2),
+    ("f 1 2\n" + _QUAD_V + "f 1 2 3 4\n", 1, 2),
+    (_QUAD_V + "f 1 2 \\\n3 4\nf 5 \\\n2\n", 9, 2),
+], ids=["quad", "before-quad", "pentagon-empty", "v/vt", "v//vn", "tabs-indent", "crlf",
+        "comments", "first-line", "continued-lines"])
+def test_obj_short_face_is_named_among_polygons(text, line, corners, tmp_path):
+    """The check compared trimesh's face count with the face lines: a quad's second triangle
+    hid a line of fewer than three corners, which trimesh dropped without a word."""
+    with pytest.raises(errors.InvalidIndexError, match=f"line {line}: a face of {corners} corner"):
+        load_mesh(_write(tmp_path, "s.obj", text))
+
+
+def test_obj_polygons_and_continued_face_lines_still_load(tmp_path):
+    """A face line continued with a backslash (trimesh joins it) is one face, not a short one."""
+    text = _QUAD_V + "vt 0 0\nf 1/1 2/1 \\\n3/1 4/1\nf 2 \\\r\n5 3\nf\t5 6 2\n"
+    assert load_mesh(_write(tmp_path, "p.obj", text), weld=False).num_faces == 4
+
+
 @pytest.mark.parametrize("text,kind,match", [
     ("v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", errors.UnreadableMeshError, "line 2: coordinate 'x' is not a number"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3.5\n", errors.InvalidIndexError, "line 4: face index '3.5' is not an integer"),
@@ -142,6 +171,69 @@ def test_ply_without_end_header_is_named(tmp_path):
     p = _write(tmp_path, "h.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n0\n")
     with pytest.raises(errors.UnreadableMeshError, match="no 'end_header' line"):
         load_mesh(p)
+
+
+_PLY_TRI_HEAD = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                  "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+                  "end_header\n")  # lines 1-9
+_PLY_TRI_BODY = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n"  # lines 10-15
+
+
+@pytest.mark.parametrize("head,line", [
+    (_PLY_TRI_HEAD.replace("ply\n", "ply\n\n"), 2),
+    (_PLY_TRI_HEAD.replace("property float y\n", "property float y\n\n"), 6),
+    (_PLY_TRI_HEAD.replace("end_header", "\nend_header"), 9),
+    (_PLY_TRI_HEAD.replace("element face", " \t\nelement face"), 7),
+    (_PLY_TRI_HEAD.replace("property float z\n", "property float z\n\n").replace("\n", "\r\n"), 7),
+    ("\n" + _PLY_TRI_HEAD, 1),
+], ids=["after-ply", "between-properties", "before-end-header", "spaces-and-tab", "crlf",
+        "before-ply"])
+def test_ply_header_blank_line_is_named(head, line, tmp_path):
+    """A blank header line was refused as "truncated" (it took the format line's place) or
+    with trimesh's "list index out of range"."""
+    with pytest.raises(errors.UnreadableMeshError, match=f"line {line}: the PLY header has a blank line"):
+        load_mesh(_write(tmp_path, "a.ply", head + _PLY_TRI_BODY))
+    binary = head.replace("format ascii", "format binary_little_endian").encode() + b"".join(
+        struct.pack("<3f", *v) for v in _TET_V) + b"".join(
+        struct.pack("<B3i", 3, *f) for f in _TET_F[:2])
+    with pytest.raises(errors.UnreadableMeshError, match=f"line {line}: the PLY header has a blank line"):
+        load_mesh(_write(tmp_path, "b.ply", binary))
+
+
+def test_crlf_ply_headers_still_load(tmp_path):
+    a = load_mesh(_write(tmp_path, "a.ply", (_PLY_TRI_HEAD + _PLY_TRI_BODY).replace("\n", "\r\n")))
+    assert a.faces.tolist() == [[0, 1, 2], [0, 2, 3]]
+    binary = _binary_ply(_TET_V, _TET_F)
+    head, body = binary.split(b"end_header\n", 1)
+    b = load_mesh(_write(tmp_path, "b.ply", head.replace(b"\n", b"\r\n") + b"end_header\r\n" + body))
+    assert b.faces.tolist() == [list(f) for f in _TET_F]
+
+
+@pytest.mark.parametrize("text,line,declared", [
+    (_PLY_TRI_HEAD + _PLY_TRI_BODY + "3 1 2 3\n", 16, "4 vertex, 2 face .6 data lines."),
+    (_PLY_TRI_HEAD + _PLY_TRI_BODY + "3 1 2 3", 16, "4 vertex, 2 face .6 data lines."),
+    (_PLY_TRI_HEAD + _PLY_TRI_BODY + "\n \n\t junk\n", 18, "4 vertex, 2 face"),
+    ((_PLY_TRI_HEAD + _PLY_TRI_BODY + "\n3 1 2 3\n").replace("\n", "\r\n"), 17, "4 vertex, 2 face"),
+    (_PLY_TRI_HEAD.replace("vertex_indices\n", "vertex_indices\nproperty float q\n")
+     + _PLY_TRI_BODY.replace("2\n", "2 0.5\n").replace("3\n", "3 0.5\n") + "3 1 2 3 0.5\n",
+     17, "4 vertex, 2 face .6 data lines."),
+    (_PLY_TRI_HEAD.replace("vertex 4", "vertex 0").replace("face 2", "face 0") + "0 0 0\n", 10,
+     "0 vertex, 0 face .0 data lines."),
+], ids=["extra-face", "extra-no-newline", "junk-after-blanks", "crlf", "full-check", "none-declared"])
+def test_ascii_ply_rows_past_the_declared_counts_are_named(text, line, declared, tmp_path):
+    """trimesh read the declared rows and ignored the rest without a word."""
+    with pytest.raises(errors.UnreadableMeshError,
+                       match=f"line {line}: .*past the last row the header declares: {declared}"):
+        load_mesh(_write(tmp_path, "x.ply", text))
+
+
+@pytest.mark.parametrize("tail", ["", "\n", "\n\n  \t\n", " \r\n\r\n"])
+def test_ascii_ply_trailing_blanks_still_load(tail, tmp_path):
+    text = _PLY_TRI_HEAD + _PLY_TRI_BODY
+    if not tail:
+        text = text[:-1]  # no final newline
+    m = load_mesh(_write(tmp_path, "t.ply", text + tail))
+    assert m.faces.tolist() == [[0, 1, 2], [0, 2, 3]]
 
 
 def _binary_ply(V, F, nv=None):
