@@ -57,7 +57,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
-from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.base import Int, MeshStructure, integer_array
 
 __all__ = ["PackedBatch", "pack", "concatenate", "shift_ids", "shift_darts", "OPERATOR_KINDS",
            "pack_positions"]
@@ -161,25 +161,27 @@ class PackedBatch(MeshStructure):
 
     def mesh_of(self, kind: str, g: Int) -> Int:
         """Mesh owning global id(s) ``g`` of ``kind`` (``"vertex"``, ``"face"``, ``"dart"``);
-        ``num_meshes`` for an absent id (one past the end)."""
-        g = jnp.asarray(g, jnp.int32)
+        ``num_meshes`` for an absent id (one past the end, or any id out of range: a negative
+        one too)."""
+        g = _id_arg(g, "mesh_of: ids")
         if kind == "dart":
             extra = g >= self.num_primary_darts
             m1 = _owner(self.dart_offsets, self.n_dart, g)
             m2 = _owner(self.extra_dart_offsets, self.n_extra_dart, g - self.num_primary_darts)
             m = jnp.where(extra, m2, m1)
-            return jnp.where(g >= self.num_darts, self.num_meshes, m)
+            return jnp.where((g < 0) | (g >= self.num_darts), self.num_meshes, m)
         off, cnt, total = self._table(kind)
-        return jnp.where(g >= total, self.num_meshes, _owner(off, cnt, g))
+        return jnp.where((g < 0) | (g >= total), self.num_meshes, _owner(off, cnt, g))
 
     # ------------------------------------------------------------------ local <-> global
     def to_global(self, kind: str, mesh: Int, local: Int) -> Int:
         """Global id of mesh ``mesh``'s local id ``local`` (``kind``: vertex, face, dart).
         The local sentinel (the mesh's own count) maps to the global one, and so does every id
         out of range: a negative local id, one past the count, a mesh index outside the batch
-        (JAX would wrap or clamp them into another mesh's ids). Broadcasts."""
-        mesh = jnp.asarray(mesh, jnp.int32)
-        local = jnp.asarray(local, jnp.int32)
+        (JAX would wrap or clamp them into another mesh's ids), an integer past int32 included
+        (a cast would wrap it into range). Broadcasts; floats, strings and shapes that do not
+        broadcast are refused (:class:`~jaxcds.errors.InvalidIndexError`, ``ArgumentError``)."""
+        mesh, local = _id_pair(mesh, local, f"to_global({kind!r})")
         out = (local < 0) | (mesh < 0) | (mesh >= self.num_meshes)
         mesh = jnp.clip(mesh, 0, max(self.num_meshes - 1, 0))
         if kind == "dart" and self.num_extra_darts == 0:  # static: one contiguous block per mesh
@@ -230,7 +232,7 @@ class PackedBatch(MeshStructure):
             raise errors.ArgumentError(f"PackedBatch.query: unknown operator {op!r}; one of "
                                        f"{sorted(OPERATOR_KINDS)}")
         arg_kind, res_kind = OPERATOR_KINDS[op]
-        mesh = jnp.asarray(mesh, jnp.int32)
+        mesh, local = _id_pair(mesh, local, f"PackedBatch.query({op!r})")
         g = self.to_global(arg_kind, mesh, local)
         r = getattr(self.structure, op)(g)
         # an id out of range (or a mesh index outside the batch) answers "absent" (False for a
@@ -251,8 +253,13 @@ class PackedBatch(MeshStructure):
         return adjacent(self.structure, u, v)
 
     def adjacent_local(self, mesh: Int, u: Int, v: Int) -> Int:
-        """``Adjacent(u, v)`` for vertices local to mesh ``mesh``."""
-        return self.adjacent(self.to_global("vertex", mesh, u), self.to_global("vertex", mesh, v))
+        """``Adjacent(u, v)`` for vertices local to mesh ``mesh``; False when ``u`` or ``v`` is
+        not a vertex of that mesh (out of range, or ``mesh`` outside the batch): the union
+        structure would read the sentinel's row (an unchecked adjacent answered True)."""
+        gu = self.to_global("vertex", mesh, u)
+        gv = self.to_global("vertex", mesh, v)
+        ok = (gu < self.num_vertices) & (gv < self.num_vertices)
+        return self.adjacent(jnp.where(ok, gu, 0), jnp.where(ok, gv, 0)) & ok
 
     # ------------------------------------------------------------------ per-mesh reductions
     def per_mesh_sum(self, values, kind: str = "vertex"):
@@ -349,6 +356,38 @@ for _op in _FORWARDED:
         setattr(PackedBatch, _op, _make_forward(_op))
 
 
+def _id_arg(x, what: str) -> Int:
+    """Ids handed to a batch method, as int32: a traced or int32 jax array as it is (inside
+    ``jit`` the caller's dtype is fixed already); host values checked first, so that floats,
+    bools and strings are refused (a cast truncates 1.7 to 1) and integers past int32 read as
+    out of range (-1 or int32 max: "absent") instead of wrapping onto a valid id."""
+    if isinstance(x, jax.Array) and (isinstance(x, jax.core.Tracer) or x.dtype.itemsize <= 4):
+        if not jnp.issubdtype(x.dtype, jnp.integer):
+            raise errors.InvalidIndexError(f"{what} must be integers, got dtype {x.dtype}")
+        return x.astype(jnp.int32)
+    a = integer_array(x, what)
+    if a.size == 0:
+        return jnp.asarray(a, jnp.int32)
+    info = np.iinfo(np.int32)
+    if a.dtype.kind == "u":
+        a = np.minimum(a, info.max)
+    else:
+        a = np.where(a < info.min, -1, np.minimum(a, info.max))
+    return jnp.asarray(a.astype(np.int32))
+
+
+def _id_pair(mesh, local, what: str):
+    """``_id_arg`` of a (mesh, local id) pair that must broadcast together."""
+    m = _id_arg(mesh, f"{what}: mesh indices")
+    loc = _id_arg(local, f"{what}: local ids")
+    try:
+        np.broadcast_shapes(m.shape, loc.shape)
+    except ValueError:
+        raise errors.ArgumentError(f"{what}: mesh indices of shape {tuple(m.shape)} and local ids "
+                                   f"of shape {tuple(loc.shape)} do not broadcast") from None
+    return m, loc
+
+
 def _segment_ids(counts, total: int) -> Int:
     """``[0]*counts[0] + [1]*counts[1] + ...`` of static length ``total`` (jittable)."""
     b = counts.shape[0]
@@ -441,12 +480,12 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
     """
     from jaxcds.structures import registry
 
-    ms = [_load(m) for m in meshes]
+    ms = [_load(m) for m in _mesh_list(meshes, "pack")]
     if not ms:
         raise errors.EmptyMeshError("pack: no meshes given")
     names = registry.names()
-    if structure not in names:
-        raise errors.JaxcdsError(f"unknown structure {structure!r}; available: {', '.join(names)}")
+    if not isinstance(structure, str) or structure not in names:
+        raise errors.ArgumentError(f"pack: unknown structure {structure!r}; available: {', '.join(names)}")
     if structure in _UNION_BUILDERS:
         return _pack_union(ms, structure, check)
     if structure in REFUSED:  # before building anything
@@ -460,6 +499,24 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
         if i == 0:
             _check_hook(type(parts[0]))  # refuse before building the other meshes
     return concatenate(parts)
+
+
+def _mesh_list(meshes, what: str) -> list:
+    """``meshes`` as a list, or :class:`~jaxcds.errors.ArgumentError` for one mesh given where a
+    sequence of meshes is asked for (a path string was iterated character by character, a
+    ``TriMesh`` or ``None`` raised TypeError)."""
+    import os
+
+    one = isinstance(meshes, (str, bytes, os.PathLike, TriMesh)) or type(meshes).__name__ == "Trimesh"
+    pair = (isinstance(meshes, tuple) and len(meshes) == 2
+            and all(isinstance(x, (np.ndarray, jax.Array)) for x in meshes))
+    if one or pair:
+        raise errors.ArgumentError(f"{what}: give a list of meshes (one mesh is [mesh]), got "
+                                   f"a single {type(meshes).__name__}")
+    try:
+        return list(meshes)
+    except TypeError:
+        raise errors.ArgumentError(f"{what}: give a list of meshes, got {type(meshes).__name__}") from None
 
 
 def _load(m) -> TriMesh:
@@ -591,13 +648,17 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
     from jaxcds.mesh import validate_and_close
 
     want = np.asarray(batch.n_vertex)
+    meshes = _mesh_list(meshes, "pack_positions")
     if len(meshes) != want.shape[0]:
         raise errors.ArgumentError(
             f"pack_positions: {len(meshes)} meshes for a batch of {want.shape[0]}")
     ps = []
     for i, m in enumerate(meshes):
-        if isinstance(m, np.ndarray):
-            v = m
+        if isinstance(m, (np.ndarray, jax.Array)):
+            v = np.asarray(m)
+            if v.dtype.kind not in "iuf":
+                raise errors.MeshError(f"pack_positions: mesh {i}'s positions must be real "
+                                       f"numbers, got dtype {v.dtype}")
         else:
             tm = _load(m)
             v = tm.vertices

@@ -501,3 +501,70 @@ def test_pack_positions_checks_the_width():
         with pytest.raises(errors.MeshError, match="mesh 1's positions have shape"):
             B.pack_positions(b, [good[0], bad])
     assert B.pack_positions(b, good).shape == (b.num_vertices, 3)
+
+
+def test_host_ids_that_would_wrap_or_truncate_are_not_answered_as_another_id():
+    """Eighth sweep: ``query``/``to_global`` cast host ids to int32, so 2**32 + 1 wrapped onto
+    local id 1 (and a mesh index 2**32 + 1 onto mesh 1), 1.7 truncated to 1 and True read as 1:
+    answers about another id. Now integers past int32 read as out of range ("absent"), floats,
+    bools and strings are InvalidIndexErrors, shapes that do not broadcast an ArgumentError."""
+    ms = [load_mesh(*octahedron()), icosphere(1)]
+    b = B.pack(ms, "halfedge")
+    big = np.int64(2**32 + 1)
+    assert not bool(b.query("dart_valid", 0, big))
+    assert not bool(b.query("dart_valid", big, 1))
+    assert int(b.query("origin", 0, np.array([big, -big, 1]))[0]) == int(b.n_vertex[0])
+    assert int(b.query("origin", 0, np.array([big, -big, 1]))[1]) == int(b.n_vertex[0])
+    assert int(b.query("edge_of_vertex", 1, np.uint64(2**63 + 3))) == int(b.n_dart[1] + b.n_extra_dart[1])
+    assert int(b.to_global("vertex", 1, big)) == b.num_vertices
+    for bad in (1.7, True, "a", np.array([0.0, 1.0])):
+        with pytest.raises(errors.InvalidIndexError, match="query.*local ids must be integers"):
+            b.query("target", 0, bad)
+        with pytest.raises(errors.InvalidIndexError, match="mesh indices must be integers"):
+            b.query("target", bad, 0)
+    with pytest.raises(errors.ArgumentError, match=r"shape \(3,\).*shape \(2,\) do not broadcast"):
+        b.query("target", np.array([0, 1, 0]), np.array([0, 1]))
+    # int32 ids, eager and under jit, are answered as before
+    d = b.query("edge_of_vertex", 1, 3)
+    assert int(b.query("origin", 1, d)) == 3
+    q = jax.jit(lambda s, m, e: s.query("origin", m, e))
+    assert int(q(b, jnp.int32(1), d)) == 3
+    with pytest.raises(errors.InvalidIndexError, match="must be integers"):
+        jax.jit(lambda s, e: s.query("origin", 0, e))(b, jnp.float32(1.0))
+
+
+def test_mesh_of_negative_and_adjacent_local_out_of_range():
+    """mesh_of(-1) answered -1 (not the documented num_meshes); adjacent_local with a vertex out
+    of the mesh's range read the sentinel's row of the union structure and answered True."""
+    ms = [load_mesh(*octahedron()), icosphere(1)]
+    for name in ("halfedge", "cds5n"):
+        b = B.pack(ms, name)
+        for kind in ("vertex", "face", "dart"):
+            assert int(b.mesh_of(kind, -1)) == b.num_meshes
+        for mesh, u, v in ((0, 0, 100), (0, 100, 0), (0, -1, 1), (5, 0, 1), (-1, 0, 1), (0, 0, 6)):
+            assert not bool(b.adjacent_local(mesh, u, v)), (name, mesh, u, v)
+        h = registry.build("halfedge", ms[0])
+        e = np.asarray(h.all_darts())
+        o, t = np.asarray(h.origin(e)), np.asarray(h.target(e))
+        if b.vertex_order is None:  # halfedge: local ids are the input's
+            assert bool(np.all(np.asarray(b.adjacent_local(0, o, t))))
+
+
+def test_pack_and_pack_positions_take_lists_only_and_real_positions():
+    """pack(one TriMesh) and pack(None) raised TypeError, pack('file.off') loaded each character
+    as a path ('/: is a directory'); an unknown structure was a bare JaxcdsError; pack_positions
+    refused jax arrays ('cannot load a mesh from ArrayImpl'), raised ValueError on string arrays
+    and TypeError on None."""
+    tet = load_mesh(*octahedron())
+    for one in (tet, "some/file.off", None, 3, (tet.vertices, tet.faces)):
+        with pytest.raises(errors.ArgumentError, match="pack: give a list of meshes"):
+            B.pack(one, "halfedge")
+    with pytest.raises(errors.ArgumentError, match="unknown structure 'nope'"):
+        B.pack([tet], "nope")
+    b = B.pack([tet, tet], "halfedge")
+    p = B.pack_positions(b, [jnp.asarray(tet.vertices), tet.vertices])
+    np.testing.assert_allclose(np.asarray(p), np.concatenate([tet.vertices] * 2), rtol=1e-6)
+    with pytest.raises(errors.MeshError, match="mesh 1's positions must be real numbers"):
+        B.pack_positions(b, [tet.vertices, np.full((6, 3), "a")])
+    with pytest.raises(errors.ArgumentError, match="pack_positions: give a list of meshes"):
+        B.pack_positions(b, None)
