@@ -443,6 +443,9 @@ def write_polygon_off(path: str, points: np.ndarray, offsets: np.ndarray, indice
     offsets = np.asarray(offsets, dtype=np.int64)
     indices = np.asarray(indices, dtype=np.int64)
     npoly = offsets.shape[0] - 1
+    from jaxcds.codec.fileformat import check_writable
+
+    check_writable(path)  # not over a device or FIFO (the rename would replace the node)
     d = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".polylla-", suffix=".off", dir=d)
     try:

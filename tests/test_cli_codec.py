@@ -188,3 +188,20 @@ def test_python_dash_m_exit_code_and_no_traceback(tmp_path, cube_cds):
                         str(tmp_path / "o.off")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "truncated" in r.stderr and "Traceback" not in r.stderr
     assert os.listdir(tmp_path) == ["bad.cds"]
+
+
+def test_decode_and_encode_onto_a_fifo_are_refused_and_leave_it(capsys, tmp_path, cube_cds):
+    """Eighth sweep: ``decode -o`` a FIFO or device replaced the node with a regular file (the
+    atomic rename; as root ``-o /dev/null`` replaced /dev/null) and exited 0."""
+    import stat
+
+    src = tmp_path / "cube.cds"
+    src.write_bytes(cube_cds)
+    for name, argv in (("p.off", ["decode", str(src), "-o"]),
+                       ("p.cds", ["encode", mesh_path("cube.off"), "-o"])):
+        fifo = tmp_path / name
+        os.mkfifo(fifo)
+        assert main(argv + [str(fifo)]) == 2
+        assert "is a FIFO, not a regular file" in capsys.readouterr().err
+        assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert sorted(os.listdir(tmp_path)) == ["cube.cds", "p.cds", "p.off"]

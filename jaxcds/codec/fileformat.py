@@ -229,13 +229,31 @@ def check_dummy_mask(dummy: np.ndarray, faces: np.ndarray, offset: Optional[int]
 
 def check_writable(path: str | os.PathLike) -> str:
     """``path`` as a string if a file can be written there (its folder exists, no folder in its
-    place), else :class:`~jaxcds.errors.OutputError` naming it. Called before any work."""
+    place, no device, FIFO or socket there), else :class:`~jaxcds.errors.OutputError` naming it.
+    Called before any work.
+
+    Writes are a temporary file renamed over ``path``: on a device (``/dev/null``,
+    ``/dev/full``) or a FIFO that rename would replace the node itself with a regular file (as
+    root, ``-o /dev/null`` replaced the system's /dev/null), so such outputs are refused, as the
+    readers refuse them as inputs."""
+    import stat
+
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise errors.OutputError(f"output {path!r}: folder {folder!r} does not exist")
     if os.path.isdir(path):
         raise errors.OutputError(f"output {path!r} is a folder")
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:  # nothing there (or a dangling link): the rename creates the file
+        return path
+    if not stat.S_ISREG(mode):
+        kind = ("a character device" if stat.S_ISCHR(mode) else "a block device" if stat.S_ISBLK(mode)
+                else "a FIFO" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode)
+                else "not a regular file")
+        raise errors.OutputError(f"output {path!r} is {kind}, not a regular file: the atomic write "
+                                 "(a temporary file renamed over it) would replace it; give a file path")
     return path
 
 

@@ -104,6 +104,40 @@ def test_writers_refuse_a_folder_or_a_missing_folder_before_any_work(tmp_path, m
     assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "b.off"]  # nothing half written
 
 
+def test_writers_refuse_a_device_or_fifo_in_place_of_the_output(tmp_path):
+    """Eighth sweep: the atomic write renamed its temporary file over a FIFO or a device node
+    (``-o /dev/null`` run as root replaced the system's /dev/null with a regular file, and
+    /dev/full 'succeeded'). Such outputs are refused before any work, and left as they were."""
+    import stat
+
+    from jaxcds.codec import write_mesh_atomic
+    from jaxcds.polylla_io import write_polygon_off
+
+    m = icosphere(0)
+    fifo = tmp_path / "pipe.cds"
+    os.mkfifo(fifo)
+    with pytest.raises(errors.OutputError, match="pipe.cds' is a FIFO, not a regular file"):
+        write_cds(fifo, m)
+    with pytest.raises(errors.OutputError, match="is a FIFO"):
+        ff.atomic_write_bytes(fifo, b"x")
+    os.mkfifo(tmp_path / "pipe.off")
+    with pytest.raises(errors.OutputError, match="is a FIFO"):
+        write_mesh_atomic(tmp_path / "pipe.off", m)
+    with pytest.raises(errors.OutputError, match="is a FIFO"):
+        write_polygon_off(str(tmp_path / "pipe.off"), np.zeros((3, 2)), np.array([0, 3]), np.array([0, 1, 2]))
+    link = tmp_path / "null.off"
+    link.symlink_to("/dev/null")  # a link to a device: the device is refused too
+    with pytest.raises(errors.OutputError, match="null.off' is a character device"):
+        write_mesh_atomic(link, m)
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode) and os.path.islink(link)
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["null.off", "pipe.cds", "pipe.off"]
+    # a regular file in place is replaced as before
+    (tmp_path / "old.cds").write_bytes(b"old")
+    write_cds(tmp_path / "old.cds", m)
+    assert read_cds(tmp_path / "old.cds")[0].num_vertices == 12
+
+
 # ------------------------------------------------------------------------- corruption
 def _small_file(tmp_path):
     path = tmp_path / "small.cds"
@@ -337,3 +371,4 @@ def test_dummy_mask_padding_bits_must_be_zero(tmp_path):
     struct.pack_into("<I", out, len(out) - 4, zlib.crc32(bytes(out[start:start + n_bytes])))
     with pytest.raises(errors.FormatError, match=rf"non-zero padding bits in byte {start + n_bytes - 1} \(dummy mask"):
         read_cds(bytes(out))
+
