@@ -118,6 +118,22 @@ def decode(words: Words, *, structure: str = "faces", dummy=None):
 
 
 # --------------------------------------------------------------------------- files
+def _float32_geometry(vertices: np.ndarray, path) -> np.ndarray:
+    """The float32 geometry of a ``.cds`` file, or :class:`NonFiniteCoordinateError` naming the
+    first vertex whose finite coordinate float32 cannot hold (|x| > 3.4e38): it was written as
+    inf, and read_cds refused the file it had just written."""
+    with np.errstate(over="ignore"):
+        p = np.asarray(vertices).astype(np.float32)
+    bad = np.flatnonzero(~np.isfinite(p).all(axis=1))
+    if bad.size:
+        v = int(bad[0])
+        raise errors.NonFiniteCoordinateError(
+            f"cannot write {os.fspath(path)!r}: vertex {v} at {np.asarray(vertices)[v].tolist()} is "
+            f"past float32's range (|x| <= {float(np.finfo(np.float32).max):.4g}), the .cds geometry "
+            f"is float32 ({bad.size} such vertices); scale the mesh first")
+    return p
+
+
 def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometry: bool = True,
               keep_order: bool = True, maximal: bool = True) -> dict:
     """Encode ``mesh`` and write it as a ``.cds`` file (temporary name, then rename).
@@ -133,7 +149,9 @@ def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometr
     t0 = time.perf_counter()
     enc = encode_mesh(mesh, mixed=mixed, maximal=maximal)
     m = enc.mesh
-    pos = m.vertices[enc.order].astype(np.float32) if geometry else None
+    pos = None
+    if geometry:
+        pos = _float32_geometry(m.vertices, path)[enc.order]
     dummy = None
     if m.dummy_vertices is not None and m.dummy_vertices.any():
         dummy = m.dummy_vertices[enc.order]
@@ -161,7 +179,22 @@ def _read_bytes(path) -> bytes:
     FIFO would block, a link to ``/dev/urandom`` fill memory)."""
     from jaxcds.mesh import read_regular_file
 
+    if not isinstance(path, (str, os.PathLike)):
+        raise errors.ArgumentError(f"a .cds input is a path or the file's bytes, not "
+                                   f"{type(path).__name__}")
+    if "\0" in str(os.fspath(path)):  # os.stat raised ValueError ('embedded null byte')
+        p = str(os.fspath(path))
+        shown = repr(p) if len(p) <= 80 else repr(p[:60]) + f"... ({len(p)} characters)"
+        raise errors.FormatError(f"{shown}: not a file name (it holds a NUL character; the "
+                                 "file's bytes are passed as bytes, not str)")
     return read_regular_file(path, error=errors.FormatError)
+
+
+def _named(exc: errors.CodecError, path) -> errors.CodecError:
+    """``exc`` with the input's name in front (the messages name the byte, not the file)."""
+    if path == "<bytes>":
+        return exc
+    return type(exc)(f"{os.fspath(path)}: {exc}")
 
 
 def _with_file_offset(exc: errors.EncodingError) -> errors.EncodingError:
@@ -184,19 +217,25 @@ def read_cds(path: str | os.PathLike, *, original_order: bool = True, drop_dummi
         data, path = bytes(path), "<bytes>"
     else:
         data = _read_bytes(path)
-    c = ff.unpack_cds(data)
+    try:
+        c = ff.unpack_cds(data)
+    except errors.CodecError as exc:  # the file's name, then the byte
+        raise _named(exc, path) from None
     t1 = time.perf_counter()
     try:
         faces, table = decode_faces(c.words)
     except errors.EncodingError as exc:
-        raise _with_file_offset(exc) from None
+        raise _named(_with_file_offset(exc), path) from None
     t2 = time.perf_counter()
     n = c.words.num_vertices
     pos = (np.asarray(c.positions, dtype=np.float64) if c.positions is not None
            else np.zeros((n, 3), dtype=np.float64))
     dummy = c.dummy
     if dummy is not None:
-        ff.check_dummy_mask(dummy, faces, c.dummy_offset)
+        try:
+            ff.check_dummy_mask(dummy, faces, c.dummy_offset)
+        except errors.CodecError as exc:
+            raise _named(exc, path) from None
     if original_order and c.order is not None:
         inv_pos = np.empty_like(pos)
         inv_pos[c.order] = pos
@@ -236,25 +275,19 @@ def cds_info(path: str | os.PathLike) -> dict:
     """Report of a ``.cds`` file: the mesh keys of :func:`jaxcds.mesh.topology` (of the
     decoded mesh) plus ``connectivity_bits``, ``bits_per_vertex``, ``file_bytes``,
     ``format_version``, ``mixed``, ``has_geometry``, ``has_order``, ``dummy_vertices``."""
-    mesh, info = read_cds(path)
+    mesh, info = read_cds(path)  # a path or the file's bytes (read once)
     rep = topology(mesh)
-    head = ff.read_header(_read_head(path), os.path.getsize(path))
     rep.update({
         "connectivity_bits": info["connectivity_bits"],
         "bits_per_vertex": info["bits_per_vertex"],
         "file_bytes": info["file_bytes"],
-        "format_version": head["version"],
+        "format_version": ff.VERSION,  # read_cds refuses every other version
         "mixed": info["mixed"],
         "has_geometry": info["has_geometry"],
         "has_order": info["has_order"],
         "dummy_vertices_encoded": info["dummy_vertices"],
     })
     return rep
-
-
-def _read_head(path) -> bytes:
-    with open(path, "rb") as fh:
-        return fh.read(ff.HEADER_SIZE)
 
 
 # --------------------------------------------------------------------------- CLI helpers

@@ -372,3 +372,47 @@ def test_dummy_mask_padding_bits_must_be_zero(tmp_path):
     with pytest.raises(errors.FormatError, match=rf"non-zero padding bits in byte {start + n_bytes - 1} \(dummy mask"):
         read_cds(bytes(out))
 
+
+def test_input_names_the_file_and_odd_inputs_are_typed(tmp_path):
+    """Eighth sweep: read_cds / cds_info errors named the byte but not the file; cds_info on the
+    file's bytes (which read_cds takes) raised ValueError ('embedded null byte': it reopened the
+    bytes as a path); a str holding a NUL, an int or None raised ValueError / TypeError."""
+    from jaxcds.codec import cds_info
+
+    path, data = _small_file(tmp_path)
+    (tmp_path / "cut.cds").write_bytes(data[:50])
+    for f in (read_cds, cds_info):
+        with pytest.raises(errors.FormatError, match=r"cut.cds: truncated .cds file: 50 bytes"):
+            f(tmp_path / "cut.cds")
+    b = bytearray(data)
+    b[40] ^= 1
+    (tmp_path / "flip.cds").write_bytes(bytes(b))
+    with pytest.raises(errors.FormatError, match=r"flip.cds: checksum mismatch in the connectivity"):
+        read_cds(tmp_path / "flip.cds")
+    rep = cds_info(data)  # the bytes, as read_cds takes them
+    assert rep["vertices"] == 12 and rep["format_version"] == ff.VERSION
+    assert rep["file_bytes"] == len(data) == cds_info(path)["file_bytes"]
+    with pytest.raises(errors.FormatError, match="truncated"):
+        cds_info(data[:40])
+    with pytest.raises(errors.FormatError, match=r"not a file name \(it holds a NUL"):
+        read_cds(data.decode("latin-1"))
+    for bad in (3, None):
+        with pytest.raises(errors.ArgumentError, match="a .cds input is a path or the file's bytes"):
+            read_cds(bad)
+
+
+def test_geometry_past_float32_is_refused_not_written_as_inf(tmp_path):
+    """Eighth sweep: a vertex at 1e39 (finite in float64) was cast to float32 inf and written;
+    read_cds then refused the file it had written ('non-finite coordinate'). Refused before the
+    write, no file left; geometry=False still writes."""
+    m = icosphere(0)
+    v = m.vertices.copy()
+    v[5] = [1e39, 0.0, 0.0]
+    from jaxcds.mesh import TriMesh
+
+    big = TriMesh(vertices=v, faces=m.faces)
+    with pytest.raises(errors.NonFiniteCoordinateError, match=r"vertex 5 .*past float32's range"):
+        write_cds(tmp_path / "big.cds", big)
+    assert list(tmp_path.iterdir()) == []
+    write_cds(tmp_path / "nogeo.cds", big, geometry=False)
+    assert read_cds(tmp_path / "nogeo.cds")[0].num_vertices == 12
