@@ -64,8 +64,11 @@ def shard_rows(x, mesh: Mesh, value=0) -> jax.Array:
     """``x`` padded along axis 0 to a multiple of the device count (with ``value``) and placed
     with ``NamedSharding(mesh, P(axis))``: each device holds ``ceil(len / D)`` rows."""
     x = np.asarray(x)
+    if x.ndim == 0:  # _pad_rows read shape[0]: IndexError
+        raise errors.ArgumentError("shard_rows: a 0-d value has no rows to split; give an array "
+                                   "of at least one axis (or device_put it replicated)")
     d = mesh.devices.size
-    return jax.device_put(_pad_rows(x, d, value), _row_sharding(mesh, max(x.ndim, 1)))
+    return jax.device_put(_pad_rows(x, d, value), _row_sharding(mesh, x.ndim))
 
 
 @pytree_dataclass
@@ -186,9 +189,17 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
     Raises:
       UnsupportedTopologyError: a class that names why its arrays cannot be split by rows
         (``row_sharding_refused``: pemb, whose bit vectors read their own lengths)."""
+    from jaxcds.batch import PackedBatch
+
+    if isinstance(s, ShardedStructure) or (isinstance(s, PackedBatch)
+                                           and isinstance(s.structure, ShardedStructure)):
+        raise errors.ArgumentError("shard_structure: this structure is sharded already (its "
+                                   "arrays padded); shard the original structure")
+    if not isinstance(s, MeshStructure):  # a TriMesh, None...: AttributeError / TypeError deep in
+        raise errors.ArgumentError(f"shard_structure: expected a structure (jaxcds.build(name, mesh) "
+                                   f"or a packed batch), got {type(s).__name__}")
     mesh = device_mesh() if mesh is None else mesh
     d = int(mesh.devices.size)
-    from jaxcds.batch import PackedBatch
 
     if getattr(s, "row_sharding_refused", None):
         raise errors.UnsupportedTopologyError(s.row_sharding_refused)
@@ -229,6 +240,8 @@ def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None
         raise errors.ArgumentError(f"sharded_query: unknown operator {op!r}; one of {sorted(OPERATOR_KINDS)}")
     mesh = device_mesh() if mesh is None else mesh
     ids = _int32_ids(ids, op)
+    if ids.ndim == 0:  # one id: a batch of one (shard_rows has no rows to split in a 0-d id)
+        return sharded_query(s, op, ids.reshape(1), mesh)[0]
     q = shard_rows(ids, mesh, value=0)
     out = _query(s, q, op)
     return out[: ids.shape[0]]
@@ -262,7 +275,15 @@ def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatte
     call). Per-vertex sums run as a partitioned ``segment_sum`` (an all-reduce of the sums)."""
     from jaxcds.algorithms import vertex_normals
 
-    positions = positions if isinstance(positions, jax.Array) else jnp.asarray(positions)
+    if not isinstance(positions, jax.Array):
+        a = np.asarray(positions)
+        if a.dtype.kind not in "iuf":  # strings: a TypeError in jit; complex lost its imaginary part
+            raise errors.MeshError(f"sharded_vertex_normals: positions must be real numbers, got "
+                                   f"dtype {a.dtype}")
+        positions = jnp.asarray(a)
+    elif not (jnp.issubdtype(positions.dtype, jnp.floating) or jnp.issubdtype(positions.dtype, jnp.integer)):
+        raise errors.MeshError(f"sharded_vertex_normals: positions must be real numbers, got "
+                               f"dtype {positions.dtype}")
     n, d = s.num_vertices, s.num_devices
     padded = -(-n // d) * d  # shard_rows' length for n rows
     if positions.ndim != 2 or positions.shape[0] not in (n, padded):

@@ -140,6 +140,40 @@ def test_sharded_helpers_refuse_bad_arguments_by_name():
     np.testing.assert_allclose(got, np.asarray(vertex_normals(s, pos)), atol=1e-6)
 
 
+def test_sharding_refuses_non_structures_and_takes_one_id():
+    """Eighth sweep (one device, in this process): shard_structure(None / a TriMesh) raised
+    AttributeError / TypeError and sharded an already sharded structure again; a single id to
+    sharded_query and a 0-d value to shard_rows raised IndexError; string positions to
+    sharded_vertex_normals a TypeError from jit, complex ones lost their imaginary part."""
+    import numpy as np
+
+    from jaxcds import batch as B
+    from jaxcds import errors
+    from jaxcds import sharding as S
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures import registry
+
+    m = random_planar_triangulation(12, seed=3)
+    s = registry.build("cds5n", m)
+    ss = S.shard_structure(s)
+    for bad in (None, m, np.zeros(3)):
+        with pytest.raises(errors.ArgumentError, match="expected a structure"):
+            S.shard_structure(bad)
+    with pytest.raises(errors.ArgumentError, match="sharded already"):
+        S.shard_structure(ss)
+    with pytest.raises(errors.ArgumentError, match="sharded already"):
+        S.shard_structure(S.shard_structure(B.pack([m, m], "halfedge")))
+    d = int(s.all_darts()[5])
+    got = S.sharded_query(ss, "target", d)
+    assert got.shape == () and int(got) == int(s.target(d))
+    assert int(S.sharded_query(ss, "target", np.int64(d))) == int(s.target(d))
+    with pytest.raises(errors.ArgumentError, match="0-d value has no rows"):
+        S.shard_rows(np.float32(1.0), S.device_mesh())
+    for pos in (np.full((12, 3), "a"), np.zeros((12, 3), complex)):
+        with pytest.raises(errors.MeshError, match="positions must be real numbers"):
+            S.sharded_vertex_normals(ss, pos)
+
+
 @pytest.mark.slow  # ~75 SPMD compilations (every operator on every structure): > 10 min CPU on the shared box
 def test_every_operator_sharded(full_report):
     for name in ("halfedge", "corner-table", "packed-halfedge"):
