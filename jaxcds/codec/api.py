@@ -67,6 +67,9 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     Raises:
       UnsupportedTopologyError: genus > 0, several components, or (``close=False``) boundaries.
     """
+    for flag, value in (("mixed", mixed), ("maximal", maximal), ("check", check), ("close", close)):
+        if not isinstance(value, (bool, np.bool_)):  # mixed='no' is truthy: the mixed word
+            raise errors.ArgumentError(f"encode_mesh: {flag} must be True or False, got {value!r}")
     mesh = load_mesh(mesh)
     if check and close:
         mesh = validate_and_close(mesh, structure="the 4n-bit encoding")
@@ -99,6 +102,9 @@ def decode(words: Words, *, structure: str = "faces", dummy=None):
       * ``"cds4n"``: CDS5n then relabelled by cwBFS (Thm 5; not memory-free, see
         :func:`jaxcds.codec.structures.decode_refs4n`).
     """
+    if not isinstance(words, Words):  # bytes gave AttributeError: read_cds reads files
+        raise errors.ArgumentError(f"decode: expected jaxcds.codec.Words, got {type(words).__name__} "
+                                   "(a .cds file or its bytes: read_cds)")
     if structure not in ("faces", "paper6n", "wood", "cds6n", "cds5n", "cds4n"):
         raise errors.ArgumentError(
             f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n, cds4n")

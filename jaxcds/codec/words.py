@@ -62,6 +62,13 @@ class Words:
     bits: np.ndarray
     mixed: bool = False
 
+    def __post_init__(self):
+        from jaxcds._args import is_integer
+
+        if not is_integer(self.num_vertices):  # 20.0 raised TypeError deep in the decoder
+            raise errors.EncodingError(f"Words: num_vertices must be an integer, got "
+                                       f"{self.num_vertices!r}")
+
     @property
     def num_bits(self) -> int:
         return num_bits(self.num_vertices)

@@ -699,6 +699,10 @@ def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
             f"a Schnyder wood needs a closed genus-0 triangulation with F = 2n - 4 faces; got "
             f"n = {n} vertices and F = {nf} faces ({genus}Euler characteristic {chi}); "
             "use the 'lr' or 'halfedge' structure for other topologies")
+    from jaxcds._args import is_integer
+
+    if root_face is not None and not is_integer(root_face):  # int() truncated 1.5 to face 1
+        raise errors.InvalidIndexError(f"root_face must be a face index (an integer), got {root_face!r}")
     root = 0 if root_face is None else int(root_face)
     if not 0 <= root < nf:
         raise errors.InvalidIndexError(f"root_face {root} out of range [0, {nf})")

@@ -87,3 +87,25 @@ def test_mixed_and_separate_agree_on_a_real_mesh():
     sep = to_separate(enc.words)
     assert np.array_equal(decode(sep), decode(enc.words))
     assert to_mixed(sep) == enc.words
+
+
+def test_codec_api_arguments_are_typed():
+    """Eighth sweep: encode_mesh(root_face=1.5) encoded from face 1 (int() truncated), mixed='no'
+    gave the mixed word (a truthy string); decode(bytes) raised AttributeError and
+    Words(20.0, ...) a TypeError inside the decoder."""
+    from jaxcds import errors
+    from jaxcds.codec.words import Words
+
+    m = random_planar_triangulation(20, seed=1)
+    with pytest.raises(errors.InvalidIndexError, match="root_face must be a face index.*1.5"):
+        encode_mesh(m, root_face=1.5)
+    assert encode_mesh(m, root_face=np.int64(3)).words.num_vertices == 20
+    for flag in ("mixed", "maximal", "check", "close"):
+        with pytest.raises(errors.ArgumentError, match=f"encode_mesh: {flag} must be True or False"):
+            encode_mesh(m, **{flag: "no"})
+    w = encode_mesh(m).words
+    with pytest.raises(errors.ArgumentError, match="decode: expected jaxcds.codec.Words, got bytes"):
+        decode(b"\x89CDS")
+    with pytest.raises(errors.EncodingError, match="num_vertices must be an integer, got 20.0"):
+        Words(20.0, w.bits, mixed=True)
+    assert decode(Words(np.int32(20), w.bits, mixed=True)).shape == (36, 3)
