@@ -175,6 +175,34 @@ def test_target_rounds_is_exact_and_a_wrong_count_is_still_right(name, mesh):
         np.testing.assert_array_equal(got, want)
 
 
+@pytest.mark.parametrize("parts", [1, 2, 3, 4, 64])
+@pytest.mark.parametrize("length", [40_001, 40_002, 32_767])
+def test_pointer_jump_padded_for_the_thread_split(monkeypatch, parts, length):
+    """``pointer_jump`` pads a long array up to a multiple of the thread count (XLA:CPU emits a
+    scalar loop for a round split into unequal parts): the answers equal a numpy pointer jumping,
+    whatever the count (monkeypatched), for lengths under, at and past the padding threshold,
+    with the static round count, too few rounds and none (-1, the data-driven loop)."""
+    from jaxcds.structures import cds as cds_module
+
+    monkeypatch.setattr(cds_module, "split_multiple", lambda: parts)
+    rng = np.random.default_rng(length + parts)
+    # chains of length up to 40: entry i points further along a random permutation
+    order = rng.permutation(length)
+    val = np.empty(length, np.int32)
+    starts = np.sort(rng.choice(np.arange(1, length), length // 20, replace=False))
+    for chain in np.split(order, starts):
+        val[chain[-1]] = rng.integers(0, 1000)  # the resolved end of the chain
+        val[chain[:-1]] = -(chain[1:] + 1)
+    want = val.copy()
+    while (want < 0).any():
+        want = np.where(want < 0, want[np.where(want < 0, -want - 1, 0)], want)
+    rounds = int(max(len(c) for c in np.split(order, starts)) - 1).bit_length()
+    for r in (rounds, 1, -1):
+        got = np.asarray(jax.jit(lambda v, r=r: cds_module.pointer_jump(v, r))(jnp.asarray(val)))
+        assert got.shape == (length,)
+        np.testing.assert_array_equal(got, want)
+
+
 def test_packed_target_rounds_is_the_largest_part():
     meshes = [_mesh("random:300/2"), _mesh("cube.off"), _mesh("random:2000/7")]
     parts = [registry.build("cds6n", m) for m in meshes]
