@@ -123,7 +123,6 @@ def face_list_vertex_normals(positions, faces):
     return normalize(corner_sums(fn, faces, positions.shape[0]))
 
 
-@functools.partial(jax.jit, static_argnames=("method",))
 def vertex_normals(s, positions, method: str = "scatter"):
     """``(num_vertices, 3)`` unit area-weighted normals of structure ``s``.
 
@@ -137,16 +136,45 @@ def vertex_normals(s, positions, method: str = "scatter"):
     pass :func:`within_range` of them (an exact power-of-two rescaling; normals are scale
     invariant), or float64 positions.
 
+    Jitted (the structure and positions are traced, ``method`` is static); the positions'
+    element type is checked before the jitted call, so it also works on traced positions.
+
     Raises:
-      MeshError: ``positions`` is not ``(num_vertices, 3)`` (checked at trace time).
+      MeshError: ``positions`` is not ``(num_vertices, 3)`` (checked at trace time), or not
+        real numbers (strings, objects, complex numbers: the imaginary part would be dropped).
       ArgumentError: an unknown ``method``.
     """
+    _refuse_non_real(positions)
+    return _vertex_normals(s, positions, method=method)
+
+
+def _refuse_non_real(positions) -> None:
+    """A :class:`~jaxcds.errors.MeshError` for positions that are not real numbers, before
+    ``jax.jit`` sees them (it raises TypeError on strings; complex ones would lose their
+    imaginary part in the float conversion)."""
+    dtype = getattr(positions, "dtype", None)
+    if dtype is None:
+        try:
+            dtype = np.asarray(positions).dtype
+        except (TypeError, ValueError) as exc:
+            raise errors.MeshError(f"positions are not an array of numbers: {exc}") from exc
+    if not (jnp.issubdtype(dtype, jnp.floating) or jnp.issubdtype(dtype, jnp.integer)
+            or jnp.issubdtype(dtype, jnp.bool_)):
+        raise errors.MeshError(f"positions must be real numbers, got dtype {dtype}")
+
+
+@functools.partial(jax.jit, static_argnames=("method",))
+def _vertex_normals(s, positions, method: str = "scatter"):
     if method not in ("scatter", "gather"):
         raise errors.ArgumentError(f"unknown normals method {method!r}: 'scatter' or 'gather'")
     positions = _check_positions(s, positions)
     if method == "scatter":
         return normalize(_scatter_sums(s, positions))
     return _gather_normals(s, positions)
+
+
+vertex_normals.__wrapped__ = _vertex_normals.__wrapped__  # the unjitted body
+vertex_normals._cache_size = _vertex_normals._cache_size  # compiled variants held
 
 
 def _check_positions(s, positions):

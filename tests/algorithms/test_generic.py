@@ -119,6 +119,26 @@ def test_algorithms_are_jitted_once():
     assert vertex_normals._cache_size() == n_before
 
 
+def test_positions_that_are_not_real_numbers_are_refused():
+    """Strings, objects and complex numbers are a MeshError before the jitted call (jit raised
+    TypeError on strings; complex positions lost their imaginary part); lists, integers and
+    traced positions (under jit and grad) still work."""
+    from jaxcds import errors
+
+    v, f = octahedron()
+    he = HalfEdge.from_mesh(load_mesh(v, f))
+    want = np.asarray(vertex_normals(he, jnp.asarray(v, jnp.float32)))
+    for bad in (v.astype(str), v.astype(object), v.astype(np.complex64) + 1j, [["a", "b", "c"]] * len(v)):
+        with pytest.raises(errors.MeshError, match="real numbers|array of numbers"):
+            vertex_normals(he, bad)
+    np.testing.assert_allclose(np.asarray(vertex_normals(he, v.tolist())), want, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(vertex_normals(he, (v * 2).astype(np.int32))), want, atol=1e-6)
+    traced = jax.jit(lambda p: vertex_normals(he, p))(jnp.asarray(v, jnp.float32))
+    np.testing.assert_allclose(np.asarray(traced), want, atol=1e-6)
+    g = jax.grad(lambda p: vertex_normals(he, p)[:, 0].sum())(jnp.asarray(v, jnp.float32))
+    assert g.shape == v.shape and np.isfinite(np.asarray(g)).all()
+
+
 def test_positions_of_wrong_shape_are_refused():
     from jaxcds import errors
 
