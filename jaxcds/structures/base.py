@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
 import threading
 from typing import ClassVar, Optional
 
@@ -408,6 +409,35 @@ class MeshStructure:
 _chunk_queries(MeshStructure)
 
 SUM_BLOCKS = 16
+
+
+#: XLA:CPU leaves a loop over fewer elements than this on one thread (measured on 2 cores for a
+#: pointer-jumping round: 65,001 entries unsplit, 70,001 split in two), so shorter arrays are never
+#: padded for the split (:func:`split_padding`)
+SPLIT_MIN = 32_768
+
+
+def split_multiple() -> int:
+    """How many parts XLA:CPU may split a long elementwise loop into: the CPUs this process may
+    run on (XLA sizes its thread pool so)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def split_padding(length: int) -> int:
+    """Entries to append to an array of ``length`` so that the thread count divides it.
+
+    XLA:CPU splits a long loop over its threads and, when the parts are unequal, emits a scalar
+    loop instead of the 8-wide one; a select on a gathered value then becomes a branch,
+    mispredicted wherever the selection has no pattern (HLO and LLVM IR of one pointer-jumping
+    round, 2026-12-01: 129,729 entries in two parts gave no vector instruction and seven
+    branches, 129,730 the vector loop). Users: the CDS all-targets pointer jumping
+    (``cds.pointer_jump``) and the rows of the scatter normals (``normals._scatter_sums``).
+    Short arrays (under :data:`SPLIT_MIN`) and divisible lengths get none: padding those only
+    costs a copy."""
+    return (-length) % split_multiple() if length >= SPLIT_MIN else 0
 
 
 def interleave_rows(x, blocks: int = SUM_BLOCKS):

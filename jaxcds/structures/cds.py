@@ -84,7 +84,6 @@ vectorised numpy route, kept as the tests' oracle.
 
 from __future__ import annotations
 
-import os
 from typing import Optional
 
 import jax
@@ -99,7 +98,7 @@ from jaxcds._progress import Progress as _Progress
 from jaxcds._progress import want_progress as _want_progress
 from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
 from jaxcds.structures import registry
-from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows
+from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows, split_padding
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
@@ -588,31 +587,16 @@ def jump_round(v):
     return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
 
 
-#: arrays shorter than this are not split over threads by XLA:CPU in a pointer-jumping round
-#: (measured on 2 cores: 65,001 entries run unsplit, 70,001 split in two), so they are never padded
-_SPLIT_MIN = 32_768
-
-
-def split_multiple() -> int:
-    """How many parts XLA:CPU may split a long elementwise loop into: the CPUs this process may
-    run on (XLA sizes its thread pool so). See :func:`pointer_jump` for why it matters."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):  # not Linux
-        return max(1, os.cpu_count() or 1)
-
-
 def pointer_jump(val, rounds: int):
     """``val`` with every pending entry resolved (see :func:`jump_round`): ``rounds`` rounds run
     two per trip of a static loop, then the data-driven loop (``any`` pending) as a safety net,
     which runs no trip when ``rounds`` suffice and every round when ``rounds`` is ``-1``.
 
     A long ``val`` whose length the thread count does not divide is padded with resolved entries
-    first. XLA:CPU splits a long round over its threads, and when the parts are unequal it emits
-    a scalar loop in which the select on the gathered value became a branch, mispredicted on the
-    pending entries' irregular pattern (HLO and LLVM IR of one round, 2026-12-01: 129,729 entries
-    in two parts gave no vector instruction and seven branches, 129,730 the 8-wide loop). On 2
-    cores that is every CDS with an odd vertex count: armadillo (43,243 vertices) normals
+    first (:func:`~jaxcds.structures.base.split_padding`): split over two threads in unequal
+    parts, a round ran as a scalar loop whose select on the gathered value became a branch,
+    mispredicted on the pending entries' irregular pattern. On 2 cores that is every CDS with an
+    odd vertex count: armadillo (43,243 vertices) normals
     1.97-2.35x -> 1.63-2.07x the face list, packed 300 meshes 1.28-1.33x -> 1.14-1.21x, in
     one-process races; an even count is left as it was (padding it cost 0.06x)."""
     def two_rounds(_, v):
@@ -623,7 +607,7 @@ def pointer_jump(val, rounds: int):
         return jump_round(w)
 
     m = val.shape[0]
-    pad = (-m) % split_multiple() if m >= _SPLIT_MIN else 0
+    pad = split_padding(m)
     if pad:
         val = jnp.concatenate([val, jnp.zeros((pad,), val.dtype)])
     rounds = max(rounds, 0)

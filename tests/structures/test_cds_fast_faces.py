@@ -182,9 +182,10 @@ def test_pointer_jump_padded_for_the_thread_split(monkeypatch, parts, length):
     scalar loop for a round split into unequal parts): the answers equal a numpy pointer jumping,
     whatever the count (monkeypatched), for lengths under, at and past the padding threshold,
     with the static round count, too few rounds and none (-1, the data-driven loop)."""
+    from jaxcds.structures import base as base_module
     from jaxcds.structures import cds as cds_module
 
-    monkeypatch.setattr(cds_module, "split_multiple", lambda: parts)
+    monkeypatch.setattr(base_module, "split_multiple", lambda: parts)
     rng = np.random.default_rng(length + parts)
     # chains of length up to 40: entry i points further along a random permutation
     order = rng.permutation(length)
