@@ -23,7 +23,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds.structures.base import split_padding
 
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums",
            "surface_faces_padded", "faces_with_dummy_corner", "within_range"]
@@ -194,15 +193,6 @@ def _check_positions(s, positions):
 def _scatter_sums(s, positions):
     # any order and padding rows will do for a sum: structures with slotted faces skip compaction
     fv, valid = surface_faces_padded(s)
-    pad = split_padding(fv.shape[0])
-    if pad:
-        # rows the thread count divides (base.split_padding: unequal parts run a scalar loop);
-        # LR's odd row counts, one-process races of 2026-12-01: armadillo lr 1.40 -> 1.22x the
-        # face list, lr-bits 1.53 -> 1.36x, face.obj 1.08 -> 0.94x; halfedge on odd face counts
-        # 0.02-0.05x
-        fv = jnp.concatenate([fv, jnp.zeros((pad, 3), fv.dtype)])
-        own = jnp.ones(fv.shape[0] - pad, bool) if valid is None else valid
-        valid = jnp.concatenate([own, jnp.zeros((pad,), bool)])
     fn = face_normals(positions, fv)
     if valid is not None:
         fn = jnp.where(valid[:, None], fn, 0.0)

@@ -433,10 +433,12 @@ def split_padding(length: int) -> int:
     loop instead of the 8-wide one; a select on a gathered value then becomes a branch,
     mispredicted wherever the selection has no pattern (HLO and LLVM IR of one pointer-jumping
     round, 2026-12-01: 129,729 entries in two parts gave no vector instruction and seven
-    branches, 129,730 the vector loop). Users: the CDS all-targets pointer jumping
-    (``cds.pointer_jump``) and the rows of the scatter normals (``normals._scatter_sums``).
-    Short arrays (under :data:`SPLIT_MIN`) and divisible lengths get none: padding those only
-    costs a copy."""
+    branches, 129,730 the vector loop). Used by the CDS all-targets pointer jumping
+    (``cds.pointer_jump``), whose selection pattern (the pending entries) is irregular. Tried
+    and not kept for the rows of the scatter normals (odd for LR and open meshes): their mask is
+    nearly all true, and the padding copy cost LR 0.04-0.28x the face list in one-process races
+    (``benchmarks/race_split_padding.py``, 2026-12-01). Short arrays (under :data:`SPLIT_MIN`)
+    and divisible lengths get none: padding those only costs a copy."""
     return (-length) % split_multiple() if length >= SPLIT_MIN else 0
 
 

@@ -119,34 +119,6 @@ def test_algorithms_are_jitted_once():
     assert vertex_normals._cache_size() == n_before
 
 
-@pytest.mark.parametrize("structure", ["halfedge", "lr", "cds6n"])
-def test_normals_rows_padded_for_the_thread_split(monkeypatch, structure):
-    """The scatter normals pad their rows so the thread count divides them
-    (``base.split_padding``); forced on a small mesh (threshold 0, 3 and 4 threads) the normals
-    and their gradient equal the unpadded ones."""
-    from jaxcds.algorithms import normals
-    from jaxcds.structures import base, registry
-
-    m = close_boundaries(load_shared("bunny.off"))
-    s = registry.build(structure, m)
-    p = np.asarray(m.vertices, np.float32)
-    p = jnp.asarray(p if s.vertex_order is None else p[np.asarray(s.vertex_order)])
-
-    def run():  # a fresh trace each time: the padding is decided at trace time
-        f = jax.jit(lambda p: normals._vertex_normals.__wrapped__(s, p))
-        g = jax.jit(jax.grad(lambda p: normals._vertex_normals.__wrapped__(s, p)[:, 1].sum()))
-        return np.asarray(f(p)), np.asarray(g(p))
-
-    want = run()
-    rows = int(normals.surface_faces_padded(s)[0].shape[0])
-    monkeypatch.setattr(base, "SPLIT_MIN", 0)
-    for parts in (3, 4):
-        monkeypatch.setattr(base, "split_multiple", lambda parts=parts: parts)
-        assert base.split_padding(rows) == (-rows) % parts
-        for got, w in zip(run(), want):
-            np.testing.assert_allclose(got, w, atol=2e-6)
-
-
 def test_positions_that_are_not_real_numbers_are_refused():
     """Strings, objects and complex numbers are a MeshError before the jitted call (jit raised
     TypeError on strings; complex positions lost their imaginary part); lists, integers and
