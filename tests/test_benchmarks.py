@@ -262,3 +262,22 @@ def test_bad_bench_arguments_are_named(argv, message, capsys):
     except SystemExit as exc:  # argparse
         rc = exc.code
     assert rc == 2 and message in capsys.readouterr().err
+
+
+@pytest.mark.slow  # 25-40 s (a 25K-vertex CDS compiled twice); the padding's answers are in the quick set
+def test_no_uneven_split_loop_selects_a_gathered_value_in_cds_normals(capsys):
+    """benchmarks/scan_split_loops.py on a CDS whose 3n target entries (75,003) are odd and long
+    enough for XLA:CPU to split the pointer-jumping rounds over its threads: no loop split in
+    unequal parts both gathers and selects (the padding of ``cds.pointer_jump``); and
+    benchmarks/race_split_padding.py traces the padding on and off with equal normals."""
+    from benchmarks import race_split_padding, scan_split_loops
+
+    assert scan_split_loops.main(["--mesh", "random:25001", "--structures", "cds6n"]) == 0
+    out = capsys.readouterr().out
+    assert "cds6n:" in out and not re.search(r"GS\s*$", out, re.M), out
+    assert race_split_padding.main(["--meshes", "random:25001", "--structures", "cds6n",
+                                    "--rounds", "1"]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    from jaxcds.structures import base
+
+    assert row["sizes"]["cds6n"]["targets_pad"] == base.split_padding(75_003)
