@@ -596,9 +596,10 @@ def pointer_jump(val, rounds: int):
     first (:func:`~jaxcds.structures.base.split_padding`): split over two threads in unequal
     parts, a round ran as a scalar loop whose select on the gathered value became a branch,
     mispredicted on the pending entries' irregular pattern. On 2 cores that is every CDS with an
-    odd vertex count: armadillo (43,243 vertices) normals
-    1.97-2.35x -> 1.63-2.07x the face list, packed 300 meshes 1.28-1.33x -> 1.14-1.21x, in
-    one-process races; an even count is left as it was (padding it cost 0.06x)."""
+    odd vertex count: armadillo (43,243 vertices) cds6n / cds4n normals 1.91-2.02x -> 1.65-1.89x
+    the face list, packed 300 meshes 1.34-1.55x -> 1.17-1.40x, in one-process races
+    (``benchmarks/race_split_padding.py``, RESULTS.md). A length the thread count divides is
+    left as it is (padding a 173K-vertex CDS to a multiple of 64 cost 0.06x)."""
     def two_rounds(_, v):
         # the first round's result written to memory (materialize_loop) and read by the second:
         # no loop-state copy (a round cannot write the buffer it gathers from) and no fusion of
