@@ -55,6 +55,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure, integer_array
@@ -655,10 +656,8 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
     ps = []
     for i, m in enumerate(meshes):
         if isinstance(m, (np.ndarray, jax.Array)):
+            refuse_non_real(m, f"pack_positions: mesh {i}'s positions")
             v = np.asarray(m)
-            if v.dtype.kind not in "iuf":
-                raise errors.MeshError(f"pack_positions: mesh {i}'s positions must be real "
-                                       f"numbers, got dtype {v.dtype}")
         else:
             tm = _load(m)
             v = tm.vertices

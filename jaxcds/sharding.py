@@ -29,6 +29,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxcds import errors
+from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, replace, static_field
 from jaxcds.structures.base import Int, MeshStructure, integer_array, one_pass_queries
 
@@ -275,15 +276,8 @@ def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatte
     call). Per-vertex sums run as a partitioned ``segment_sum`` (an all-reduce of the sums)."""
     from jaxcds.algorithms import vertex_normals
 
-    if not isinstance(positions, jax.Array):
-        a = np.asarray(positions)
-        if a.dtype.kind not in "iuf":  # strings: a TypeError in jit; complex lost its imaginary part
-            raise errors.MeshError(f"sharded_vertex_normals: positions must be real numbers, got "
-                                   f"dtype {a.dtype}")
-        positions = jnp.asarray(a)
-    elif not (jnp.issubdtype(positions.dtype, jnp.floating) or jnp.issubdtype(positions.dtype, jnp.integer)):
-        raise errors.MeshError(f"sharded_vertex_normals: positions must be real numbers, got "
-                               f"dtype {positions.dtype}")
+    refuse_non_real(positions, "sharded_vertex_normals: positions")
+    positions = positions if isinstance(positions, jax.Array) else jnp.asarray(positions)
     n, d = s.num_vertices, s.num_devices
     padded = -(-n // d) * d  # shard_rows' length for n rows
     if positions.ndim != 2 or positions.shape[0] not in (n, padded):

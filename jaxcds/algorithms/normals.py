@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import refuse_non_real
 
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums",
            "surface_faces_padded", "faces_with_dummy_corner", "within_range"]
@@ -144,23 +145,8 @@ def vertex_normals(s, positions, method: str = "scatter"):
         real numbers (strings, objects, complex numbers: the imaginary part would be dropped).
       ArgumentError: an unknown ``method``.
     """
-    _refuse_non_real(positions)
+    refuse_non_real(positions, "positions", bools=True)
     return _vertex_normals(s, positions, method=method)
-
-
-def _refuse_non_real(positions) -> None:
-    """A :class:`~jaxcds.errors.MeshError` for positions that are not real numbers, before
-    ``jax.jit`` sees them (it raises TypeError on strings; complex ones would lose their
-    imaginary part in the float conversion)."""
-    dtype = getattr(positions, "dtype", None)
-    if dtype is None:
-        try:
-            dtype = np.asarray(positions).dtype
-        except (TypeError, ValueError) as exc:
-            raise errors.MeshError(f"positions are not an array of numbers: {exc}") from exc
-    if not (jnp.issubdtype(dtype, jnp.floating) or jnp.issubdtype(dtype, jnp.integer)
-            or jnp.issubdtype(dtype, jnp.bool_)):
-        raise errors.MeshError(f"positions must be real numbers, got dtype {dtype}")
 
 
 @functools.partial(jax.jit, static_argnames=("method",))
