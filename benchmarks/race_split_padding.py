@@ -1,13 +1,15 @@
 """Vertex normals with and without the thread-split padding (``base.split_padding``), raced in
 one process against the plain-JAX face list (ns per vertex, medians, ratio to the face list;
-every route once per round, the order rotated each round).
+every route once per round in a shuffled order, ``race_lf_words.race_in_turn``).
 
 XLA:CPU splits a long loop over its threads; when the thread count does not divide the length
 it emits a scalar loop instead of the vector one, and a select on a gathered value becomes a
 mispredicted branch. The library pads the CDS all-targets pointer jumping (``3n`` entries) so the
 count divides it; ``off`` traces the same code with ``split_padding`` returning 0. (The record
 ``split_padding_2026-12-01.jsonl`` was taken while the scatter normals' rows were padded too:
-its lr / lr-bits / halfedge columns are that experiment, not kept: the rows got slower.)
+its lr / lr-bits / halfedge columns are that experiment, not kept: the rows got slower. It was
+also taken with the order rotated each round, before this script used ``race_in_turn``, and with
+``pack`` where it now concatenates per-mesh builds, as the other races do.)
 
     .venv/bin/python benchmarks/race_split_padding.py --meshes armadillo.obj,packed:300 --structures cds6n,cds4n,lr
 """
@@ -19,7 +21,6 @@ import json
 import os
 import statistics
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
@@ -28,25 +29,12 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from bench_lr_normals import _mesh  # noqa: E402
+from race_lf_words import _meshes, _structure, race_in_turn  # noqa: E402
 
-from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms import normals  # noqa: E402
-from jaxcds.generators import random_planar_triangulation  # noqa: E402
-from jaxcds.structures import base, cds, registry  # noqa: E402
+from jaxcds.structures import base, cds  # noqa: E402
 
 _USERS = (cds,)  # the modules that call split_padding
-
-
-def _meshes(spec: str, seed: int):
-    """``(union mesh, per-mesh list or None)`` for ``packed:N`` (N random meshes of 500-5,000
-    vertices, as ``bench_cds_normals.py --packed``) or one mesh of ``bench_lr_normals._mesh``."""
-    if spec.startswith("packed:"):
-        rng = np.random.default_rng(seed)
-        ms = [random_planar_triangulation(int(k), seed=seed * 100_003 + i)
-              for i, k in enumerate(rng.integers(500, 5001, int(spec.split(":")[1])))]
-        return B._union(ms), ms
-    return _mesh(spec), None
 
 
 def _compiled(s, p, padding: bool):
@@ -67,17 +55,17 @@ def main(argv=None) -> int:
     ap.add_argument("--meshes", default="armadillo.obj,packed:300")
     ap.add_argument("--structures", default="cds6n,cds4n,lr,lr-bits,halfedge")
     ap.add_argument("--rounds", type=int, default=25)
-    ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
-        m, parts = _meshes(spec, a.seed)
+        m, parts = _meshes(spec)
         faces = jnp.asarray(np.asarray(m.faces, np.int32))
         pos = jnp.asarray(np.asarray(m.vertices, np.float32))
-        fns = {"face_list": lambda: normals.face_list_vertex_normals(pos, faces)}
+        jax.block_until_ready(normals.face_list_vertex_normals(pos, faces))  # compiled before the race
+        runs = {"face_list": (normals.face_list_vertex_normals, (pos, faces))}
         sizes = {}
         for name in a.structures.split(","):
             try:
-                s = B.pack(parts, name, check=False).structure if parts else registry.build(name, m)
+                s = _structure(name, m, parts)
             except Exception as exc:  # noqa: BLE001 (a structure that refuses the mesh: skipped)
                 print(f"# {spec} {name}: skipped ({type(exc).__name__})", flush=True)
                 continue
@@ -87,26 +75,16 @@ def main(argv=None) -> int:
             p = pos if s.vertex_order is None else pos[jnp.asarray(s.vertex_order)]
             on, off = _compiled(s, p, True), _compiled(s, p, False)
             np.testing.assert_allclose(np.asarray(on(s, p)), np.asarray(off(s, p)), atol=1e-5)
-            fns[f"{name}/on"] = lambda f=on, s=s, p=p: f(s, p)
-            fns[f"{name}/off"] = lambda f=off, s=s, p=p: f(s, p)
+            runs[f"{name}/on"], runs[f"{name}/off"] = (on, (s, p)), (off, (s, p))
             rows = int(normals.surface_faces_padded(s)[0].shape[0])
             sizes[name] = {"rows": rows, "rows_pad": base.split_padding(rows),
                            "targets_pad": base.split_padding(3 * s.num_vertices) if name.startswith("cds") else None}
-        for f in fns.values():
-            f().block_until_ready()
-        t = {k: [] for k in fns}
-        for r in range(a.rounds):
-            keys = list(fns)
-            keys = keys[r % len(keys):] + keys[:r % len(keys)]
-            for k in keys:
-                t0 = time.perf_counter()
-                fns[k]().block_until_ready()
-                t[k].append(time.perf_counter() - t0)
+        times = race_in_turn(runs, a.rounds)
         n = m.num_vertices
-        fl = statistics.median(t["face_list"])
+        fl = statistics.median(times["face_list"])
         row = {"mesh": spec, "vertices": n, "threads": base.split_multiple(), "sizes": sizes,
-               "ns_per_vertex": {k: round(statistics.median(v) / n * 1e9, 1) for k, v in t.items()},
-               "x_face_list": {k: round(statistics.median(v) / fl, 3) for k, v in t.items() if k != "face_list"}}
+               "ns_per_vertex": {k: round(statistics.median(v) / n * 1e9, 1) for k, v in times.items()},
+               "x_face_list": {k: round(statistics.median(v) / fl, 3) for k, v in times.items() if k != "face_list"}}
         print(json.dumps(row), flush=True)
     return 0
 

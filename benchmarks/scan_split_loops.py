@@ -23,11 +23,10 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_split_padding import _meshes  # noqa: E402
+from race_lf_words import _meshes, _structure  # noqa: E402
 
-from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms import normals  # noqa: E402
-from jaxcds.structures import base, registry  # noqa: E402
+from jaxcds.structures import base  # noqa: E402
 
 
 def split_loops(hlo: str, parts: int):
@@ -50,12 +49,12 @@ def main(argv=None) -> int:
     ap.add_argument("--mesh", default="armadillo.obj")
     ap.add_argument("--structures", default="cds6n,cds4n,cds5n-o1,lr,halfedge")
     a = ap.parse_args(argv)
-    m, parts = _meshes(a.mesh, 0)
+    m, parts = _meshes(a.mesh)
     pos = jnp.asarray(np.asarray(m.vertices, np.float32))
     threads = base.split_multiple()
     print(f"{a.mesh}: {m.num_vertices} vertices, {threads} threads")
     for name in a.structures.split(","):
-        s = B.pack(parts, name, check=False).structure if parts else registry.build(name, m)
+        s = _structure(name, m, parts)
         if s.num_vertices != m.num_vertices:
             print(f"{name}: skipped (holes closed by dummy vertices)")
             continue
