@@ -203,6 +203,11 @@ def read_regular_file(path: Any, *, error: type = errors.UnreadableMeshError) ->
         raise error(f"{path}: no such file") from None
     except OSError as exc:
         raise error(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except ValueError:  # a NUL in the name ('embedded null byte')
+        p = str(path)
+        shown = repr(p) if len(p) <= 80 else repr(p[:60]) + f"... ({len(p)} characters)"
+        raise error(f"{shown}: not a file name (it holds a NUL character: a file's contents given "
+                    "as its name?)") from None
     if not stat.S_ISREG(st.st_mode):
         raise error(f"{path}: is {_file_kind(st.st_mode)}, not a regular file (only files "
                     "are read: a device or a pipe may never end)")

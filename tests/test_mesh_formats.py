@@ -303,6 +303,19 @@ def test_devices_and_fifos_are_refused_before_reading(suffix, tmp_path):
         load_mesh(str(fifo))
 
 
+def test_a_name_holding_a_nul_is_named_by_every_reader():
+    """A path with a NUL (a file's contents passed as its name) is the reader's typed error, not
+    os.stat's ValueError: the shared reader, Polylla's inputs and .cds files alike."""
+    from jaxcds import polylla_io
+    from jaxcds.codec import api
+
+    for read, kind in ((lambda p: read_regular_file(p), errors.UnreadableMeshError),
+                       (lambda p: polylla_io.read_input(p + ".node"), errors.PolyllaError),
+                       (api.read_cds, errors.FormatError)):
+        with pytest.raises(kind, match=r"not a file name \(it holds a NUL"):
+            read("a\x00b")
+
+
 def test_read_regular_file_raises_the_callers_error_class(tmp_path):
     fifo = tmp_path / "in.cds"
     os.mkfifo(fifo)

@@ -188,11 +188,6 @@ def _read_bytes(path) -> bytes:
     if not isinstance(path, (str, os.PathLike)):
         raise errors.ArgumentError(f"a .cds input is a path or the file's bytes, not "
                                    f"{type(path).__name__}")
-    if "\0" in str(os.fspath(path)):  # os.stat raised ValueError ('embedded null byte')
-        p = str(os.fspath(path))
-        shown = repr(p) if len(p) <= 80 else repr(p[:60]) + f"... ({len(p)} characters)"
-        raise errors.FormatError(f"{shown}: not a file name (it holds a NUL character; the "
-                                 "file's bytes are passed as bytes, not str)")
     return read_regular_file(path, error=errors.FormatError)
 
 
