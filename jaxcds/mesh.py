@@ -660,21 +660,23 @@ def _check_ply_ascii(data: bytes, elements: list, first_line: int, path: str) ->
             f"{path}: the PLY header declares {_ply_declared(elements)} ({want} data lines); "
             f"the file has {lines} (truncated?)")
     stop = 0 if want == 0 else int(ends[want - 1]) if want - 1 < ends.size else buf.size
+    if want:
+        _check_ply_ascii_rows(data, buf[:stop], ends, want, elements, first_line, path)
     # anything but blanks after the declared rows (trimesh ignored it): refused once the rows
     # themselves are checked (a miscounted element is named where its rows go wrong)
-    extra = _ply_ascii_past_rows(data, buf, stop, want, elements, first_line, path)
-    if want == 0:
-        if extra is not None:
-            raise extra
-        return
-    buf = buf[:stop]
+    _refuse_ply_ascii_past_rows(data, buf, stop, want, elements, first_line, path)
+
+
+def _check_ply_ascii_rows(data: bytes, buf: np.ndarray, ends: np.ndarray, want: int,
+                          elements: list, first_line: int, path: str) -> None:
+    """The ``want`` declared rows of an ASCII PLY's data (``buf``: their bytes, ``ends``: the
+    newlines of the data) against their elements' properties (:func:`_check_ply_ascii`)."""
+    stop = buf.size
     ws = _WHITESPACE[buf]
     tok_start = np.flatnonzero(~ws & np.concatenate([[True], ws[:-1]]))
     per_row = np.bincount(np.searchsorted(ends[:want], tok_start), minlength=want)
     row_tok = np.concatenate([[0], np.cumsum(per_row)])  # first token of each row
     if _ply_ascii_plain(buf, ws, tok_start, per_row, row_tok, ends, elements):
-        if extra is not None:
-            raise extra
         return  # the common file, cleared without reading a number
     try:
         vals = np.fromstring(data[:stop], dtype=np.float64, sep=" ")
@@ -740,20 +742,18 @@ def _check_ply_ascii(data: bytes, elements: list, first_line: int, path: str) ->
             raise errors.UnreadableMeshError(
                 f"{path}: line {first_line + row0 + bad}: {noun} {bad} {why}")
         row0 += e.count
-    if extra is not None:
-        raise extra
 
 
-def _ply_ascii_past_rows(data: bytes, buf: np.ndarray, stop: int, want: int, elements: list,
-                         first_line: int, path: str) -> Optional[errors.UnreadableMeshError]:
-    """The error for anything but blanks after the declared rows of an ASCII PLY (its data
-    from byte ``stop`` on; trimesh ignored it), naming its first line, or None. Only the bytes
-    past the rows are looked at (a final newline, usually)."""
+def _refuse_ply_ascii_past_rows(data: bytes, buf: np.ndarray, stop: int, want: int, elements: list,
+                                first_line: int, path: str) -> None:
+    """Anything but blanks after the declared rows of an ASCII PLY (its data from byte ``stop``
+    on; trimesh ignored it) refused, naming its first line. Only the bytes past the rows are
+    looked at (a final newline, usually)."""
     extra = np.flatnonzero(~_WHITESPACE[buf[stop:]])
     if extra.size == 0:
-        return None
+        return
     line = first_line + data.count(b"\n", 0, stop + int(extra[0]))
-    return errors.UnreadableMeshError(
+    raise errors.UnreadableMeshError(
         f"{path}: line {line}: data past the last row the header declares: "
         f"{_ply_declared(elements) or 'no element'} ({want} data lines)")
 
