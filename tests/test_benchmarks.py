@@ -226,6 +226,18 @@ def test_race_lf_words_checks_both_routes_against_the_face_list(capsys):
     assert cds._WORD_VERTICES == before  # the switch is restored
 
 
+def test_race_lr_block_checks_both_routes_against_the_face_list(capsys):
+    """benchmarks/race_lr_block.py compiles the loop and the identity-scatter route of the packed
+    LR ring block, checks both against the face list, and restores the library's route."""
+    from benchmarks import race_lr_block
+    from jaxcds.structures import base, lr_packed
+
+    assert race_lr_block.main(["--meshes", "packed:3", "--structures", "lr,lr-bits", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("/loop:") == 2 and out.count("/scatter:") == 2, out
+    assert lr_packed.materialize_loop is base.materialize_loop
+
+
 def test_race_vertex_order_relabels_the_face_list(capsys):
     """benchmarks/race_vertex_order.py: the face list in the structure's order gives the same
     normals (checked inside), for a single mesh and a packed batch."""
