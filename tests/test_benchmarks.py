@@ -238,6 +238,16 @@ def test_race_lr_block_checks_both_routes_against_the_face_list(capsys):
     assert lr_packed.materialize_loop is base.materialize_loop
 
 
+def test_probe_page_faults_reports_every_route(capsys):
+    """benchmarks/probe_page_faults.py: temporaries, time and faults per call for each route."""
+    from benchmarks import probe_page_faults
+
+    assert probe_page_faults.main(["--mesh", "packed:3", "--structures", "lr,cds6n", "--rounds", "2"]) == 0
+    out = capsys.readouterr().out
+    assert all(f"{k}: temporaries" in out for k in ("face_list", "lr", "cds6n")), out
+    assert out.count("faults per call [") == 3, out
+
+
 def test_race_vertex_order_relabels_the_face_list(capsys):
     """benchmarks/race_vertex_order.py: the face list in the structure's order gives the same
     normals (checked inside), for a single mesh and a packed batch."""
