@@ -102,7 +102,7 @@ def _check_rank_select(size, seed, p):
     assert int(bv.ones) == ones.size and str(bv) == "".join(map(str, b))
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=6, deadline=None)  # 10 took 34 s of CI; the slow test draws 40 of all sizes
 @given(pairs=st.sampled_from(PAIRS), seed=st.integers(0, 2**31), deep=st.booleans())
 def test_balanced_parentheses_against_stack(pairs, seed, deep):
     _check_balanced(pairs, seed, deep)
