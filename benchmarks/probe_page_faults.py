@@ -34,7 +34,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_lf_words import _meshes, _structure  # noqa: E402
+from race_lf_words import _in_order, _meshes, _structure  # noqa: E402
 
 from jaxcds.algorithms import normals as N  # noqa: E402
 
@@ -56,8 +56,7 @@ def main(argv=None) -> int:
     runs = {"face_list": (jax.jit(N.face_list_vertex_normals).lower(fpos, faces).compile(), (fpos, faces))}
     for name in a.structures.split(","):
         s = _structure(name, mesh, parts)
-        order = None if s.vertex_order is None else np.asarray(s.vertex_order)
-        pos = fpos if order is None else fpos[order]
+        pos, = _in_order(s, fpos)
         runs[name] = (jax.jit(lambda s, p: N.normalize(N._scatter_sums(s, p))).lower(s, pos).compile(), (s, pos))
     print(f"{a.mesh}: {n} vertices; GLIBC_TUNABLES={os.environ.get('GLIBC_TUNABLES', '')!r}")
     for f, args in runs.values():

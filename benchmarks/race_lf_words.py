@@ -57,6 +57,15 @@ def _structure(name, mesh, parts):
     return B.concatenate([registry.build(name, q) for q in parts]) if parts else registry.build(name, mesh)
 
 
+def _in_order(s, *arrays):
+    """Each of ``arrays`` (rows per input vertex: positions, reference normals) in structure
+    ``s``'s vertex order (``s.vertex_order``; as they are when it keeps the input order)."""
+    if s.vertex_order is None:
+        return arrays
+    order = np.asarray(s.vertex_order)
+    return tuple(x[order] for x in arrays)
+
+
 def race_in_turn(runs, rounds: int, seed: int = 0):
     """``{name: [seconds per run]}``: every ``(f, args)`` of ``runs`` once per round, in an order
     shuffled each round (seeded). A rotated order kept each route's cyclic neighbours: a cheap
@@ -96,9 +105,7 @@ def main(argv=None) -> int:
         want = np.asarray(N.face_list_vertex_normals(fpos, faces))
         for name in a.structures.split(","):
             s = _structure(name, mesh, parts)
-            order = None if s.vertex_order is None else np.asarray(s.vertex_order)
-            pos = fpos if order is None else fpos[order]
-            ref = want if order is None else want[order]
+            pos, ref = _in_order(s, fpos, want)
             runs = {"face_list": (jax.jit(N.face_list_vertex_normals), (fpos, faces))}
             for route, limit in ROUTES.items():
                 f = _compiled(limit, s, pos)

@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_lf_words import _meshes, _structure, race_in_turn  # noqa: E402
+from race_lf_words import _in_order, _meshes, _structure, race_in_turn  # noqa: E402
 
 from jaxcds.algorithms import normals as N  # noqa: E402
 from jaxcds.structures import lr_packed  # noqa: E402
@@ -73,9 +73,7 @@ def main(argv=None) -> int:
         runs = {"face_list": (jax.jit(N.face_list_vertex_normals), (fpos, faces))}
         for name in a.structures.split(","):
             s = _structure(name, mesh, parts)
-            order = None if s.vertex_order is None else np.asarray(s.vertex_order)
-            pos = fpos if order is None else fpos[order]
-            ref = want if order is None else want[order]
+            pos, ref = _in_order(s, fpos, want)
             for route in ROUTES:
                 f = _compiled(route, s, pos)
                 err = float(np.max(np.abs(np.asarray(f(s, pos)) - ref)))

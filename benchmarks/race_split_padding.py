@@ -29,7 +29,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_lf_words import _meshes, _structure, race_in_turn  # noqa: E402
+from race_lf_words import _in_order, _meshes, _structure, race_in_turn  # noqa: E402
 
 from jaxcds.algorithms import normals  # noqa: E402
 from jaxcds.structures import base, cds  # noqa: E402
@@ -72,7 +72,7 @@ def main(argv=None) -> int:
             if s.num_vertices != m.num_vertices:
                 print(f"# {spec} {name}: skipped (holes closed by dummy vertices)", flush=True)
                 continue
-            p = pos if s.vertex_order is None else pos[jnp.asarray(s.vertex_order)]
+            p, = _in_order(s, pos)
             on, off = _compiled(s, p, True), _compiled(s, p, False)
             np.testing.assert_allclose(np.asarray(on(s, p)), np.asarray(off(s, p)), atol=1e-5)
             runs[f"{name}/on"], runs[f"{name}/off"] = (on, (s, p)), (off, (s, p))

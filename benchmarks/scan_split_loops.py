@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_lf_words import _meshes, _structure  # noqa: E402
+from race_lf_words import _in_order, _meshes, _structure  # noqa: E402
 
 from jaxcds.algorithms import normals  # noqa: E402
 from jaxcds.structures import base  # noqa: E402
@@ -58,7 +58,7 @@ def main(argv=None) -> int:
         if s.num_vertices != m.num_vertices:
             print(f"{name}: skipped (holes closed by dummy vertices)")
             continue
-        p = pos if s.vertex_order is None else pos[jnp.asarray(s.vertex_order)]
+        p, = _in_order(s, pos)
         hlo = jax.jit(normals._vertex_normals).lower(s, p).compile().as_text()
         total, uneven = split_loops(hlo, threads)
         print(f"{name}: {total} split loops, {len(uneven)} uneven")

@@ -260,8 +260,8 @@ class _PackedMixin:
         voff = meta[:, 2]
         sign = jnp.int32(-2**31)  # ids are < 2^31: the sign bit carries "masked" through the block
         blk = materialize_loop((left[:, 0] + voff, jnp.where(ok_l, 0, sign) | (left[:, 1] + voff),
-                           left[:, 2] + voff, right[:, 0] + voff,
-                           jnp.where(ok_r, 0, sign) | (right[:, 1] + voff)))
+                                left[:, 2] + voff, right[:, 0] + voff,
+                                jnp.where(ok_r, 0, sign) | (right[:, 1] + voff)))
         low = jnp.int32(2**31 - 1)
         lrows = jnp.stack([blk[0], blk[1] & low, blk[2]], axis=1)
         rrows = jnp.stack([blk[3], blk[4] & low, blk[0]], axis=1)

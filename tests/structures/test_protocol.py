@@ -117,7 +117,7 @@ def test_every_structure_on_random_planar_triangulations(structure, n, seed):
     from jaxcds.generators import random_planar_triangulation
 
     if structure == "pemb":
-        n = 30  # one shape for pemb (1-3 min of compilation per shape)
+        n = 30  # one shape for pemb (its compilation per shape: see above)
     m = random_planar_triangulation(n, seed=seed)
     s = registry.build(structure, m)
     rep = verify(s, m)
