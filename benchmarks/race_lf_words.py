@@ -1,9 +1,10 @@
 """CDS normals with the slot rows' LeftFronts read two ways, raced in turn against the plain-JAX
 face list in one process (ns per vertex, medians, ratio to the face list, fastest run):
 
-* ``words``: the library's route below 2^28 vertices: the three LeftFronts of every vertex
-  written once as one shift-decoded word each (``cds._lf_word``);
-* ``parts``: the route above 2^28 vertices: every consumer reads the dart's parts off the table
+* ``words``: the library's route from 8,192 (``cds._WORD_MIN_VERTICES``) to 2^28 vertices: the
+  three LeftFronts of every vertex written once as one shift-decoded word each
+  (``cds._lf_word``; forced here on any size);
+* ``parts``: the route outside that range: every consumer reads the dart's parts off the table
   rows again (forced here with ``cds._WORD_VERTICES = 0``).
 
 Before both, the slot rows decoded packed darts ``2(3 src + col) + r`` with a division by 3
@@ -40,7 +41,8 @@ from jaxcds.algorithms import normals as N  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import cds, registry  # noqa: E402
 
-ROUTES = {"words": cds._WORD_VERTICES, "parts": 0}  # route -> the _WORD_VERTICES it traces with
+# route -> the (_WORD_MIN_VERTICES, _WORD_VERTICES) it traces with
+ROUTES = {"words": (0, cds._WORD_VERTICES), "parts": (0, 0)}
 
 
 def _meshes(spec):
@@ -83,13 +85,14 @@ def race_in_turn(runs, rounds: int, seed: int = 0):
     return times
 
 
-def _compiled(limit, s, pos):
-    saved = cds._WORD_VERTICES
-    cds._WORD_VERTICES = limit  # read while tracing: each route is compiled under its own value
+def _compiled(limits, s, pos):
+    saved = cds._WORD_MIN_VERTICES, cds._WORD_VERTICES
+    # read while tracing: each route is compiled under its own values
+    cds._WORD_MIN_VERTICES, cds._WORD_VERTICES = limits
     try:
         return jax.jit(lambda s, p: N.normalize(N._scatter_sums(s, p))).lower(s, pos).compile()
     finally:
-        cds._WORD_VERTICES = saved
+        cds._WORD_MIN_VERTICES, cds._WORD_VERTICES = saved
 
 
 def main(argv=None) -> int:
@@ -107,8 +110,8 @@ def main(argv=None) -> int:
             s = _structure(name, mesh, parts)
             pos, ref = _in_order(s, fpos, want)
             runs = {"face_list": (jax.jit(N.face_list_vertex_normals), (fpos, faces))}
-            for route, limit in ROUTES.items():
-                f = _compiled(limit, s, pos)
+            for route, limits in ROUTES.items():
+                f = _compiled(limits, s, pos)
                 # summation orders differ: near-cancelling vertex sums of large batches move most
                 err = float(np.max(np.abs(np.asarray(f(s, pos)) - ref)))
                 assert err < 2e-2, f"{name}/{route}: normals differ from the face list's by {err}"

@@ -218,12 +218,12 @@ def test_race_lf_words_checks_both_routes_against_the_face_list(capsys):
     from benchmarks import race_lf_words
     from jaxcds.structures import cds
 
-    before = cds._WORD_VERTICES
+    before = cds._WORD_MIN_VERTICES, cds._WORD_VERTICES
     assert race_lf_words.main(["--meshes", "random:300,packed:3", "--structures", "cds6n,cds5n-o1",
                                "--rounds", "1"]) == 0
     out = capsys.readouterr().out
     assert out.count("words=") == 4 and out.count("parts=") == 4, out
-    assert cds._WORD_VERTICES == before  # the switch is restored
+    assert (cds._WORD_MIN_VERTICES, cds._WORD_VERTICES) == before  # the switches are restored
 
 
 def test_race_lr_block_checks_both_routes_against_the_face_list(capsys):

@@ -664,6 +664,12 @@ def _parts(src, col, entering):
 
 
 _WORD_VERTICES = 1 << 28  # below: a LeftFront fits one int32 word (_lf_word)
+# ... and from here up the word is worth its pass: under it the mesh is in cache and the three
+# word kernels of the one-trip loop cost more than the consumers' re-reads of the rows. Normals,
+# parts against words, raced in turn (60 rounds, 2026-12-01): bunny (3.5K) cds6n / cds5n / cds4n
+# / cds5n-o1 0.83 / 0.84 / 0.89 / 0.93x, spot (2.9K) 0.85 / 0.93 (cds4n) / 0.94 (o1), elephant (6K)
+# 0.86-0.98x, cheburashka (6.7K) 0.95-1.0x, fandisk (7.2K) 0.96-1.0x, bumpy-cube (20K) 1.0x
+_WORD_MIN_VERTICES = 8192
 
 
 def _lf_word(p):
@@ -923,7 +929,7 @@ class _CDS(MeshStructure):
         n = self.num_vertices
         u = jnp.arange(n, dtype=jnp.int32)
         lf_r, lf_b, lf_k = self._lf_parts_cols()
-        if n < _WORD_VERTICES:
+        if _WORD_MIN_VERTICES <= n < _WORD_VERTICES:
             # the three LeftFronts written once, each as one word (src, col, r by shifts): read
             # again from the rows, the slot rows' gathers (F_blue, t_b) re-read the tables, and a
             # packed dart would need a division by 3 per read (see _lf_word)

@@ -136,7 +136,9 @@ class _PackedMixin:
         at = self.mesh_roots.reshape(-1)  # (3B,): the roots of mesh 0, mesh 1, ...
         for c, name in enumerate(("v_red", "v_blue", "v_black")):
             val = jnp.repeat(self.mesh_roots[:, c], 3)  # mesh i's root c, at each of its 3 roots
-            kw[name] = jnp.full(self.num_vertices, -1, jnp.int32).at[at].set(val)
+            # a fill of its own per colour (-1, -2, -3: no vertex either way): one shared fill
+            # would be copied three times before the in-place scatters, 24 B per vertex
+            kw[name] = jnp.full(self.num_vertices, -1 - c, jnp.int32).at[at].set(val)
         kw["unused_slots"] = ()
         v = type(self)._view_cls(**kw)
         for name in ("_voff", "_nv", "_foff", "_un"):

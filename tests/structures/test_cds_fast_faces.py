@@ -242,13 +242,15 @@ def test_with_target_rounds_measures_the_tables_and_names_a_chain_that_does_not_
 
 @pytest.mark.parametrize("name", CDS)
 def test_slot_faces_without_lf_words(name, monkeypatch):
-    """The slot rows read the LeftFronts as one word each below 2^28 vertices (``_lf_word``);
-    above, each consumer reads the parts off the rows. Force the second route on a small mesh:
-    the same faces and normals."""
+    """The slot rows read the LeftFronts as one word each from 8,192 to 2^28 vertices
+    (``_lf_word``); outside, each consumer reads the parts off the rows. Both routes forced on a
+    small mesh: the same faces and normals."""
     from jaxcds.structures import cds as cds_module
 
     mesh = _mesh("random:500/4")
     s = registry.build(name, mesh)
+    assert s.num_vertices < cds_module._WORD_MIN_VERTICES  # the library's route here: parts
+    monkeypatch.setattr(cds_module, "_WORD_MIN_VERTICES", 0)  # words
     want = np.asarray(s.face_vertices())
     assert tuple(int(x) for x in cds_module._lf_unword(cds_module._lf_word((7, 2, 1)))) == (7, 2, 1)
     monkeypatch.setattr(cds_module, "_WORD_VERTICES", 0)
