@@ -85,7 +85,10 @@ def _check(s, positions, dummy):
     np.testing.assert_allclose(np.asarray(g), np.asarray(g_ref), atol=2e-4, rtol=1e-3)
 
 
-@pytest.mark.parametrize("mesh", ["cube.off", "grid.off", "random:2000/7",
+# quick: one mesh per class (CI time); the border case (grid.off: dummy vertex) is in the slow set
+# here and in the quick set of tests/structures/test_protocol.py and tests/algorithms/test_generic.py
+@pytest.mark.parametrize("mesh", [pytest.param("cube.off", marks=pytest.mark.slow),
+                                  pytest.param("grid.off", marks=pytest.mark.slow), "random:2000/7",
                                   pytest.param("decimated-knight.off", marks=pytest.mark.slow),
                                   pytest.param("2triangles.off", marks=pytest.mark.slow),
                                   pytest.param("random:500/1", marks=pytest.mark.slow)])
@@ -99,7 +102,10 @@ def test_whole_mesh_routes_single(name, mesh):
     _check(s, pos, _dummy_mask(m, s.vertex_order))
 
 
-@pytest.mark.parametrize("name", CDS)
+# cds5n / cds4n: the packed views are the same code as for cds6n and cds5n-o1, and their own
+# rows are checked single above: slow (14-16 s each, CI time)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in ("cds5n", "cds4n") else n
+                                  for n in CDS])
 def test_whole_mesh_routes_packed(name):
     meshes = [_mesh("decimated-knight.off"), _mesh("random:300/2"), _mesh("grid.off")]
     b = pack(meshes, name)

@@ -28,21 +28,31 @@ def prepared(name, structure):
     return close_boundaries(m)
 
 
-# The quick set (CI) covers each kind of input: tiny and mid-size closed genus 0, borders
-# (closed by a dummy vertex, or shown as borders), genus 1 and 3. Every other accepted shared mesh
-# runs in the slow set (`make test-all`): each (structure, mesh) pair costs one XLA compilation
-# of every operator (10-40 s for pemb), whatever the mesh size.
-QUICK_MESHES = {"cube.off", "bunny.off", "grid.off", "camelhead.off", "3holes.off", "rocker-arm.obj"}
+# The quick set (CI) covers each kind of input: a tiny closed genus-0 mesh, borders (closed by a
+# dummy vertex, or shown as borders) and genus 3; mid-size closed genus 0 comes from the random
+# triangulations below (and bunny.off in the degrees/normals test). Every other accepted shared
+# mesh runs in the slow set (`make test-all`): each (structure, mesh) pair costs one XLA
+# compilation of every operator (10-45 s, pemb 100 s), whatever the mesh size. bunny.off,
+# camelhead.off and rocker-arm.obj left the quick set on 2026-12-01 (CI read 27.5 min on a slow
+# box with them: 690 s of the suite's 2,850 CPU seconds were this test).
+QUICK_MESHES = {"cube.off", "grid.off", "3holes.off"}
 # pemb compiles the largest programs (~35K HLO lines, 40-110 s per mesh on a loaded 2-core box):
 # its quick set keeps the mesh with borders; closed genus-0 inputs reach every pemb operator in
 # the quick set through test_every_structure_on_random_planar_triangulations[pemb] (CI time).
 QUICK_MESHES_PEMB = {"grid.off"}
 
 
+# The CDS family meets a tiny closed genus-0 mesh in the random triangulations (n = 4, 6, 300),
+# so cube.off is in its slow set.
+QUICK_MESHES_CDS = QUICK_MESHES - {"cube.off"}
+CDS_FAMILY = {"cds6n", "cds5n", "cds4n", "cds5n-o1"}
+
+
 def _protocol_params():
     out = []
     for structure in STRUCTURES:
-        quick = QUICK_MESHES_PEMB if structure == "pemb" else QUICK_MESHES
+        quick = (QUICK_MESHES_PEMB if structure == "pemb" else
+                 QUICK_MESHES_CDS if structure in CDS_FAMILY else QUICK_MESHES)
         for name in CLOSED_GENUS0 + HOLED_GENUS0 + HIGHER_GENUS:
             slow = name not in quick or name in LARGE
             out.append(pytest.param(name, structure, marks=pytest.mark.slow) if slow
@@ -65,8 +75,13 @@ def test_every_operator_on_every_dart(structure, name):
     assert rep.mismatches == 0, str(rep)
 
 
-@pytest.mark.parametrize("structure", STRUCTURES)
-@pytest.mark.parametrize("name", ["bunny.off", "3holes.off", "grid.off"])
+def _normals_params():
+    # pemb on bunny.off compiles for ~30 s: slow (pemb keeps grid.off and 3holes.off here)
+    return [pytest.param(n, s, marks=pytest.mark.slow) if (s, n) == ("pemb", "bunny.off") else (n, s)
+            for n in ["bunny.off", "3holes.off", "grid.off"] for s in STRUCTURES]
+
+
+@pytest.mark.parametrize("name,structure", _normals_params())
 def test_degrees_and_normals_equal_halfedge(structure, name):
     m = prepared(name, structure)
     try:
@@ -103,15 +118,16 @@ from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E
 
 
 # Sizes come from a few buckets: a structure's array shapes depend on n (and, for LR, on the
-# ring), and every new shape recompiles every operator; seeds are free. Two examples per
-# structure in the quick set (five took 21-62 s per structure, three 21-37 s; CI reached 18.5 of
-# its 20 minutes on 2026-12-01); the slow test below draws 25 of any size for every structure.
+# ring), and every new shape recompiles every operator; seeds are free. One example per
+# structure in the quick set (five took 21-62 s per structure, three 21-37 s, two 17-31 s; CI
+# read 27.5 min on 2026-12-01 with two); the slow test below draws 25 of any size for every
+# structure.
 # pemb is slow here: its verify program takes 60-75 s to compile per shape on the CI box, and
 # the quick set checks it on a random Delaunay triangulation against walk oracles
 # (tests/structures/test_pemb.py) and dart by dart on the small shared meshes.
 @pytest.mark.parametrize("structure", [pytest.param(s, marks=pytest.mark.slow) if s == "pemb" else s
                                        for s in STRUCTURES])
-@settings(max_examples=2, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=1, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(n=st.sampled_from([4, 6, 300]), seed=st.integers(0, 2**31 - 1))
 def test_every_structure_on_random_planar_triangulations(structure, n, seed):
     from jaxcds.generators import random_planar_triangulation
@@ -146,7 +162,8 @@ def test_every_structure_on_a_5000_vertex_random_triangulation():
         assert rep.mismatches == 0, str(rep)
 
 
-@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("structure", [pytest.param(s, marks=pytest.mark.slow) if s == "pemb" else s
+                                       for s in STRUCTURES])  # pemb: 23 s of compilation
 def test_ids_that_are_not_darts_terminate(structure):
     """Every id of the id space (holes included), negative and past-the-end ids: the operators
     answer (no hang in the O(d) walks) and agree with the valid darts where the id is one."""
@@ -166,7 +183,8 @@ def test_ids_that_are_not_darts_terminate(structure):
         np.testing.assert_array_equal(got[pos], w)
 
 
-@pytest.mark.parametrize("structure", ["cds6n", "cds4n", "lr"])
+@pytest.mark.parametrize("structure", ["cds6n", pytest.param("cds4n", marks=pytest.mark.slow),
+                                       pytest.param("lr", marks=pytest.mark.slow)])  # 14-32 s each
 def test_verify_takes_the_open_or_the_user_closed_mesh(structure):
     """verify(s, mesh) with the mesh the user gave the builder, open or closed by the user: a
     CDS keeps dummies (the open mesh is closed again the same way), LR drops flagged ones (the
