@@ -17,6 +17,9 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEVICES = 4
+# one xdist worker runs this whole file (`make test` passes --dist loadgroup): the child process
+# behind the module fixtures then runs once, not once per worker (26-42 s each on 2 cores)
+pytestmark = pytest.mark.xdist_group("sharding-child")
 
 
 #: operators checked in the quick set (one SPMD compilation each): every argument kind (dart,
