@@ -7,6 +7,7 @@ reads the JSON report it prints. Every check compares the sharded run with the u
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import pathlib
@@ -17,9 +18,6 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEVICES = 4
-# one xdist worker runs this whole file (`make test` passes --dist loadgroup): the child process
-# behind the module fixtures then runs once, not once per worker (26-42 s each on 2 cores)
-pytestmark = pytest.mark.xdist_group("sharding-child")
 
 
 #: operators checked in the quick set (one SPMD compilation each): every argument kind (dart,
@@ -39,14 +37,33 @@ def _run_child(full: bool) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-@pytest.fixture(scope="module")
-def report():
-    return _run_child(full=False)
+def _shared_report(tmp_path_factory, full: bool) -> dict:
+    """The child's report, computed once per test session: the xdist workers share it through a
+    file under their common temporary root (under a lock, so the second one waits and reads it).
+    A module fixture alone ran the child (26-47 s on 2 cores) once per worker, and again on a
+    worker whenever its tests of this file were interleaved with others' (pytest tears a module
+    fixture down when the next test is from another file)."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the session's root, above each worker's own
+    path = root / f"sharding-report-{'full' if full else 'quick'}.json"
+    with open(root / "sharding-report.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not path.exists():
+            tmp = path.with_suffix(".tmp")
+            tmp.write_text(json.dumps(_run_child(full)))
+            tmp.replace(path)
+        return json.loads(path.read_text())
 
 
 @pytest.fixture(scope="module")
-def full_report():
-    return _run_child(full=True)
+def report(tmp_path_factory):
+    return _shared_report(tmp_path_factory, full=False)
+
+
+@pytest.fixture(scope="module")
+def full_report(tmp_path_factory):
+    return _shared_report(tmp_path_factory, full=True)
 
 
 def test_four_devices(report):
