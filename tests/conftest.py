@@ -71,9 +71,14 @@ def mesh_path(name: str) -> str:
     return str(p)
 
 
+def slow_params(values, slow):
+    """Parametrise over ``values``, those in ``slow`` marked slow (the quick set skips them)."""
+    return [pytest.param(v, marks=pytest.mark.slow) if v in slow else v for v in values]
+
+
 def mesh_params(names):
     """Parametrise over shared meshes, the large ones marked slow."""
-    return [pytest.param(n, marks=pytest.mark.slow) if n in LARGE else n for n in names]
+    return slow_params(names, LARGE)
 
 
 _cache: dict = {}

@@ -25,7 +25,7 @@ from jaxcds.structures import registry
 from jaxcds.structures.base import MeshStructure
 from jaxcds.structures.cds import _CDS
 
-from conftest import load_shared
+from conftest import load_shared, slow_params
 
 CDS = ["cds6n", "cds5n", "cds4n", "cds5n-o1"]
 
@@ -86,12 +86,12 @@ def _check(s, positions, dummy):
 
 
 # quick: one mesh per class (CI time); the border case (grid.off: dummy vertex) is in the slow set
-# here and in the quick set of tests/structures/test_protocol.py and tests/algorithms/test_generic.py
-@pytest.mark.parametrize("mesh", [pytest.param("cube.off", marks=pytest.mark.slow),
-                                  pytest.param("grid.off", marks=pytest.mark.slow), "random:2000/7",
-                                  pytest.param("decimated-knight.off", marks=pytest.mark.slow),
-                                  pytest.param("2triangles.off", marks=pytest.mark.slow),
-                                  pytest.param("random:500/1", marks=pytest.mark.slow)])
+# here, and in the quick set of the packed test below, tests/structures/test_protocol.py and
+# tests/algorithms/test_generic.py
+_SINGLE_MESHES = ["cube.off", "grid.off", "random:2000/7", "decimated-knight.off", "2triangles.off", "random:500/1"]
+
+
+@pytest.mark.parametrize("mesh", slow_params(_SINGLE_MESHES, set(_SINGLE_MESHES) - {"random:2000/7"}))
 @pytest.mark.parametrize("name", CDS)
 def test_whole_mesh_routes_single(name, mesh):
     m = _mesh(mesh)
@@ -104,8 +104,7 @@ def test_whole_mesh_routes_single(name, mesh):
 
 # cds5n / cds4n: the packed views are the same code as for cds6n and cds5n-o1, and their own
 # rows are checked single above: slow (14-16 s each, CI time)
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in ("cds5n", "cds4n") else n
-                                  for n in CDS])
+@pytest.mark.parametrize("name", slow_params(CDS, {"cds5n", "cds4n"}))
 def test_whole_mesh_routes_packed(name):
     meshes = [_mesh("decimated-knight.off"), _mesh("random:300/2"), _mesh("grid.off")]
     b = pack(meshes, name)

@@ -26,13 +26,12 @@ from jaxcds.structures.base import MeshStructure
 from jaxcds.structures.base import interleave_rows
 from jaxcds.structures.lr import build_lr
 
-from conftest import load_shared
+from conftest import load_shared, slow_params
 
 # closed genus 0, genus 1, genus 3, holed (dummy vertices: border slots and dummy T0 rows)
 # bunny.off and rocker-arm.obj (genus 1) in the slow set: 3holes.off is the quick set's closed
 # mesh (genus 3), grid.off its border (CI time)
-MESHES = [pytest.param("bunny.off", marks=pytest.mark.slow), pytest.param("rocker-arm.obj", marks=pytest.mark.slow),
-          "3holes.off", "grid.off"]
+MESHES = slow_params(["bunny.off", "rocker-arm.obj", "3holes.off", "grid.off"], {"bunny.off", "rocker-arm.obj"})
 PACKED = ["grid.off", "3holes.off", "decimated-knight.off"]
 
 

@@ -15,7 +15,7 @@ from jaxcds.structures import registry
 from jaxcds.structures.halfedge import HalfEdge
 from jaxcds.verify import verify
 
-from conftest import CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, LARGE, load_shared, mesh_params
+from conftest import CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, LARGE, load_shared, mesh_params, slow_params
 
 STRUCTURES = registry.names()
 BORDER_AWARE = {"halfedge", "pemb"}
@@ -125,8 +125,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E
 # pemb is slow here: its verify program takes 60-75 s to compile per shape on the CI box, and
 # the quick set checks it on a random Delaunay triangulation against walk oracles
 # (tests/structures/test_pemb.py) and dart by dart on the small shared meshes.
-@pytest.mark.parametrize("structure", [pytest.param(s, marks=pytest.mark.slow) if s == "pemb" else s
-                                       for s in STRUCTURES])
+@pytest.mark.parametrize("structure", slow_params(STRUCTURES, {"pemb"}))
 @settings(max_examples=1, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(n=st.sampled_from([4, 6, 300]), seed=st.integers(0, 2**31 - 1))
 def test_every_structure_on_random_planar_triangulations(structure, n, seed):
@@ -162,8 +161,7 @@ def test_every_structure_on_a_5000_vertex_random_triangulation():
         assert rep.mismatches == 0, str(rep)
 
 
-@pytest.mark.parametrize("structure", [pytest.param(s, marks=pytest.mark.slow) if s == "pemb" else s
-                                       for s in STRUCTURES])  # pemb: 23 s of compilation
+@pytest.mark.parametrize("structure", slow_params(STRUCTURES, {"pemb"}))  # pemb: 23 s of compilation
 def test_ids_that_are_not_darts_terminate(structure):
     """Every id of the id space (holes included), negative and past-the-end ids: the operators
     answer (no hang in the O(d) walks) and agree with the valid darts where the id is one."""
@@ -183,8 +181,7 @@ def test_ids_that_are_not_darts_terminate(structure):
         np.testing.assert_array_equal(got[pos], w)
 
 
-@pytest.mark.parametrize("structure", ["cds6n", pytest.param("cds4n", marks=pytest.mark.slow),
-                                       pytest.param("lr", marks=pytest.mark.slow)])  # 14-32 s each
+@pytest.mark.parametrize("structure", slow_params(["cds6n", "cds4n", "lr"], {"cds4n", "lr"}))  # 14-32 s each
 def test_verify_takes_the_open_or_the_user_closed_mesh(structure):
     """verify(s, mesh) with the mesh the user gave the builder, open or closed by the user: a
     CDS keeps dummies (the open mesh is closed again the same way), LR drops flagged ones (the
