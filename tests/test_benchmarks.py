@@ -203,6 +203,18 @@ def test_race_target_rounds_every_loop_form_gives_the_targets(capsys):
     assert out.count("static_two=") == 2 and "target_rounds=" in out, out
 
 
+def test_race_face_derivation_checks_each_route_against_the_face_list(capsys):
+    """benchmarks/race_face_derivation.py checks the structure's own normals and the face list on
+    its given rows before timing them; a structure that closes a mesh's holes is skipped by name."""
+    from benchmarks import race_face_derivation
+
+    assert race_face_derivation.main(["--meshes", "random:300,packed:2,grid.off", "--structures", "cds5n,lr",
+                                      "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("largest difference") == 10 and out.count("x the face list") == 13, out
+    assert "packed:2 lr/given_rows" in out and "grid.off cds5n: skipped" in out, out
+
+
 def test_race_dummy_mask_checks_both_answers(capsys):
     """benchmarks/race_dummy_mask.py checks the open surface's answers with the mask and the
     closed surface's without it before timing."""
