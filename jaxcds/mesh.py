@@ -120,7 +120,8 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
     suffix = os.path.splitext(path)[1].lower()
     if suffix not in SUFFIXES:
         raise errors.UnreadableMeshError(
-            f"{path}: unknown mesh format {suffix!r} (expected one of {', '.join(SUFFIXES)})")
+            f"{path}: unknown mesh format {suffix!r} (expected one of {', '.join(SUFFIXES)}; for "
+            "another format trimesh reads, pass load_mesh(trimesh.load(path, force='mesh')))")
     raw = read_regular_file(path)
     if not raw.strip():
         raise errors.EmptyMeshError(f"{path}: the file is empty")

@@ -131,7 +131,7 @@ def test_unreadable_files(tmp_path):
         load_mesh(str(tmp_path / "missing.off"))
     bad = tmp_path / "bad.xyz"
     bad.write_text("hello")
-    with pytest.raises(errors.UnreadableMeshError, match="unknown mesh format"):
+    with pytest.raises(errors.UnreadableMeshError, match=r"unknown mesh format '\.xyz'.*trimesh\.load"):
         load_mesh(str(bad))
     garbage = tmp_path / "garbage.off"
     garbage.write_bytes(b"OFF\n3 1 0\n0 0 zz\n")
