@@ -365,24 +365,15 @@ def _face_map(n: int, black_matched: np.ndarray, ired: np.ndarray, blue_left_blu
               outer: tuple = None):
     """``(F_blue, unused_slots)`` of Thm 7, as ``jaxcds.structures.cds.face_slots`` computes
     them, from the table's bits (``outer = (V_red, V_blue, V_black)``, default ``(0, 1, n-1)``)."""
+    from jaxcds.structures.cds import assign_face_slots
+
     v_red, v_blue, v_black = outer or (0, 1, n - 1)
     u = np.arange(n)
-    avail = ~black_matched
     has_blue = (u != v_red) & (u != v_blue)
     blue_matched = has_blue & ~ired & blue_left_blue
     blue_matched[v_black] = False  # left face of (V_black, V_blue) is the outer face
-    fb = np.zeros(n, dtype=np.int64)
-    own = blue_matched & avail
-    fb[own] = u[own]
-    need = np.nonzero(blue_matched & ~avail)[0]
-    free = np.nonzero(avail & ~blue_matched)[0]
-    if free.size < need.size + 3:
-        raise errors.EncodingError(f"face map: {need.size} blue triangles but {free.size} free slots "
-                                   "(the words are not those of a maximal Schnyder wood)")
-    fb[need] = free[: need.size]
-    fb[free[: need.size]] = need
-    unused = np.sort(np.concatenate([[v_red], n + free[need.size:]])).astype(np.int64)
-    return fb.astype(np.int32), tuple(int(x) for x in unused)
+    return assign_face_slots(black_matched, blue_matched, v_red, errors.EncodingError,
+                             " (the words are not those of a maximal Schnyder wood)")
 
 
 def _bits(col, bit):

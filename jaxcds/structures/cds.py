@@ -102,7 +102,7 @@ from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleav
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
-           "edge_fronts", "face_slots", "tables_reference", "target_rounds", "with_target_rounds"]
+           "edge_fronts", "face_slots", "assign_face_slots", "tables_reference", "target_rounds", "with_target_rounds"]
 
 _IDX = (1 << 30) - 1
 _MAX_VERTICES = 1 << 30
@@ -247,29 +247,43 @@ def face_slots(wood: SchnyderWood, lf: np.ndarray, rf: np.ndarray, inc: Optional
     source), black (left of a black edge, ``n +`` source), blue (``n + F_blue[source]``)."""
     n = wood.num_vertices
     lfc = np.where(lf >= 0, _col(lf), -1)
-    vk, vb, vr = wood.v_black, wood.v_blue, wood.v_red
-    u = np.arange(n)
+    vk, vr = wood.v_black, wood.v_red
     has_black = wood.out[:, BLACK] < n
     # black triangle of u: left face of u_black is not red (its LeftFront is not red, Thm 7)
     black_matched = has_black & (lfc[:, BLACK] == BLACK)
-    avail = ~black_matched
     # blue triangle of u: left face of u_blue neither red (LeftBack red) nor black (LeftFront black)
     has_blue = wood.out[:, BLUE] < n
     # LeftBack(u_blue) is red iff u has an incoming red edge (local rule: ccw after out blue)
     ired = (_incoming(wood) if inc is None else inc)[:, RED]
     blue_matched = has_blue & ~ired & (lfc[:, BLUE] == BLUE)
     blue_matched[vk] = False  # the left face of (V_black, V_blue) is the outer face, red slot V_blue
+    return assign_face_slots(black_matched, blue_matched, vr)
+
+
+def assign_face_slots(black_matched: np.ndarray, blue_matched: np.ndarray, v_red: int,
+                      error=errors.StructureError, hint: str = ""):
+    """Thm 7's slot assignment, ``(F_blue, unused)``, from which vertices have a black triangle
+    (``black_matched``: it takes the black slot ``n + u``) and a blue one (``blue_matched``).
+
+    A blue triangle stays in its own vertex's black slot when that slot is free
+    (``F_blue[u] = u``); the others take the free slots in order, and each taken slot names its
+    vertex back (``F_blue[u] = o``, ``F_blue[o] = u``). The slots left over (3 black ones) and the
+    red slot of ``V_red`` are the four unused slots. Too few free slots means the inputs are no
+    maximal Schnyder wood: ``error`` (with ``hint`` appended to the message).
+    Shared by :func:`face_slots` (from the wood) and the codec's decoders (from the table bits)."""
+    n = black_matched.shape[0]
+    u = np.arange(n)
+    avail = ~black_matched
     fb = np.zeros(n, dtype=np.int64)
     own = blue_matched & avail
     fb[own] = u[own]
     need = np.nonzero(blue_matched & ~avail)[0]
     free = np.nonzero(avail & ~blue_matched)[0]
     if free.size < need.size + 3:
-        raise errors.StructureError(f"face map: {need.size} blue triangles but {free.size} free slots")
+        raise error(f"face map: {need.size} blue triangles but {free.size} free slots{hint}")
     fb[need] = free[: need.size]
     fb[free[: need.size]] = need
-    unused_black = free[need.size:]
-    unused = np.sort(np.concatenate([[vr], n + unused_black])).astype(np.int64)
+    unused = np.sort(np.concatenate([[v_red], n + free[need.size:]])).astype(np.int64)
     return fb.astype(np.int32), tuple(int(x) for x in unused)
 
 

@@ -352,6 +352,22 @@ def test_cube_by_hand():
         assert got == {tuple(np.roll(r, -np.argmin(r))) for r in m.faces}
 
 
+def test_face_slot_assignment_by_hand():
+    """Thm 7's slots (``cds.assign_face_slots``, shared by the builders and the codec): a blue
+    triangle whose own black slot is taken moves to the first free one and the two name each
+    other; the three left-over black slots and V_red's red slot are the unused four; too few free
+    slots is the typed error of the caller, with its hint."""
+    t, f = True, False
+    black = np.array([f, t, t, f, f, f, f])
+    blue = np.array([f, t, f, t, f, f, f])
+    fb, unused = cds.assign_face_slots(black, blue, 0)
+    np.testing.assert_array_equal(fb, [1, 0, 0, 3, 0, 0, 0])  # 1 -> slot of 0, 3 keeps its own
+    assert unused == (0, 11, 12, 13)
+    with pytest.raises(errors.EncodingError, match=r"1 blue triangles but 3 free slots \(words\)"):
+        cds.assign_face_slots(np.array([t, t, t, t, f, f, f]), blue & ~np.eye(7, dtype=bool)[3], 0,
+                              errors.EncodingError, " (words)")
+
+
 # ---------------------------------------------------------------- holed meshes, refusals
 # default set: test_protocol.py already verifies every CDS on grid.off and 2triangles.off
 @pytest.mark.slow
