@@ -165,17 +165,15 @@ def test_degrees_normals_and_gradients_equal_per_mesh(name, cls, meshes):
     assert np.all(np.isfinite(g)) and np.any(g != 0)
 
 
-def test_adjacent_with_local_ids():
-    ms = open_meshes()
-    b = B.pack(ms, "halfedge")
-    parts = [HalfEdge.from_mesh(m) for m in ms]
+def _check_adjacent_local(b, parts, count: int):
+    """``b.adjacent_local`` on ``count`` random mesh-local pairs (half of them true neighbours,
+    found through the batch's own Target) equals each part's ``adjacent``; returns the pairs'
+    ``(mesh_ids, u)``."""
     rng = np.random.default_rng(2)
-    mesh_ids = rng.integers(0, len(ms), 300).astype(np.int32)
-    u = np.array([rng.integers(0, ms[i].num_vertices) for i in mesh_ids], np.int32)
-    # half of the pairs are true neighbours, half random
-    v = np.array([rng.integers(0, ms[i].num_vertices) for i in mesh_ids], np.int32)
-    nb = np.asarray(b.query("target", mesh_ids, b.query("edge_of_vertex", mesh_ids, u)))
-    v[::2] = nb[::2]
+    mesh_ids = rng.integers(0, len(parts), count).astype(np.int32)
+    u = np.array([rng.integers(0, parts[i].num_vertices) for i in mesh_ids], np.int32)
+    v = np.array([rng.integers(0, parts[i].num_vertices) for i in mesh_ids], np.int32)
+    v[::2] = np.asarray(b.query("target", mesh_ids, b.query("edge_of_vertex", mesh_ids, u)))[::2]
     got = np.asarray(jax.jit(lambda s, m, a, c: s.adjacent_local(m, a, c))(b, mesh_ids, u, v))
     want = np.zeros(got.shape, bool)
     for i, p in enumerate(parts):
@@ -183,6 +181,14 @@ def test_adjacent_with_local_ids():
         want[sel] = np.asarray(adjacent(p, u[sel], v[sel]))
     np.testing.assert_array_equal(got, want)
     assert got[::2].all()
+    return mesh_ids, u
+
+
+def test_adjacent_with_local_ids():
+    ms = open_meshes()
+    b = B.pack(ms, "halfedge")
+    parts = [HalfEdge.from_mesh(m) for m in ms]
+    mesh_ids, u = _check_adjacent_local(b, parts, 300)
     # a vertex is never adjacent to a vertex of another mesh
     other = np.asarray(b.to_global("vertex", (mesh_ids + 1) % len(ms), 0))
     assert not np.asarray(adjacent(b, b.to_global("vertex", mesh_ids, u), other)).any()
@@ -414,18 +420,7 @@ def test_compact_batch_every_operator_and_verify(name):
     b = B.pack(ms, name)
     parts = [registry.build(name, m) for m in ms]
     _check_ops(b, parts, tuple(B.OPERATOR_KINDS))
-    rng = np.random.default_rng(2)
-    mesh_ids = rng.integers(0, len(ms), 200).astype(np.int32)
-    u = np.array([rng.integers(0, parts[i].num_vertices) for i in mesh_ids], np.int32)
-    v = np.array([rng.integers(0, parts[i].num_vertices) for i in mesh_ids], np.int32)
-    v[::2] = np.asarray(b.query("target", mesh_ids, b.query("edge_of_vertex", mesh_ids, u)))[::2]
-    got = np.asarray(jax.jit(lambda s, m, a, c: s.adjacent_local(m, a, c))(b, mesh_ids, u, v))
-    want = np.zeros(got.shape, bool)
-    for i, p in enumerate(parts):
-        sel = mesh_ids == i
-        want[sel] = np.asarray(adjacent(p, u[sel], v[sel]))
-    np.testing.assert_array_equal(got, want)
-    assert got[::2].all()
+    _check_adjacent_local(b, parts, 200)
     pos = B.pack_positions(b, ms)
     np.testing.assert_allclose(np.asarray(vertex_normals(b, pos, method="gather")),
                                np.asarray(vertex_normals(b, pos)), atol=1e-5)
