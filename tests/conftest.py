@@ -60,6 +60,8 @@ CLOSED_GENUS0 = ["cube.off", "decimated-knight.off", "bunny.off", "spot.obj", "c
                  "elephant.obj", "fandisk.off", "bumpy-cube.obj", "armadillo.obj"]
 HOLED_GENUS0 = ["stanford-bunny.obj", "face.obj", "camelhead.off", "grid.off", "2triangles.off"]
 HIGHER_GENUS = ["rocker-arm.obj", "3holes.off"]
+# the Schnyder-wood structures (issue 3): genus-0 meshes only, holes closed by the builders
+CDS_FAMILY = ("cds6n", "cds5n", "cds4n", "cds5n-o1")
 LARGE = {"armadillo.obj", "stanford-bunny.obj", "face.obj", "bumpy-cube.obj", "beetle.obj",
          "beetle.off"}
 

@@ -20,7 +20,7 @@ from jaxcds.mesh import close_boundaries, load_mesh
 from jaxcds.structures import CornerTable, HalfEdge, registry
 from jaxcds.verify import verify
 
-from conftest import load_shared, octahedron
+from conftest import CDS_FAMILY, load_shared, octahedron
 
 
 def open_meshes():
@@ -319,7 +319,7 @@ def test_registry_structures_pack(name):
 # ---------------------------------------------------------------------------------- compact kinds
 # CDS family: ids shifted (30-bit vertex fields, service bits kept), roots per mesh;
 # LR / lr-bits: ids kept local, every operator evaluated on each element's mesh.
-PACKABLE = ["cds6n", "cds5n", "cds4n", "cds5n-o1", "lr", "lr-bits"]
+PACKABLE = [*CDS_FAMILY, "lr", "lr-bits"]
 QUICK_OPS = ("target", "twin", "next", "prev", "face_left", "face_right", "ccw_vertex_edge",
              "corner_opposite", "edge_of_vertex", "edge_of_face", "dart_valid")
 

@@ -13,7 +13,7 @@ from jaxcds.algorithms.normals import normalize
 from jaxcds.mesh import close_boundaries, load_mesh
 from jaxcds.structures import CornerTable, HalfEdge
 
-from conftest import load_shared, octahedron
+from conftest import CDS_FAMILY, load_shared, octahedron
 
 MESHES = ["bunny.off", "grid.off", "3holes.off", "spot.obj", "camelhead.off"]
 
@@ -196,7 +196,7 @@ def test_normals_and_gradients_at_extreme_coordinate_scales(scale):
     np.testing.assert_allclose(np.asarray(g) * scale, np.asarray(g1), rtol=1e-4, atol=1e-5)
 
 
-@pytest.mark.parametrize("structure", ["cds6n", "cds5n", "cds4n", "cds5n-o1"])
+@pytest.mark.parametrize("structure", CDS_FAMILY)
 def test_cds_gather_normals_on_vertices_of_high_degree(structure):
     """The gather route asked Thm 2's O(d) Target inside its turn around every vertex: O(n d^2)
     (a bipyramid with poles of degree 800: 6 s; 2,000: no end). It now reads every dart's target
@@ -263,7 +263,7 @@ def _flat_strip(nx=12, ny=3, seed=0):
     return load_mesh(v, np.asarray(f))
 
 
-@pytest.mark.parametrize("structure", ["cds6n", "cds5n", "cds4n", "cds5n-o1"])
+@pytest.mark.parametrize("structure", CDS_FAMILY)
 def test_cds_on_an_open_mesh_gives_the_open_meshes_degrees_and_normals(structure):
     """The CDS family closes the hole with a dummy vertex and a fan (Sec. 4.5). Degrees and
     normals are still the open surface's: on a flat strip every normal is about +z (the fan

@@ -25,9 +25,7 @@ from jaxcds.structures import registry
 from jaxcds.structures.base import MeshStructure
 from jaxcds.structures.cds import _CDS
 
-from conftest import load_shared, slow_params
-
-CDS = ["cds6n", "cds5n", "cds4n", "cds5n-o1"]
+from conftest import CDS_FAMILY as CDS, load_shared, slow_params
 
 
 def _mesh(name):
@@ -225,7 +223,7 @@ def test_with_target_rounds_measures_the_tables_and_names_a_chain_that_does_not_
     from jaxcds import errors
     from jaxcds.structures import cds as cds_module
 
-    for name in ("cds6n", "cds5n", "cds4n", "cds5n-o1"):
+    for name in CDS:
         s = registry.build(name, _mesh("random:2000/7"))
         got = cds_module.with_target_rounds(dataclasses.replace(s, target_rounds=-1))
         assert got.target_rounds == s.target_rounds == _rounds_needed(s) >= 1, name

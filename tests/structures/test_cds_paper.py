@@ -28,9 +28,8 @@ from jaxcds.structures import cds, registry
 from jaxcds.structures.halfedge import HalfEdge
 from jaxcds.verify import verify
 
-from conftest import load_shared, octahedron
+from conftest import CDS_FAMILY as CDS, load_shared, octahedron
 
-CDS = ["cds6n", "cds5n", "cds4n", "cds5n-o1"]
 K = {"cds6n": 6, "cds5n": 5, "cds4n": 4, "cds5n-o1": 5}
 PERMUTED = {"cds4n", "cds5n-o1"}
 CLASSES = {c.name: c for c in (cds.CDS6n, cds.CDS5n, cds.CDS4n, cds.CDS5nO1)}

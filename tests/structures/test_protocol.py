@@ -15,7 +15,7 @@ from jaxcds.structures import registry
 from jaxcds.structures.halfedge import HalfEdge
 from jaxcds.verify import verify
 
-from conftest import CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, LARGE, load_shared, mesh_params, slow_params
+from conftest import CDS_FAMILY, CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, LARGE, load_shared, mesh_params, slow_params
 
 STRUCTURES = registry.names()
 BORDER_AWARE = {"halfedge", "pemb"}
@@ -45,7 +45,6 @@ QUICK_MESHES_PEMB = {"grid.off"}
 # The CDS family meets a tiny closed genus-0 mesh in the random triangulations (n = 4, 6, 300),
 # so cube.off is in its slow set.
 QUICK_MESHES_CDS = QUICK_MESHES - {"cube.off"}
-CDS_FAMILY = {"cds6n", "cds5n", "cds4n", "cds5n-o1"}
 
 
 def _protocol_params():
