@@ -163,6 +163,13 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
     except Exception as exc:  # trimesh raises many kinds; all mean "cannot parse"
         if text is not None:  # raises a typed error naming the line where it can
             (_diagnose_obj if suffix == ".obj" else _diagnose_off)(text, path)
+            if suffix == ".off":
+                # a well-formed OFF trimesh could not read: polygons of 5+ corners among faces of
+                # another size (trimesh 4-5's fan triangulation fails on them under numpy 2)
+                try:
+                    return _read_off_polygons(text)
+                except (ValueError, IndexError):  # a variant this reader does not know: named below
+                    pass
         elif suffix == ".stl":
             _diagnose_ascii_stl(raw, path)
         raise errors.UnreadableMeshError(f"{path}: cannot parse as {suffix[1:].upper()}: "
@@ -560,6 +567,24 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
                     raise errors.InvalidIndexError(
                         f"{path}: line {no}: face index {i} is outside [0, {nv}) (the header "
                         f"declares {nv} vertices)")
+
+
+def _read_off_polygons(text: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, faces)`` of an OFF text that :func:`_check_off_lines` (with ``indices``) has
+    cleared, read here line by line, every polygon fanned from its first corner as trimesh
+    does (``a0 a1 a2``, ``a0 a2 a3``, ...); extra values on a line (colours, normals) are
+    ignored as trimesh ignores them."""
+    rows = [tok for tok in (line.split("#", 1)[0].split() for line in text.splitlines()) if tok]
+    head = rows[0][1:] or rows[1]
+    body = rows[1:] if rows[0][1:] else rows[2:]
+    nv, nf = int(head[0]), int(head[1])
+    vertices = np.array([[float(t) for t in tok[:3]] for tok in body[:nv]], dtype=np.float64)
+    tris = []
+    for tok in body[nv:nv + nf]:
+        c = int(tok[0])
+        idx = [int(t) for t in tok[1:1 + c]]
+        tris.extend((idx[0], idx[i], idx[i + 1]) for i in range(1, c - 1))
+    return vertices.reshape(-1, 3), np.array(tris, dtype=np.int64).reshape(-1, 3)
 
 
 def _diagnose_off(text: str, path: str) -> None:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from jaxcds import errors
-from jaxcds.mesh import load_mesh, read_regular_file
+from jaxcds.mesh import load_mesh, read_regular_file, topology
 
 _TET_V = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
 _TET_F = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
@@ -270,6 +270,28 @@ def test_binary_ply_of_mixed_polygons_loads_as_its_ascii_twin(tmp_path):
     assert m.num_faces == 3
     np.testing.assert_array_equal(m.faces, a.faces)
     np.testing.assert_array_equal(m.vertices, a.vertices)
+
+
+def test_off_of_mixed_polygons_with_pentagons_loads_as_its_obj_twin(tmp_path):
+    """A pentagonal prism (two pentagons, five quads; face colours, a comment, CRLF): trimesh
+    could not read an OFF whose polygons of 5+ corners sit among faces of another size (its fan
+    triangulation failed on numpy 2), so jaxcds reads such a file itself, fanned as trimesh fans
+    the same polygons of an OBJ."""
+    import math
+
+    ring = [(math.cos(2 * math.pi * k / 5), math.sin(2 * math.pi * k / 5)) for k in range(5)]
+    V = [(x, y, z) for z in (0, 1) for x, y in ring]
+    F = [(4, 3, 2, 1, 0), (5, 6, 7, 8, 9)] + [(k, (k + 1) % 5, (k + 1) % 5 + 5, k + 5) for k in range(5)]
+    off = ("OFF\r\n# a prism\r\n10 7 0\r\n" + "".join(f"{x} {y} {z}\r\n" for x, y, z in V)
+           + "".join(f"{len(f)} {' '.join(map(str, f))} 255 0 0\r\n" for f in F))
+    obj = "".join(f"v {x} {y} {z}\n" for x, y, z in V) + "".join(
+        "f " + " ".join(str(i + 1) for i in f) + "\n" for f in F)
+    m = load_mesh(_write(tmp_path, "prism.off", off))
+    twin = load_mesh(_write(tmp_path, "prism.obj", obj))
+    assert m.num_faces == 16 and topology(m)["closed"] and topology(m)["genus"] == 0
+    np.testing.assert_allclose(m.vertices, twin.vertices)
+    same = lambda f: sorted(tuple(np.roll(r, -int(np.argmin(r)))) for r in f.tolist())  # noqa: E731
+    assert same(m.faces) == same(twin.faces)  # the same triangles, same orientation
 
 
 def test_binary_ply_declaring_more_vertices_than_it_holds_is_named(tmp_path):
