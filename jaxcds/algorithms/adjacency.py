@@ -7,6 +7,9 @@ import functools
 import jax
 import jax.numpy as jnp
 
+from jaxcds import errors
+from jaxcds._args import is_integer
+
 __all__ = ["adjacent", "one_ring", "rotate_until"]
 
 
@@ -53,7 +56,15 @@ def adjacent(s, u, v):
 def one_ring(s, v, max_degree: int):
     """Neighbours of each vertex in ``v``, ccw, as a ``(len(v), max_degree)`` array padded with
     ``num_vertices`` (absent), and the degrees. ``max_degree`` is static (shapes depend on it);
-    vertices of larger degree are truncated to their first ``max_degree`` neighbours."""
+    vertices of larger degree are truncated to their first ``max_degree`` neighbours.
+
+    Raises:
+      ArgumentError: ``max_degree`` is not a non-negative integer (``1.7`` or ``"3"`` would
+        otherwise be cut or parsed quietly, and a negative size fails inside XLA)."""
+    if not is_integer(max_degree) or max_degree < 0:
+        raise errors.ArgumentError(
+            f"one_ring: max_degree must be a non-negative integer (the ring's static width), "
+            f"got {max_degree!r}")
     return _one_ring(s, jnp.asarray(v, jnp.int32), int(max_degree))
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from jaxcds import errors
 from jaxcds.algorithms import adjacent, face_list_vertex_normals, one_ring, vertex_degrees, vertex_normals
 from jaxcds.algorithms.normals import normalize
 from jaxcds.mesh import close_boundaries, load_mesh
@@ -107,6 +108,18 @@ def test_adjacent_and_one_ring(name):
     nbrs = tm.vertex_neighbors
     for i in range(0, m.num_vertices, 37):
         assert sorted(ring[i, : deg[i]].tolist()) == sorted(nbrs[i])
+
+
+def test_one_ring_width_is_checked():
+    """``max_degree`` is a static width: a negative, fractional, string or boolean one is an
+    ArgumentError naming it (a negative one failed inside XLA, 1.7 was cut to 1); 0 gives empty
+    rings and the degrees 0."""
+    he = HalfEdge.from_mesh(load_shared("cube.off"))
+    for bad in (-1, 1.7, "3", True, None):
+        with pytest.raises(errors.ArgumentError, match="max_degree"):
+            one_ring(he, jnp.arange(3, dtype=jnp.int32), bad)
+    ring, deg = one_ring(he, jnp.arange(3, dtype=jnp.int32), np.int64(0))
+    assert ring.shape == (3, 0) and np.asarray(deg).tolist() == [0, 0, 0]
 
 
 def test_algorithms_are_jitted_once():
