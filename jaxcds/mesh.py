@@ -500,11 +500,7 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
     """:func:`_check_off_counts` line by line, lines numbered in the file; with ``indices``
     (on trimesh's error path, :func:`_diagnose_off`) the header's spelling, every vertex's
     coordinates and every face index (an integer, below the vertex count) too."""
-    rows = []  # (line number, tokens) of every line with data, comments removed
-    for no, line in enumerate(text.splitlines(), 1):
-        tok = line.split("#", 1)[0].split()
-        if tok:
-            rows.append((no, tok))
+    rows = _off_rows(text)
     if not rows:
         if indices:
             raise errors.EmptyMeshError(f"{path}: no data, only comments or blank lines")
@@ -518,8 +514,7 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
     if indices and "OFF" not in key:
         raise errors.UnreadableMeshError(
             f"{path}: line {rows[0][0]}: the header must be 'OFF' in capitals, got {key[:40]!r}")
-    head = rows[0][1][1:] or (rows[1][1] if len(rows) > 1 else [])
-    body = rows[1:] if rows[0][1][1:] else rows[2:]
+    head, body = _off_head_body(rows)
     try:
         nv, nf = int(head[0]), int(head[1])
     except (IndexError, ValueError):
@@ -569,22 +564,37 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
                         f"declares {nv} vertices)")
 
 
+def _off_rows(text: str) -> list:
+    """``(line number, tokens)`` of every OFF line with data, comments removed."""
+    rows = []
+    for no, line in enumerate(text.splitlines(), 1):
+        tok = line.split("#", 1)[0].split()
+        if tok:
+            rows.append((no, tok))
+    return rows
+
+
+def _off_head_body(rows: list) -> tuple[list, list]:
+    """The counts tokens and the data rows after them (the counts may follow the keyword on its
+    line, ``OFF 4 4 0``)."""
+    head = rows[0][1][1:] or (rows[1][1] if len(rows) > 1 else [])
+    return head, (rows[1:] if rows[0][1][1:] else rows[2:])
+
+
 def _read_off_polygons(text: str) -> tuple[np.ndarray, np.ndarray]:
     """``(vertices, faces)`` of an OFF text that :func:`_check_off_lines` (with ``indices``) has
-    cleared, read here line by line, every polygon fanned from its first corner as trimesh
-    does (``a0 a1 a2``, ``a0 a2 a3``, ...); extra values on a line (colours, normals) are
-    ignored as trimesh ignores them."""
-    rows = [tok for tok in (line.split("#", 1)[0].split() for line in text.splitlines()) if tok]
-    head = rows[0][1:] or rows[1]
-    body = rows[1:] if rows[0][1:] else rows[2:]
+    cleared, read here line by line; the polygons are fanned by trimesh's own
+    ``triangulate_quads`` on integer arrays (its failure was on the string arrays of its OFF
+    reader), as the binary PLY of mixed polygons is (:func:`_walk_ply_binary`). Extra values on
+    a line (colours, normals) are ignored as trimesh ignores them."""
+    from trimesh.geometry import triangulate_quads
+
+    head, body = _off_head_body(_off_rows(text))
     nv, nf = int(head[0]), int(head[1])
-    vertices = np.array([[float(t) for t in tok[:3]] for tok in body[:nv]], dtype=np.float64)
-    tris = []
-    for tok in body[nv:nv + nf]:
-        c = int(tok[0])
-        idx = [int(t) for t in tok[1:1 + c]]
-        tris.extend((idx[0], idx[i], idx[i + 1]) for i in range(1, c - 1))
-    return vertices.reshape(-1, 3), np.array(tris, dtype=np.int64).reshape(-1, 3)
+    vertices = np.array([[float(t) for t in tok[:3]] for _, tok in body[:nv]], dtype=np.float64)
+    polygons = [np.array(tok[1:1 + int(tok[0])], dtype=np.int64) for _, tok in body[nv:nv + nf]]
+    faces = np.asarray(triangulate_quads(polygons), dtype=np.int64)
+    return vertices.reshape(-1, 3), faces.reshape(-1, 3)
 
 
 def _diagnose_off(text: str, path: str) -> None:
