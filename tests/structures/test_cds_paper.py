@@ -363,7 +363,7 @@ def test_face_slot_assignment_by_hand():
     np.testing.assert_array_equal(fb, [1, 0, 0, 3, 0, 0, 0])  # 1 -> slot of 0, 3 keeps its own
     assert unused == (0, 11, 12, 13)
     with pytest.raises(errors.EncodingError, match=r"1 blue triangles but 3 free slots \(words\)"):
-        cds.assign_face_slots(np.array([t, t, t, t, f, f, f]), blue & ~np.eye(7, dtype=bool)[3], 0,
+        cds.assign_face_slots(np.array([t, t, t, t, f, f, f]), np.array([f, t, f, f, f, f, f]), 0,
                               errors.EncodingError, " (words)")
 
 
