@@ -1,7 +1,12 @@
 """Polylla benchmark (issue 7): time per phase and memory, HalfEdge vs pemb, uniform random points.
 
 ``python -m benchmarks.bench_polylla --sizes 100000 1000000 [--structures halfedge pemb]
-[--repeats 3] [--json out.json]``
+[--modes canonical reference] [--repeats 3] [--json out.json]``
+
+Modes (:func:`jaxcds.algorithms.polylla.polylla`): ``canonical``, the order-free vectorised
+phases (run without corners, as before 2026-12-02); ``reference``, the reference's sequential
+traversal and repair on the input's rows (the default of ``run`` and the CLI): its ``traversal``
+phase holds the walks, the repair and the polygon lists at once (``repair`` and ``polygons`` 0).
 
 For each size: uniform random points in the unit square (seed 0), Delaunay by scipy (timed, not
 part of the targets), the structure built from the face array (target for the HalfEdge: < 2 s at
@@ -50,15 +55,16 @@ def run_tables_bytes(s) -> int:
     return int(sum(np.asarray(x).nbytes for x in t.values()))
 
 
-def bench_one(n: int, structures, repeats: int, seed: int = 0, tables: bool = True) -> list[dict]:
+def bench_one(n: int, structures, repeats: int, seed: int = 0, tables: bool = True,
+              modes=("canonical",)) -> list[dict]:
     rng = np.random.default_rng(seed)
     pts = rng.random((n, 2))
     t0 = time.perf_counter()
     tri = io.from_points(pts, f"uniform{n}")
     t_delaunay = time.perf_counter() - t0
     rows = []
-    ref_out = None
-    for name in structures:
+    ref_out = {}
+    for name, mode in [(name, mode) for name in structures for mode in modes]:
         t0 = time.perf_counter()
         s = P.build_structure(tri, name, check=False)
         jax.block_until_ready(jax.tree_util.tree_leaves(s))
@@ -69,18 +75,20 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0, tables: bool = Tr
             s = P.build_structure(tri, name, check=False)
             jax.block_until_ready(jax.tree_util.tree_leaves(s))
             builds.append(time.perf_counter() - t0)
-        first = P.polylla(s, tri.points, tables=tables)
-        runs = [P.polylla(s, tri.points, tables=tables) for _ in range(repeats)]
+        kw = dict(tables=tables, mode=mode,
+                  corners=tri.input_faces if mode == "reference" else None)
+        first = P.polylla(s, tri.points, **kw)
+        runs = [P.polylla(s, tri.points, **kw) for _ in range(repeats)]
         med = {k: statistics.median(r.timings[k] for r in runs) for k in PHASES}
         med_cpu = {k: statistics.median(r.timings["cpu_" + k] for r in runs) for k in PHASES}
         total = sum(med[k] for k in ("label", "traversal", "repair"))
         mesh = runs[-1]
-        if ref_out is None:
-            ref_out = (mesh.offsets, mesh.indices)
-        identical = bool(np.array_equal(ref_out[0], mesh.offsets)
-                         and np.array_equal(ref_out[1], mesh.indices))
+        first_out = ref_out.setdefault(mode, (mesh.offsets, mesh.indices))
+        identical = bool(np.array_equal(first_out[0], mesh.offsets)
+                         and np.array_equal(first_out[1], mesh.indices))
         rows.append({
-            "points": n, "triangles": tri.num_faces, "structure": name, "tables": tables,
+            "points": n, "triangles": tri.num_faces, "structure": name, "mode": mode,
+            "tables": tables,
             "delaunay_s": t_delaunay,
             "build_s": statistics.median(builds), "build_first_s": t_build_first,
             **{f"{k}_s": med[k] for k in PHASES},
@@ -100,7 +108,7 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0, tables: bool = Tr
             "peak_rss_mb": peak_rss_mb(), "identical_to_first_structure": identical,
         })
         print(json.dumps(rows[-1]), flush=True)
-        del s, first, runs, mesh
+        del first, runs, mesh
     return rows
 
 
@@ -108,6 +116,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000])
     ap.add_argument("--structures", nargs="+", default=["halfedge", "pemb"])
+    ap.add_argument("--modes", nargs="+", default=["canonical", "reference"],
+                    choices=["canonical", "reference"])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", default=None, help="write all rows to this file")
     ap.add_argument("--no-tables", action="store_true",
@@ -126,7 +136,8 @@ def main(argv=None) -> int:
     rows = []
     for n in args.sizes:
         try:
-            rows += bench_one(n, structures, args.repeats, tables=not args.no_tables)
+            rows += bench_one(n, structures, args.repeats, tables=not args.no_tables,
+                              modes=args.modes)
         except Exception as exc:  # report and go on with the next size
             print(f"size {n}: {type(exc).__name__}: {exc}", file=sys.stderr)
     if args.json:

@@ -170,7 +170,7 @@ def cmd_polylla(args) -> int:
 
     JSON keys (from :func:`jaxcds.algorithms.polylla.run`): ``polygons``, ``barrier_edge_tips``,
     ``repaired_polygons``, ``regions``, ``frontier_edges``, ``vertices``, ``triangles``,
-    ``structure``, ``input``, ``output``, ``timings`` (seconds per phase: ``build``, ``label``,
+    ``structure``, ``mode``, ``input``, ``output``, ``timings`` (seconds per phase: ``build``, ``label``,
     ``traversal``, ``repair``, ``polygons``, ``order``, ``repair_count``, and ``cpu_*`` process
     CPU seconds; the first run in a process includes jit compilation), ``seconds`` (total)."""
     from jaxcds.algorithms import polylla
@@ -180,7 +180,7 @@ def cmd_polylla(args) -> int:
     t0 = time.perf_counter()
     with _writing(args.output or ""):
         rep = polylla.run(args.input, args.output, structure=args.structure,
-                          tables=not args.no_tables)
+                          tables=not args.no_tables, mode=args.mode)
     rep["seconds"] = round(time.perf_counter() - t0, 4)
     _emit(args, rep)
     return 0
@@ -220,5 +220,9 @@ def add_commands(sub) -> None:
     p.add_argument("--no-tables", action="store_true",
                    help="navigate the structure as it is, without per-run navigation tables "
                         "(pemb: a parenthesis search per operator; slower, smaller peak memory)")
+    p.add_argument("--mode", default="reference", choices=["reference", "canonical"],
+                   help="reference (default): the reference implementation's polygons, its "
+                        "sequential walk and repair on the input's numbering; canonical: "
+                        "order-free phases, every barrier-edge tip repaired")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_polylla)

@@ -40,6 +40,18 @@ Output is canonical and independent of the structure's dart numbering: every pol
 its lexicographically smallest directed edge ``(origin, target)`` (input vertex ids) and the
 polygons are sorted by that edge, so HalfEdge and pemb give identical arrays.
 
+Two modes (:func:`polylla`, ``mode``). The phases above are ``"canonical"``: every barrier-edge
+tip of a region is repaired and the result does not depend on how the input is numbered.
+``"reference"`` -- the default whenever the input's rows are known (``corners``; :func:`run` and
+the CLI always pass them) -- keeps phase 1 and replaces phases 2-4 by the reference
+implementation's own sequential walk and repair on the input's numbering
+(:mod:`jaxcds.algorithms.polylla_reference`, one numba pass over the structure's darts read
+into host arrays): the output is then the reference's file, polygon for polygon and vertex for
+vertex, including where the reference's walk stops early at its starting vertex (a tip can stay
+in a polygon) and where its tips are repaired in turn from ``edge_of_vertex`` (the split
+depends on the numbering). Against the reference port of the tests, 3,000 random points: the
+modes differ in 4 to 15 polygons in 6 of 8 sets; reference mode equals the port in all.
+
 Host-side parts (said here, as the issue asks): reading back the tip darts (a ``nonzero``) and
 the number of frontier darts to size the compacted arrays between phases, sorting the polygons
 by their first edge (numpy ``lexsort``, optional), and counting the repaired polygons (connected
@@ -455,7 +467,11 @@ def _canonical_order(offsets: np.ndarray, indices: np.ndarray):
     smallest directed edge already)."""
     first = indices[offsets[:-1]]
     second = indices[offsets[:-1] + 1]
-    order = np.lexsort((second, first))
+    return _reordered(offsets, indices, np.lexsort((second, first)))
+
+
+def _reordered(offsets: np.ndarray, indices: np.ndarray, order: np.ndarray):
+    """The CSR polygons in the order ``order`` (host numpy): ``(offsets, indices, order)``."""
     sizes = np.diff(offsets)[order]
     new_off = np.zeros(offsets.size, np.int64)
     np.cumsum(sizes, out=new_off[1:])
@@ -480,6 +496,8 @@ class PolyllaMesh:
       frontier_edges: number of frontier edges (undirected, before repair).
       triangles: number of input triangles.
       timings: seconds per phase (``label``, ``traversal``, ``repair``, ``polygons``).
+      seed_edges: reference mode: ``(P,)`` the reference's half-edge id (``3 i + j``) of the
+        seed edge each polygon came from; the polygons are in its order (None otherwise).
     """
 
     points: np.ndarray
@@ -491,6 +509,7 @@ class PolyllaMesh:
     frontier_edges: int
     triangles: int
     timings: dict
+    seed_edges: Optional[np.ndarray] = None
 
     @property
     def num_polygons(self) -> int:
@@ -529,7 +548,8 @@ def _pad(x: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
-            sync_timings: bool = True, canonical: bool = True, tables: bool = True) -> PolyllaMesh:
+            sync_timings: bool = True, canonical: Optional[bool] = None, tables: bool = True,
+            mode: Optional[str] = None, row_ids=None) -> PolyllaMesh:
     """Run Polylla on structure ``s`` (any structure with borders) and 2D ``positions``.
 
     Args:
@@ -548,6 +568,21 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         without them). Given, it is taken as the caller's word (``run`` passes what it read).
         The reference keeps the input's orientation: its polygons are then clockwise, and its
         barrier-edge repair turns the other way round (:func:`middle_edges`).
+
+    mode: ``"reference"`` (the default when ``corners`` are given) runs the traversal and
+      repair as the reference implementation does, sequentially, on the input's numbering
+      (:mod:`jaxcds.algorithms.polylla_reference`): its walk stops at its starting vertex and
+      its tips are repaired one after the other from ``edge_of_vertex``, so the output is the
+      reference's polygon for polygon (order and vertex order included), its order dependence
+      and the tips it leaves in included. ``"canonical"`` (the default without ``corners``)
+      runs the order-free vectorised phases: every tip of a region is repaired, every polygon
+      walked to its starting dart, the output independent of the numbering (sorted, each
+      polygon from its smallest directed edge). Without ``corners``, ``"reference"`` takes
+      the structure's faces as the input rows.
+    canonical: sort the polygons by their first directed edge (canonical mode; default True).
+      Reference mode keeps the reference's order and ignores it.
+    row_ids: reference mode: the input index of each row of ``corners`` (default: its own), for
+      a piece of a larger input (the reference's half-edge ids are the whole input's).
 
     ``tables``: let the structure build per-run navigation tables (:func:`_tabulated`; pemb:
     twin, origin and first dart of every face, 41.5 bytes per vertex while the run lasts, its
@@ -585,6 +620,11 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         return clock()
 
     cs = None
+    mode = ("canonical" if corners is None else "reference") if mode is None else mode
+    if mode not in ("reference", "canonical"):
+        raise errors.PolyllaError(f"unknown Polylla mode {mode!r}: 'reference' or 'canonical'")
+    if mode == "reference" and corners is None:  # the structure's own faces are the input rows
+        corners = vids[np.asarray(_faces_of(s))]
     if clockwise is not None and not isinstance(clockwise, (bool, np.bool_)):
         raise errors.PolyllaError(f"clockwise must be True, False or None, got {clockwise!r}")
     if corners is not None:
@@ -598,6 +638,7 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         cs_j = None if cs is None else jnp.asarray(cs, jnp.int32)
         max_edge, frontier, seed, border, misplaced, tied, nav_tables = _label_phase(
             s, pos_j, vids_j, cs_j, tabulate=bool(tables))
+        in_row_order = cs is None or not bool(misplaced)  # face f of s is row f of corners
         if cs is not None and bool(misplaced) and bool(tied):
             # the structure numbers its faces its own way (pemb): the rows follow them
             cs_j = jnp.asarray(_corners_of_faces(s, cs, vids), jnp.int32)
@@ -611,6 +652,9 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
 
     n_frontier = int(jnp.sum(frontier)) // 2  # undirected, before repair
     regions = int(jnp.sum(seed))
+    if mode == "reference":
+        return _reference_run(s, nav, pos, vids, cs, row_ids, seed, frontier, clockwise,
+                              n_frontier, t, clock, marks, in_row_order)
     succ, ok, tips = _traversal_and_tips(nav, frontier, border, tabulate=bool(tables))
     del border
     tip_darts = np.nonzero(np.asarray(tips))[0].astype(np.int32)
@@ -645,7 +689,7 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         indices = _reversed_cycles(offsets, indices, s.num_vertices)
     t4 = clock()
     t["polygons"] = t4 - t3
-    if canonical:
+    if canonical is None or canonical:
         offsets, indices, _ = _canonical_order(offsets, indices)
     t5 = clock()
     t["order"] = t5 - t4
@@ -656,14 +700,66 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         pol = np.asarray(pol)[lanes_new]
         repaired = _count_components(pol[:T], pol[T:])
     t["repair_count"] = clock() - t5
-    # process CPU seconds of the same phases (all threads; a load-independent companion of the
-    # wall times on a shared machine)
-    names = ["label", "traversal", "repair", "polygons", "order", "repair_count"]
-    for name, (a, b) in zip(names, zip(marks[:-1], marks[1:])):
-        t["cpu_" + name] = b[1] - a[1]
+    _cpu_times(t, marks, ["label", "traversal", "repair", "polygons", "order", "repair_count"])
     return PolyllaMesh(points=pos, offsets=offsets, indices=indices, barrier_edge_tips=int(T),
                        repaired_polygons=int(repaired), regions=regions,
                        frontier_edges=n_frontier, triangles=int(s.num_faces), timings=t)
+
+
+def _cpu_times(t: dict, marks: list, names: list) -> None:
+    """Process CPU seconds of the phases between ``marks`` (all threads; a load-independent
+    companion of the wall times on a shared machine) as ``t["cpu_" + name]``."""
+    for name, (a, b) in zip(names, zip(marks[:-1], marks[1:])):
+        t["cpu_" + name] = b[1] - a[1]
+
+
+@functools.partial(jax.jit, static_argnames=("mirror",))
+def _reference_darts(s, mirror: bool):
+    """``(next, twin, origin, border, face)`` of every dart of ``s`` in the reference's
+    orientation: on a clockwise input (``mirror``) the reference's half-edge is the structure's
+    dart read backwards (its ``next`` is the structure's ``prev``, its origin the target)."""
+    d = _darts(s)
+    tw = s.twin(d)
+    fwd = s.next(d)
+    nxt = s.prev(d) if mirror else fwd
+    org = s.origin(tw) if mirror else s.origin(d)
+    border = s.is_border(d) | ~s.dart_valid(d)
+    # every dart's face from the faces' darts (three scatters), not one face() per dart (on
+    # pemb that is an enclose search each)
+    f = jnp.arange(s.num_faces, dtype=jnp.int32)
+    e0 = s.edge_of_face(f)
+    e1 = fwd[e0]
+    face = jnp.full((s.num_darts,), s.num_faces, jnp.int32)
+    for e in (e0, e1, fwd[e1]):
+        face = face.at[e].set(f, mode="drop")
+    return nxt, tw, org, border, face
+
+
+def _reference_run(s, nav, pos, vids, cs, row_ids, seed, frontier, clockwise, n_frontier,
+                   t, clock, marks, in_row_order):
+    """Reference mode of :func:`polylla` after its label phase: the sequential traversal and
+    repair of :mod:`jaxcds.algorithms.polylla_reference` on ``nav``'s darts (``in_row_order``:
+    the label phase found every face of ``s`` in its row of ``cs``)."""
+    from jaxcds.algorithms.polylla_reference import reference_walks
+
+    t1 = marks[-1][0]
+    rows = np.arange(s.num_faces) if in_row_order else _rows_of_faces(s, cs, vids, nav)
+    nxt, tw, org, border, face = (np.asarray(x) for x in _reference_darts(nav, bool(clockwise)))
+    off, idx, seeds, tips, repaired, regions = reference_walks(
+        nxt, tw, org, border, face, np.asarray(seed), rows, cs, vids, np.asarray(frontier),
+        s.num_vertices, row_id=row_ids)
+    t2 = clock()
+    t["traversal"] = t2 - t1  # the walks and the repair are one sequential pass here
+    t["repair"] = 0.0
+    indices = vids[idx].astype(np.int32)
+    t["polygons"] = clock() - t2
+    t["order"] = t["repair_count"] = 0.0
+    _cpu_times(t, marks, ["label", "traversal", "polygons"])
+    for k in ("repair", "order", "repair_count"):  # done inside the traversal's pass
+        t["cpu_" + k] = 0.0
+    return PolyllaMesh(points=pos, offsets=off, indices=indices, barrier_edge_tips=tips,
+                       repaired_polygons=repaired, regions=regions, frontier_edges=n_frontier,
+                       triangles=int(s.num_faces), timings=t, seed_edges=seeds)
 
 
 def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
@@ -693,16 +789,52 @@ def _all_clockwise(pos: np.ndarray, corners: np.ndarray) -> bool:
 _faces_of = jax.jit(lambda s: s.face_vertices())
 
 
+@jax.jit
+def _face_triples(s):
+    """``(F, 3)`` origins of each face's three darts (``edge_of_face``, then ``next``): on a
+    structure with per-run tables these are gathers (``face_vertices`` of pemb searches)."""
+    e0 = s.edge_of_face(jnp.arange(s.num_faces, dtype=jnp.int32))
+    e1 = s.next(e0)
+    return jnp.stack([s.origin(e0), s.origin(e1), s.origin(s.next(e1))], axis=1)
+
+
+def _triangle_keys(t: np.ndarray, n: int) -> Optional[np.ndarray]:
+    """One int64 per row of ``t`` (vertex ids below ``n``), equal for rows with the same vertex
+    set: smallest, middle and largest id packed (the middle one is the sum less the other two,
+    no sort); None when ``n**3`` does not fit."""
+    if n >= 1 << 21:
+        return None
+    t = t.astype(np.int64)
+    lo, hi = t.min(axis=1), t.max(axis=1)
+    return (lo * n + (t.sum(axis=1) - lo - hi)) * n + hi
+
+
+def _rows_of_faces(s, corners: np.ndarray, vids: np.ndarray, nav=None) -> np.ndarray:
+    """``(F,)`` the row of ``corners`` holding each face of ``s`` (matched by vertex set; the
+    identity, without a sort, when the structure keeps the rows' order, as the half-edge).
+    ``nav``: the same structure with per-run tables, to read the faces from."""
+    fv = vids[np.asarray(_face_triples(s if nav is None else nav))]
+    n = int(max(fv.max(initial=0), corners.max(initial=0))) + 1
+    ka, kb = _triangle_keys(fv, n), _triangle_keys(corners, n)
+    if ka is not None and np.array_equal(ka, kb):
+        return np.arange(fv.shape[0])
+    if ka is None:  # too many vertices for one key: sort the rows' sorted ids
+        a, b = np.sort(fv, axis=1), np.sort(corners, axis=1)
+        oa, ob = np.lexsort(a.T[::-1]), np.lexsort(b.T[::-1])
+        same = np.array_equal(a[oa], b[ob])
+    else:
+        oa, ob = np.argsort(ka), np.argsort(kb)
+        same = np.array_equal(ka[oa], kb[ob])
+    if not same:
+        raise errors.PolyllaError("corners are not the triangles of the structure")
+    out = np.empty(fv.shape[0], np.int64)
+    out[oa] = ob
+    return out
+
+
 def _corners_of_faces(s, corners: np.ndarray, vids: np.ndarray) -> np.ndarray:
     """The rows of ``corners`` in the face order of ``s`` (matched by vertex set, host sort)."""
-    fv = vids[np.asarray(_faces_of(s))]
-    a, b = np.sort(fv, axis=1), np.sort(corners, axis=1)
-    ka, kb = np.lexsort(a.T[::-1]), np.lexsort(b.T[::-1])
-    if not np.array_equal(a[ka], b[kb]):
-        raise errors.PolyllaError("corners are not the triangles of the structure")
-    out = np.empty_like(corners)
-    out[ka] = corners[kb]
-    return out
+    return corners[_rows_of_faces(s, corners, vids)]
 
 
 def _reversed_cycles(offsets: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
@@ -798,16 +930,18 @@ def _components_of(tri):
     return (ncomp, label) if ncomp > 1 else None
 
 
-def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool):
+def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool,
+                      mode: str = "reference"):
     """Polylla on each connected piece of ``tri`` (its own structure, vertices renumbered in
     order, which keeps every polygon's smallest directed edge first), the polygons merged in
-    input ids and sorted as one run's. Returns ``(PolyllaMesh, build seconds)``."""
+    input ids and ordered as one run's (canonical: sorted; reference: by seed half-edge id, the
+    pieces' rows keeping their input indices). Returns ``(PolyllaMesh, build seconds)``."""
     from jaxcds import polylla_io
 
     ncomp, label = parts
     _checked_mesh(tri, structure, check)  # the whole input, as one structure would check it
     cw = None if tri.clockwise is None else np.asarray(tri.clockwise, bool)
-    offs, idx, t, t_build = [np.zeros(1, np.int64)], [], {}, 0.0
+    offs, idx, seeds, t, t_build = [np.zeros(1, np.int64)], [], [], {}, 0.0
     counts = dict(barrier_edge_tips=0, repaired_polygons=0, regions=0, frontier_edges=0)
     for c in range(ncomp):
         sel = label == c
@@ -824,21 +958,29 @@ def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool):
         s = build_structure(sub, structure, check=False)  # a piece of a valid input
         t_build += time.perf_counter() - t0
         m = polylla(s, sub.points, corners=sub.input_faces, clockwise=tri.all_clockwise,
-                    tables=tables, canonical=False)
+                    tables=tables, canonical=False, mode=mode, row_ids=np.nonzero(sel)[0])
         offs.append(m.offsets[1:] + offs[-1][-1])
         idx.append(used[m.indices].astype(np.int32))
+        seeds.append(m.seed_edges)
         for k in counts:
             counts[k] += getattr(m, k)
         for k, v in m.timings.items():
             t[k] = t.get(k, 0.0) + v
-    offsets, indices, _ = _canonical_order(np.concatenate(offs), np.concatenate(idx))
+    offsets, indices = np.concatenate(offs), np.concatenate(idx)
+    seed_edges = None
+    if mode == "reference":  # the reference walks the seeds in half-edge order, all pieces at once
+        seed_edges = np.concatenate(seeds)
+        offsets, indices, order = _reordered(offsets, indices, np.argsort(seed_edges, kind="stable"))
+        seed_edges = seed_edges[order]
+    else:
+        offsets, indices, _ = _canonical_order(offsets, indices)
     mesh = PolyllaMesh(points=tri.points, offsets=offsets, indices=indices,
-                       triangles=tri.num_faces, timings=t, **counts)
+                       triangles=tri.num_faces, timings=t, seed_edges=seed_edges, **counts)
     return mesh, t_build
 
 
 def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
-        check: bool = True, tables: bool = True) -> dict:
+        check: bool = True, tables: bool = True, mode: str = "reference") -> dict:
     """Read ``source``, run Polylla on ``structure``, write ``output`` (OFF, atomically).
 
     Args:
@@ -849,6 +991,9 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
       structure: ``halfedge`` (default) or ``pemb`` (or any registered structure with borders).
       tables: per-run navigation tables (see :func:`polylla`); ``False`` for the structure's
         own operators only.
+      mode: ``"reference"`` (default: the reference implementation's polygons, on the input's
+        numbering) or ``"canonical"`` (order-free phases, every tip repaired); see
+        :func:`polylla`.
 
     Returns a dict: ``polygons``, ``barrier_edge_tips``, ``repaired_polygons``, ``regions``,
     ``frontier_edges``, ``vertices``, ``triangles``, ``structure``, ``input``, ``output``,
@@ -870,17 +1015,18 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     t0 = time.perf_counter()
     parts = _components_of(tri) if structure != "halfedge" else None
     if parts is not None:  # pemb is one connected planar embedding: one run per piece
-        mesh, t_build = _run_by_component(tri, parts, structure, check=check, tables=tables)
+        mesh, t_build = _run_by_component(tri, parts, structure, check=check, tables=tables,
+                                          mode=mode)
     else:
         s = build_structure(tri, structure, check=check)
         t_build = time.perf_counter() - t0
         # the input's corner order and orientation: ties and clockwise inputs as the reference
         mesh = polylla(s, tri.points, corners=tri.input_faces, clockwise=tri.all_clockwise,
-                       tables=tables)
+                       tables=tables, mode=mode)
     if output is not None:
         polylla_io.write_polygon_off(str(output), tri.points, mesh.offsets, mesh.indices)
     out = mesh.summary()
-    out.update(structure=structure, tables=bool(tables), input=name,
+    out.update(structure=structure, mode=mode, tables=bool(tables), input=name,
                output=None if output is None else str(output),
                timings={"build": t_build, **mesh.timings})
     return out

@@ -33,17 +33,23 @@ def _need(path: pathlib.Path) -> str:
 
 
 # ------------------------------------------------------------------------ slow reference port
-def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = False):
+def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = False,
+                      exact: bool = False):
     """Sequential port of the reference (Polylla-Mesh-DCEL ``polylla.hpp``): seeds in dart order,
     ``travel_triangles``, ``has_BarrierEdgeTip`` (poly[i] == poly[i+2]), ``search_middle_edge``
-    with its even/odd cases, ``barrieredge_tip_reparation``. Plain Python dicts, no protocol.
-    The faces are taken as given: corner order (ties go to the first of ``c0c1, c1c2, c2c0``)
-    and orientation (clockwise faces give clockwise polygons). Differences, on purpose: walks close on the starting dart (the reference also stops when it
-    meets the starting *vertex* again, which truncates non-simple polygons), repaired pieces are
-    de-duplicated as cycles, and (unless ``sequential``) the middle edges of all tips of a polygon
-    are chosen before any is marked frontier. The reference marks each one at once, so a tip
-    reached by an earlier tip's middle edge gets its middle edge counted from whichever of its
-    now two frontier edges ``edge_of_vertex`` leads to: order and numbering dependent.
+    with its even/odd cases, ``barrieredge_tip_reparation``. Plain Python lists, no protocol.
+    The faces are taken as given: corner order (ties go to the first of ``c0c1, c1c2, c2c0``),
+    orientation (clockwise faces give clockwise polygons) and numbering (half-edge ``3 i + j``,
+    ``edge_of_vertex`` = the last one written for its origin).
+
+    ``exact``: the reference as it is, the oracle of ``mode="reference"``: a walk stops the first
+    time it meets its starting vertex again (``v_curr != v_init``), tips are repaired one after
+    the other (each middle edge marked frontier at once), and the pieces are walked from the
+    middle-edge darts in reverse order, crossing off the darts a walk passes
+    (``seed_bet_mark``); polygons in the reference's output order.
+    Otherwise, the oracle of ``mode="canonical"``: walks close on their starting dart, repaired
+    pieces are de-duplicated as cycles, and (unless ``sequential``) the middle edges of all tips
+    of a polygon are chosen before any is marked frontier.
     Returns ``(polygons, barrier_edge_tips, repaired_polygons)``."""
     faces = np.asarray(faces)
     nd = 3 * faces.shape[0]
@@ -66,22 +72,50 @@ def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = 
             mx[e1] = True
         else:
             mx[e2] = True
-    frontier = [tw[d] < 0 or not (mx[d] or mx[tw[d]]) for d in range(nd)]
     seeds = [d for d in range(nd)
              if (tw[d] >= 0 and mx[d] and mx[tw[d]] and d < tw[d]) or (tw[d] < 0 and mx[d])]
+    # the exterior half-edges, as the reference adds them: twin of each border dart (ids from
+    # nd on, in the border darts' order), next = the next exterior one turning ccw
+    prv = [3 * (d // 3) + (d % 3 + 2) % 3 for d in range(nd)]
+    for d in range(nd):
+        if tw[d] < 0:
+            tw[d] = len(org)
+            org.append(org[nxt[d]])
+            tw.append(d)
+    outer = lambda e: e >= nd  # noqa: E731
+    for h in range(nd, len(org)):
+        n = tw[prv[tw[h]]]  # CCW_edge_to_vertex(twin(h))
+        while not outer(n):
+            n = tw[prv[n]]
+        nxt.append(n)
+    frontier = [outer(d) or outer(tw[d]) or not (mx[d] or mx[tw[d]]) for d in range(len(org))]
     cw = lambda e: nxt[tw[e]]  # noqa: E731  CW_edge_to_vertex = next(twin(e))
     edge_of_vertex = {}
     for d in range(nd):
         edge_of_vertex[org[d]] = d
 
-    def search(e):
+    def search(e, cross=None):
         while not frontier[e]:
             e = cw(e)
+            if cross is not None:
+                cross[e] = False
         return e
 
-    def travel(e):
-        e0 = search(e)
+    def travel(e, cross=None):
+        e0 = search(e, cross)
         poly, cur = [], e0
+        if exact:  # the reference's loop: from target(e0) until origin(e0) comes round again
+            # (its OFF files list the polygon from origin(e0): rotated by the caller)
+            cur = nxt[e0]
+            poly.append(org[cur])
+            if cross is not None:
+                cross[cur] = False
+            while cur != e0 and org[cur] != org[e0]:
+                cur = nxt[search(cur, cross)]
+                poly.append(org[cur])
+                if cross is not None:
+                    cross[cur] = False
+            return poly
         while True:
             poly.append(org[cur])
             cur = search(nxt[cur])
@@ -104,10 +138,11 @@ def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = 
         return n
 
     out, tips, repaired = [], 0, 0
+    first = (lambda p: p[-1:] + p[:-1]) if exact else (lambda p: p)  # noqa: E731
     for e in seeds:
         poly = travel(e)
         if not has_tip(poly):
-            out.append(poly)
+            out.append(first(poly))
             continue
         repaired += 1
         starts = []
@@ -115,11 +150,20 @@ def reference_polylla(points: np.ndarray, faces: np.ndarray, sequential: bool = 
             if poly[i] == poly[(i + 2) % len(poly)]:
                 tips += 1
                 m = middle_edge(poly[(i + 1) % len(poly)])
-                if sequential:
+                if sequential or exact:
                     frontier[m] = frontier[tw[m]] = True
                 starts += [m, tw[m]]
         for m in starts:
             frontier[m] = True
+        if exact:
+            cross = [False] * len(org)
+            for m in starts:
+                cross[m] = True
+            for t in reversed(starts):
+                if cross[t]:
+                    cross[t] = False
+                    out.append(first(travel(t, cross)))
+            continue
         seen = set()
         for t in starts:
             p = travel(t)
@@ -180,6 +224,9 @@ def test_points50_matches_reference_off(structure):
     assert len(ref) == 17
     assert mesh.num_polygons == 17
     assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref)
+    # reference mode (the input's rows): the file's own order, each polygon from its first vertex
+    exact = P.polylla(P.build_structure(tri, structure), tri.points, corners=tri.input_faces)
+    assert exact.polygons() == [list(map(int, p)) for p in ref]
     check_partition(tri, mesh)
 
 
@@ -244,6 +291,48 @@ def test_random_points_match_sequential_reference(seed):
     # the reference's own (sequential) marking finds the same tips and repairs the same regions
     _, tips_seq, repaired_seq = reference_polylla(tri.points, tri.faces, sequential=True)
     assert (tips_seq, repaired_seq) == (tips, repaired)
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_reference_mode_is_the_reference_polygon_for_polygon(structure, seed):
+    """``mode="reference"`` (the default with the input's rows) gives the reference's output
+    as it is: the same polygons in the same order, each from the same vertex, the same tip and
+    repair counts, on random inputs whose faces are listed in a shuffled order."""
+    tri = random_tri(seed)
+    perm = np.random.default_rng(seed).permutation(tri.num_faces)
+    t = io.Triangulation2D(tri.points, tri.faces[perm].astype(np.int32), "shuffled")
+    exact, tips, repaired = reference_polylla(t.points, t.input_faces, exact=True)
+    s = P.build_structure(t, structure)
+    mesh = P.polylla(s, t.points, corners=t.input_faces)
+    assert mesh.polygons() == exact
+    assert (mesh.barrier_edge_tips, mesh.repaired_polygons) == (tips, repaired)
+    canon = P.polylla(s, t.points, corners=t.input_faces, mode="canonical")
+    assert (mesh.regions, mesh.frontier_edges) == (canon.regions, canon.frontier_edges)
+    if _simple(mesh):
+        check_partition(t, mesh)
+
+
+def _simple(mesh):
+    return all(p[i] != p[(i + 2) % len(p)] for p in mesh.polygons() for i in range(len(p)))
+
+
+@pytest.mark.slow
+def test_reference_mode_keeps_the_reference_order_dependence():
+    """Where the two modes part (3,000 points: 4 and 11 polygons differ), reference mode follows
+    the reference: its walk cut short at the starting vertex leaves a barrier-edge tip in a
+    polygon, and a tip reached by an earlier tip's middle edge is split the reference's way."""
+    tri = io.from_points(np.random.default_rng(101).random((3000, 2)), "r3000")
+    exact, _, _ = reference_polylla(tri.points, tri.input_faces, exact=True)
+    canon, _, _ = reference_polylla(tri.points, tri.input_faces)
+    s = P.build_structure(tri)
+    ref_mode = P.polylla(s, tri.points, corners=tri.input_faces)
+    canon_mode = P.polylla(s, tri.points, corners=tri.input_faces, mode="canonical")
+    assert ref_mode.polygons() == exact
+    assert P.polygons_as_cycles(canon_mode.polygons()) == P.polygons_as_cycles(canon)
+    assert P.polygons_as_cycles(exact) != P.polygons_as_cycles(canon)  # not vacuous
+    assert not _simple(ref_mode) and _simple(canon_mode)  # the reference leaves a tip in
+    check_partition(tri, canon_mode)
 
 
 def test_random_points_exercise_repair():
@@ -316,12 +405,15 @@ def test_ties_follow_the_input_corner_order(rotation):
     faces = np.stack([np.roll(f, -r) for f, r in zip(tri.faces, rot)]).astype(np.int32)
     t = io.Triangulation2D(tri.points, faces, "ties")
     ref, tips, _ = reference_polylla(t.points, t.faces)
+    exact, _, _ = reference_polylla(t.points, t.faces, exact=True)
     got = {st: P.run(t, structure=st) for st in ("halfedge", "pemb")}
     for st in got:
-        mesh = P.polylla(P.build_structure(t, st), t.points, corners=t.input_faces)
-        assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref), st
-        assert mesh.barrier_edge_tips == tips
-        check_partition(t, mesh)
+        for mode, want in (("canonical", ref), ("reference", exact)):
+            mesh = P.polylla(P.build_structure(t, st), t.points, corners=t.input_faces, mode=mode)
+            assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(want), (st, mode)
+            assert mesh.barrier_edge_tips == tips
+            check_partition(t, mesh)
+        assert mesh.polygons() == exact  # reference mode: the reference's order, vertex for vertex
     assert got["halfedge"] == {**got["pemb"], "structure": "halfedge", "timings": got["halfedge"]["timings"]}
 
 
@@ -349,9 +441,14 @@ def test_clockwise_input_gives_the_reference_output():
     assert cw.all_clockwise and cw.flipped == cw.num_faces
     np.testing.assert_array_equal(cw.input_faces, tri.faces[:, ::-1])
     ref, tips, repaired = reference_polylla(cw.points, cw.input_faces)
+    exact, tips_x, repaired_x = reference_polylla(cw.points, cw.input_faces, exact=True)
     for st in STRUCTURES:
         st = st.values[0]
-        mesh = P.polylla(P.build_structure(cw, st), cw.points, corners=cw.input_faces)
+        s = P.build_structure(cw, st)
+        got = P.polylla(s, cw.points, corners=cw.input_faces)  # reference mode
+        assert got.polygons() == exact, st
+        assert (got.barrier_edge_tips, got.repaired_polygons) == (tips_x, repaired_x)
+        mesh = P.polylla(s, cw.points, corners=cw.input_faces, mode="canonical")
         assert P.polygons_as_cycles(mesh.polygons()) == P.polygons_as_cycles(ref), st
         assert (mesh.barrier_edge_tips, mesh.repaired_polygons) == (tips, repaired)
         areas = [signed_area(cw.points, p) for p in mesh.polygons()]
@@ -398,6 +495,21 @@ def test_corners_are_checked():
     for bad in ("no", np.array([True, False]), 1):
         with pytest.raises(errors.PolyllaError, match="clockwise must be True, False or None"):
             P.polylla(s, tri.points, corners=tri.faces, clockwise=bad)
+    # reference mode needs the rows to be the structure's triangles (any order)
+    other = random_tri(1)
+    with pytest.raises(errors.PolyllaError, match="corners are not the triangles"):
+        P.polylla(s, tri.points, corners=other.faces[: tri.num_faces] % tri.num_vertices)
+    with pytest.raises(errors.PolyllaError, match="unknown Polylla mode 'fast'"):
+        P.polylla(s, tri.points, corners=tri.faces, mode="fast")
+    # the rows listed in another order are matched to the faces: same polygons, listed as the
+    # reference would list that input
+    perm = np.random.default_rng(0).permutation(tri.num_faces)
+    got = P.polylla(s, tri.points, corners=tri.faces[perm])
+    exact, _, _ = reference_polylla(tri.points, tri.faces[perm], exact=True)
+    assert got.polygons() == exact
+    # without corners, reference mode reads the structure's own faces as the rows
+    assert P.polylla(s, tri.points, mode="reference").polygons() == \
+        reference_polylla(tri.points, tri.faces, exact=True)[0]
 
 
 def test_phases_same_without_jit():

@@ -1,0 +1,302 @@
+"""Polylla's traversal and repair as the reference implementation runs them (``mode="reference"``).
+
+The reference (Polylla-Mesh-DCEL, ``polylla.hpp``; its output is ``../shared/polylla/
+points50.1.off``) walks each terminal-edge region once, sequentially, and three of its details
+make its output depend on the input's numbering and differ from the order-free phases of
+:mod:`jaxcds.algorithms.polylla` (``mode="canonical"``):
+
+1. **The walk stops at its starting vertex.** ``travel_triangles`` starts at the first frontier
+   dart ``e_init`` met turning clockwise from the seed and stops the first time it reaches
+   ``origin(e_init)`` again (``while (e_curr != e_init && v_curr != v_init)``; the first test
+   hardly ever ends the loop). A region whose boundary passes that vertex twice (the base of a
+   barrier edge) is cut short there: barrier-edge tips beyond the cut are not seen, and the
+   polygon is output with its tip left in.
+2. **Tips are repaired one after the other.** For the tips of one polygon, in the order of its
+   vertex list, ``search_middle_edge`` starts from ``edge_of_vertex(v)`` -- the last half-edge
+   with origin ``v`` in the input's numbering, ``3 i + j`` for corner ``j`` of triangle ``i`` --
+   turns clockwise to the first frontier dart, and marks the middle edge frontier at once, so a
+   later tip whose vertex an earlier middle edge reached may start from that edge instead.
+3. **Repaired pieces** are walked from the middle-edge darts in reverse order of their listing;
+   a dart the walks pass is crossed off (``seed_bet_mark``), so each piece is output once (the
+   reference's own comment calls the crossing-off incomplete: a piece can come out twice).
+
+This module runs that sequential algorithm on the structure's navigation (``next``, ``twin``,
+``origin``, ``is_border``, ``face`` of every dart, read once into host arrays) with the input's
+numbering attached to the darts (``rid``: the reference's half-edge id), in one numba pass:
+O(darts), like the reference. The label phase (longest edges, frontier, ties by the input's
+corner order) is the jitted one of :mod:`jaxcds.algorithms.polylla`. On an input of clockwise
+triangles the structure holds them turned counter-clockwise; the reference's half-edges are
+then the structure's darts read backwards (``next`` = the structure's ``prev``, ``origin`` = its
+``target``), so the walk is the reference's on the input as given.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from jaxcds import errors
+
+__all__ = ["reference_walks"]
+
+# status codes of the kernel (0: fine)
+_OK, _NO_FRONTIER, _OPEN_WALK, _BAD_CORNER = 0, 1, 2, 3
+
+
+# one row of 4 int32 per dart (the reference's array of structs): a walk step reads one line
+_NXT, _TWIN, _ORG, _FLAGS = 0, 1, 2, 3
+_FRONTIER, _BORDER = 1, 2
+
+
+@numba.njit(cache=True)
+def _search(e, H, budget):
+    """``search_frontier_edge``: turn clockwise (``next(twin(e))``) until a frontier dart; -1
+    after ``budget`` turns (a vertex with no frontier dart: a tie cycle or a broken table)."""
+    k = 0
+    while not (H[e, _FLAGS] & _FRONTIER):
+        e = H[H[e, _TWIN], _NXT]
+        k += 1
+        if k > budget:
+            return -1
+    return e
+
+
+@numba.njit(cache=True)
+def _push(buf, n, x):
+    """Append ``x`` to the growable int64 buffer ``buf`` holding ``n`` values."""
+    if n == buf.size:
+        big = np.empty(2 * buf.size + 16, buf.dtype)
+        big[:n] = buf[:n]
+        buf = big
+    buf[n] = x
+    return buf, n + 1
+
+
+@numba.njit(cache=True)
+def _half_edge_id(d, H, face, row, row_id, corners):
+    """The reference's id ``3 i + j`` of inner dart ``d``: row ``i`` of its face, ``j`` the
+    corner of that row its origin is (-1: none, the corners do not match)."""
+    r = row[face[d]]
+    o = H[d, _ORG]
+    for j in range(3):
+        if corners[r, j] == o:
+            return 3 * row_id[r] + j
+    return -1
+
+
+@numba.njit(cache=True)
+def _edge_of_vertex(e, H, face, row, row_id, corners, budget):
+    """``edge_of_vertex(v)`` as the reference stores it, for ``v`` the origin of dart ``e``: of
+    the inner darts leaving ``v``, the one whose half-edge id is the highest (the one written
+    last). Turns once around ``v``: only the tips' vertices ask."""
+    best, arg, d, k = np.int64(-1), e, e, 0
+    while True:
+        if not (H[d, _FLAGS] & _BORDER):
+            r = _half_edge_id(d, H, face, row, row_id, corners)
+            if r > best:
+                best, arg = r, d
+        d = H[H[d, _TWIN], _NXT]
+        k += 1
+        if d == e or k > budget:
+            return arg
+
+
+@numba.njit(cache=True)
+def _seeds_in_order(cand, H, face, row, row_id, corners):
+    """The label phase's seed darts (one per terminal or border terminal edge) as the reference
+    takes them: the half with the smaller half-edge id (a border terminal edge: its inner half),
+    in half-edge id order. ``(darts, ids)``; an id of -1 when the corners do not match."""
+    n = cand.size
+    ids = np.empty(n, np.int64)
+    darts = np.empty(n, np.int32)
+    for k in range(n):
+        d = cand[k]
+        rd = _half_edge_id(d, H, face, row, row_id, corners)
+        t = H[d, _TWIN]
+        if rd < 0:
+            return darts, np.full(n, -1, np.int64), d
+        if not (H[t, _FLAGS] & _BORDER):
+            rt = _half_edge_id(t, H, face, row, row_id, corners)
+            if rt < 0:
+                return darts, np.full(n, -1, np.int64), t
+            if rt < rd:
+                d, rd = t, rt
+        ids[k] = rd
+        darts[k] = d
+    order = np.argsort(ids, kind="mergesort")
+    return darts[order], ids[order], -1
+
+
+@numba.njit(cache=True)
+def _kernel(H, face, row, row_id, corners, cand):
+    E = H.shape[0]
+    budget = E + 1
+    seeds, seed_ids, bad = _seeds_in_order(cand, H, face, row, row_id, corners)
+    ns = seeds.size
+    nothing = np.zeros(0, np.int64)
+    if bad >= 0:
+        return _BAD_CORNER, bad, nothing, nothing, nothing, 0, 0
+    mark = np.zeros(E, np.bool_)
+    off = np.zeros(ns + 16, np.int64)
+    idx = np.empty(E // 2 + 16, np.int32)
+    seed_of = np.empty(ns + 16, np.int64)
+    npoly = 0
+    nidx = 0
+    tips = 0
+    to_repair = 0
+    poly = np.empty(64, np.int32)
+    via = np.empty(64, np.int32)  # the dart the walk leaves each listed vertex by
+    stack = np.empty(64, np.int32)
+    for s_i in range(ns):
+        # travel_triangles
+        e_init = _search(seeds[s_i], H, budget)
+        if e_init < 0:
+            return _NO_FRONTIER, seeds[s_i], nothing, nothing, nothing, 0, 0
+        v_init = H[e_init, _ORG]
+        e = H[e_init, _NXT]
+        v = H[e, _ORG]
+        poly, L = _push(poly, 0, v)
+        via, _ = _push(via, 0, e)
+        while e != e_init and v != v_init:
+            e = _search(e, H, budget)
+            if e < 0 or L > E:
+                return _OPEN_WALK, seeds[s_i], nothing, nothing, nothing, 0, 0
+            e = H[e, _NXT]
+            v = H[e, _ORG]
+            via, _ = _push(via, L, e)
+            poly, L = _push(poly, L, v)
+        tip = False
+        for i in range(L):
+            if poly[i] == poly[(i + 2) % L]:
+                tip = True
+                break
+        if not tip:  # written from its starting vertex, as the reference's files list it
+            for i in range(L):
+                idx, nidx = _push(idx, nidx, poly[(i + L - 1) % L])
+            off, _ = _push(off, npoly + 1, nidx)
+            seed_of, npoly = _push(seed_of, npoly, s_i)
+            continue
+        # barrieredge_tip_reparation: middle edges one after the other, marked at once
+        to_repair += 1
+        ntop = 0
+        for i in range(L):
+            if poly[i] != poly[(i + 2) % L]:
+                continue
+            tips += 1
+            fe = _search(_edge_of_vertex(via[(i + 1) % L], H, face, row, row_id, corners, budget),
+                         H, budget)
+            if fe < 0:
+                return _NO_FRONTIER, via[(i + 1) % L], nothing, nothing, nothing, 0, 0
+            n_ = H[H[fe, _TWIN], _NXT]
+            adv = 1
+            while n_ != fe:  # the degree of the tip (every dart leaving it)
+                n_ = H[H[n_, _TWIN], _NXT]
+                adv += 1
+                if adv > E:
+                    return _OPEN_WALK, fe, nothing, nothing, nothing, 0, 0
+            adv -= 1
+            adv = adv // 2 - 1 if adv % 2 == 0 else adv // 2
+            if adv < 0:  # degree 1: the reference's unsigned count wraps (no valid input has it)
+                return _OPEN_WALK, fe, nothing, nothing, nothing, 0, 0
+            m = H[H[fe, _TWIN], _NXT]
+            while adv != 0:
+                m = H[H[m, _TWIN], _NXT]
+                adv -= 1
+            tm = H[m, _TWIN]
+            H[m, _FLAGS] |= _FRONTIER
+            H[tm, _FLAGS] |= _FRONTIER
+            stack, ntop = _push(stack, ntop, m)
+            stack, ntop = _push(stack, ntop, tm)
+            mark[m] = True
+            mark[tm] = True
+        while ntop:  # the pieces, from the last middle-edge dart listed
+            ntop -= 1
+            t = stack[ntop]
+            if not mark[t]:
+                continue
+            mark[t] = False
+            # generate_repaired_polygon (t is frontier: no turn before the walk)
+            e_init = t
+            v_init = H[e_init, _ORG]
+            e = H[e_init, _NXT]
+            v = H[e, _ORG]
+            mark[e] = False
+            start = nidx
+            idx, nidx = _push(idx, nidx, v_init)  # the list from its starting vertex (see above)
+            if v != v_init:
+                idx, nidx = _push(idx, nidx, v)
+            while e != e_init and v != v_init:
+                k = 0
+                while not (H[e, _FLAGS] & _FRONTIER):
+                    e = H[H[e, _TWIN], _NXT]
+                    mark[e] = False
+                    k += 1
+                    if k > budget:
+                        return _NO_FRONTIER, e, nothing, nothing, nothing, 0, 0
+                mark[e] = False
+                e = H[e, _NXT]
+                v = H[e, _ORG]
+                mark[e] = False
+                if v != v_init:
+                    idx, nidx = _push(idx, nidx, v)
+                if nidx - start > E:
+                    return _OPEN_WALK, t, nothing, nothing, nothing, 0, 0
+            off, _ = _push(off, npoly + 1, nidx)
+            seed_of, npoly = _push(seed_of, npoly, s_i)
+    ids = np.empty(npoly, np.int64)
+    for p in range(npoly):
+        ids[p] = seed_ids[seed_of[p]]
+    return _OK, -1, off[: npoly + 1].copy(), idx[:nidx].astype(np.int64), ids, tips, to_repair
+
+
+def reference_walks(nxt, twin, org, border, face, seed, row_of_face, corners, vid, frontier,
+                    num_vertices: int, row_id=None):
+    """The reference's traversal and repair on dart arrays (see the module docstring).
+
+    Args (host arrays over the ``E`` darts of a structure, in the reference's orientation):
+      nxt, twin, org: ``next``, ``twin``, ``origin`` (structure vertex ids).
+      border: the dart lies on the outer face (or is not a dart).
+      face: the dart's face id (anything on border darts); ``row_of_face``: the input row of
+        each face; ``corners``: ``(F, 3)`` input rows (input vertex ids, as listed); ``vid``:
+        input id of each structure vertex; ``row_id``: the reference's triangle index of each
+        row, increasing (default: the row's own index; a piece of a larger input passes its
+        rows' indices there, so the half-edge ids are the whole input's).
+      seed: one dart per terminal or border terminal edge (the label phase's); frontier: the
+        label phase's (border darts frontier).
+
+    Returns ``(offsets, indices, seed_ids, tips, repaired, regions)``: CSR polygons in the
+    reference's order with structure vertex ids, each in the reference's vertex order (from the
+    origin of its first frontier dart, as the reference's OFF files list them; its tips are
+    looked for from the next vertex on, as ``travel_triangles`` lists them); ``seed_ids`` the
+    reference half-edge id of each polygon's seed (its output order); tips found, polygons sent
+    to repair, seed edges.
+
+    Raises:
+      StructureError: a walk meets no frontier dart or does not close (tables that are not
+        those of a triangulation), or a dart's origin is not a corner of its face's row.
+    """
+    H = np.empty((np.shape(nxt)[0], 4), np.int32)
+    H[:, _NXT], H[:, _TWIN], H[:, _ORG] = nxt, twin, org
+    H[:, _FLAGS] = np.where(frontier, _FRONTIER, 0) | np.where(border, _BORDER, 0)
+    vid = np.asarray(vid)
+    inv = np.full(max(int(vid.max()) + 1, num_vertices) if vid.size else num_vertices, -1, np.int32)
+    inv[vid] = np.arange(vid.size, dtype=np.int32)
+    corners_s = inv[np.asarray(corners)]  # the input rows in structure vertex ids
+    row_id = np.arange(len(corners), dtype=np.int64) if row_id is None else np.asarray(row_id, np.int64)
+    cand = np.nonzero(np.asarray(seed))[0].astype(np.int32)
+    status, where, off, idx, seed_ids, tips, repaired = _kernel(
+        H, np.ascontiguousarray(face, np.int32), np.ascontiguousarray(row_of_face, np.int32),
+        row_id, corners_s, cand)
+    if status == _BAD_CORNER:
+        raise errors.StructureError(
+            f"Polylla (reference mode): dart {where} leaves a vertex that is not a corner of "
+            "its face's input row (the corners do not match the structure)")
+    if status == _NO_FRONTIER:
+        raise errors.StructureError(
+            f"Polylla (reference mode): turning clockwise from dart {where} meets no frontier "
+            "dart (a vertex whose every edge is a longest edge: inconsistent tables or ties)")
+    if status == _OPEN_WALK:
+        raise errors.StructureError(
+            f"Polylla (reference mode): the walk from dart {where} does not close "
+            "(inconsistent twin/next in the structure)")
+    return off, idx, seed_ids, int(tips), int(repaired), int(cand.size)
