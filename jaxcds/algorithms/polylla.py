@@ -714,10 +714,13 @@ def _cpu_times(t: dict, marks: list, names: list) -> None:
 
 
 @functools.partial(jax.jit, static_argnames=("mirror",))
-def _reference_darts(s, mirror: bool):
-    """``(next, twin, origin, border, face)`` of every dart of ``s`` in the reference's
-    orientation: on a clockwise input (``mirror``) the reference's half-edge is the structure's
-    dart read backwards (its ``next`` is the structure's ``prev``, its origin the target)."""
+def _reference_darts(s, frontier, mirror: bool):
+    """``(H, face)``: :func:`~jaxcds.algorithms.polylla_reference.dart_rows` of every dart of
+    ``s`` in the reference's orientation (on a clockwise input, ``mirror``, the reference's
+    half-edge is the structure's dart read backwards: its ``next`` is the structure's ``prev``,
+    its origin the target), and each dart's face."""
+    from jaxcds.algorithms.polylla_reference import dart_rows
+
     d = _darts(s)
     tw = s.twin(d)
     fwd = s.next(d)
@@ -732,7 +735,7 @@ def _reference_darts(s, mirror: bool):
     face = jnp.full((s.num_darts,), s.num_faces, jnp.int32)
     for e in (e0, e1, fwd[e1]):
         face = face.at[e].set(f, mode="drop")
-    return nxt, tw, org, border, face
+    return dart_rows(nxt, tw, org, frontier, border), face
 
 
 def _reference_run(s, nav, pos, vids, cs, row_ids, seed, frontier, clockwise, n_frontier,
@@ -744,10 +747,9 @@ def _reference_run(s, nav, pos, vids, cs, row_ids, seed, frontier, clockwise, n_
 
     t1 = marks[-1][0]
     rows = np.arange(s.num_faces) if in_row_order else _rows_of_faces(s, cs, vids, nav)
-    nxt, tw, org, border, face = (np.asarray(x) for x in _reference_darts(nav, bool(clockwise)))
+    H, face = (np.asarray(x) for x in _reference_darts(nav, frontier, bool(clockwise)))
     off, idx, seeds, tips, repaired, regions = reference_walks(
-        nxt, tw, org, border, face, np.asarray(seed), rows, cs, vids, np.asarray(frontier),
-        s.num_vertices, row_id=row_ids)
+        H, face, np.asarray(seed), rows, cs, vids, row_id=row_ids)
     t2 = clock()
     t["traversal"] = t2 - t1  # the walks and the repair are one sequential pass here
     t["repair"] = 0.0
@@ -771,11 +773,11 @@ def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
     if c.shape != (num_faces, 3) or (c.size and not np.issubdtype(c.dtype, np.integer)):
         raise errors.PolyllaError(f"corners must be ({num_faces}, 3) integer vertex ids (one row per "
                                   f"triangle), got shape {c.shape} of {c.dtype}")
-    bad = np.nonzero((c < 0) | (c >= num_vertices))[0]
-    if bad.size:
+    if c.size and (c.min() < 0 or c.max() >= num_vertices):  # two reductions, no mask
+        bad = np.nonzero((c < 0) | (c >= num_vertices))[0]
         raise errors.PolyllaError(f"corners row {int(bad[0])} {c[bad[0]].tolist()} refers to a vertex "
                                   f"outside [0, {num_vertices})")
-    return c.astype(np.int64)
+    return c.astype(np.int64, copy=False)
 
 
 def _all_clockwise(pos: np.ndarray, corners: np.ndarray) -> bool:

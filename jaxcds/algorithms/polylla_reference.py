@@ -37,7 +37,7 @@ import numpy as np
 
 from jaxcds import errors
 
-__all__ = ["reference_walks"]
+__all__ = ["reference_walks", "dart_rows"]
 
 # status codes of the kernel (0: fine)
 _OK, _NO_FRONTIER, _OPEN_WALK, _BAD_CORNER = 0, 1, 2, 3
@@ -249,20 +249,28 @@ def _kernel(H, face, row, row_id, corners, cand):
     return _OK, -1, off[: npoly + 1].copy(), idx[:nidx].astype(np.int64), ids, tips, to_repair
 
 
-def reference_walks(nxt, twin, org, border, face, seed, row_of_face, corners, vid, frontier,
-                    num_vertices: int, row_id=None):
+def dart_rows(nxt, twin, org, frontier, border):
+    """``(E, 4)`` int32, the kernel's row per dart: ``next``, ``twin``, ``origin`` and the flags
+    (frontier, border). Works on numpy and on jax arrays (the caller builds it jitted)."""
+    xp = np if isinstance(nxt, np.ndarray) else __import__("jax.numpy", fromlist=["numpy"])
+    flags = xp.where(frontier, _FRONTIER, 0) | xp.where(border, _BORDER, 0)
+    return xp.stack([xp.asarray(x).astype(xp.int32) for x in (nxt, twin, org, flags)], axis=1)
+
+
+def reference_walks(H, face, seed, row_of_face, corners, vid, row_id=None):
     """The reference's traversal and repair on dart arrays (see the module docstring).
 
     Args (host arrays over the ``E`` darts of a structure, in the reference's orientation):
-      nxt, twin, org: ``next``, ``twin``, ``origin`` (structure vertex ids).
-      border: the dart lies on the outer face (or is not a dart).
+      H: ``(E, 4)`` :func:`dart_rows` (``next``, ``twin``, ``origin`` in structure vertex ids,
+        flags: frontier as the label phase found it, border darts frontier; border: on the
+        outer face or not a dart). Changed in place (a read-only array is copied first): the
+        repair's middle edges become frontier.
       face: the dart's face id (anything on border darts); ``row_of_face``: the input row of
         each face; ``corners``: ``(F, 3)`` input rows (input vertex ids, as listed); ``vid``:
         input id of each structure vertex; ``row_id``: the reference's triangle index of each
         row, increasing (default: the row's own index; a piece of a larger input passes its
         rows' indices there, so the half-edge ids are the whole input's).
-      seed: one dart per terminal or border terminal edge (the label phase's); frontier: the
-        label phase's (border darts frontier).
+      seed: one dart per terminal or border terminal edge (the label phase's).
 
     Returns ``(offsets, indices, seed_ids, tips, repaired, regions)``: CSR polygons in the
     reference's order with structure vertex ids, each in the reference's vertex order (from the
@@ -275,18 +283,22 @@ def reference_walks(nxt, twin, org, border, face, seed, row_of_face, corners, vi
       StructureError: a walk meets no frontier dart or does not close (tables that are not
         those of a triangulation), or a dart's origin is not a corner of its face's row.
     """
-    H = np.empty((np.shape(nxt)[0], 4), np.int32)
-    H[:, _NXT], H[:, _TWIN], H[:, _ORG] = nxt, twin, org
-    H[:, _FLAGS] = np.where(frontier, _FRONTIER, 0) | np.where(border, _BORDER, 0)
+    H = np.ascontiguousarray(H, np.int32)
+    if not H.flags.writeable:  # a view of a jax array: the repair marks middle edges in it
+        H = H.copy()
     vid = np.asarray(vid)
-    inv = np.full(max(int(vid.max()) + 1, num_vertices) if vid.size else num_vertices, -1, np.int32)
-    inv[vid] = np.arange(vid.size, dtype=np.int32)
-    corners_s = inv[np.asarray(corners)]  # the input rows in structure vertex ids
+    corners = np.asarray(corners)
+    if np.array_equal(vid, np.arange(vid.size)):  # the structure keeps the input's numbering
+        corners_s = corners.astype(np.int32, copy=False)
+    else:  # the input rows in structure vertex ids (the walks compare origins with them)
+        inv = np.full(max(int(vid.max()) + 1, vid.size) if vid.size else 0, -1, np.int32)
+        inv[vid] = np.arange(vid.size, dtype=np.int32)
+        corners_s = inv[corners]
     row_id = np.arange(len(corners), dtype=np.int64) if row_id is None else np.asarray(row_id, np.int64)
-    cand = np.nonzero(np.asarray(seed))[0].astype(np.int32)
+    cand = np.flatnonzero(np.asarray(seed)).astype(np.int32)
     status, where, off, idx, seed_ids, tips, repaired = _kernel(
         H, np.ascontiguousarray(face, np.int32), np.ascontiguousarray(row_of_face, np.int32),
-        row_id, corners_s, cand)
+        row_id, np.ascontiguousarray(corners_s, np.int32), cand)
     if status == _BAD_CORNER:
         raise errors.StructureError(
             f"Polylla (reference mode): dart {where} leaves a vertex that is not a corner of "
