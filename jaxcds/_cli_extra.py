@@ -11,7 +11,7 @@ folder, then ``os.replace``), so a failed run never leaves a partial file behind
   (``docs/cds-format.md``); meshes with holes are closed with one dummy vertex per hole.
 * ``jaxcds decode FILE.cds -o MESH.off|.obj|.ply|.stl [--structure cds6n|cds5n|cds4n|none]`` --
   decode (Sec. 3.2, Fig. 10-13) and write the mesh in its original vertex order.
-* ``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb]`` -- Polylla polygonal mesh
+* ``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb] [--mode reference|canonical]`` -- Polylla polygonal mesh
   (Salinas-Fernández et al. 2022; IMR 2023 slides) of a Triangle ``.node``/``.ele`` (``.neigh``
   optional), a 2-D OFF triangulation or a point list.
 """
@@ -166,7 +166,7 @@ def cmd_decode(args) -> int:
 
 # ------------------------------------------------------------------------------ polylla
 def cmd_polylla(args) -> int:
-    """``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb]``.
+    """``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb] [--mode reference|canonical]``.
 
     JSON keys (from :func:`jaxcds.algorithms.polylla.run`): ``polygons``, ``barrier_edge_tips``,
     ``repaired_polygons``, ``regions``, ``frontier_edges``, ``vertices``, ``triangles``,
