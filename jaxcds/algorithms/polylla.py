@@ -128,7 +128,8 @@ def _corner_index(x, corners):
 
 
 def _label_body(s, positions, vertex_ids, corners=None):
-    """Label phase; returns ``(max_edge, frontier, seed, border_any, misplaced, tied)``.
+    """Label phase; returns ``(max_edge, frontier, seed, border_any, misplaced, tied,
+    clockwise_rows)``.
 
     Lengths are Euclidean (``sqrt``, in the dtype of ``positions``), as the reference computes
     them: its published outputs (``points50.1.off``, ``pikachu.1.off``) were made so, and two
@@ -139,7 +140,9 @@ def _label_body(s, positions, vertex_ids, corners=None):
     input vertex ids of face ``f`` of ``s`` as the input listed them); without ``corners``, to
     the smaller ``(min id, max id)`` input vertex pair (a rule that needs no face order).
     ``misplaced``: some face of ``s`` is not the triangle of its ``corners`` row (the caller maps
-    them and runs again, if ``tied``: some triangle has a tie for its longest edge)."""
+    them and runs again, if ``tied``: some triangle has a tie for its longest edge).
+    ``clockwise_rows``: every ``corners`` row turns clockwise (negative signed area; read off
+    the faces' positions and the rows' corner order, meaningful when not ``misplaced``)."""
     # longest edge, per triangle: its three darts from edge_of_face / next, lengths from origins
     f = jnp.arange(s.num_faces, dtype=jnp.int32)
     e0 = s.edge_of_face(f)
@@ -161,6 +164,7 @@ def _label_body(s, positions, vertex_ids, corners=None):
         k1 = (jnp.minimum(i1, i2), jnp.maximum(i1, i2))
         k2 = (jnp.minimum(i2, i0), jnp.maximum(i2, i0))
         misplaced = jnp.bool_(False)
+        clockwise_rows = jnp.bool_(False)
     else:
         # edge {v_j, v_j+1} is the input's edge c_k c_k+1 with c_k+2 = v_j+2 opposite it: its
         # rank in the reference's order is k = (index of the opposite corner + 1) mod 3
@@ -168,6 +172,11 @@ def _label_body(s, positions, vertex_ids, corners=None):
         x0, x1, x2 = (_corner_index(i, c) for i in (i0, i1, i2))
         misplaced = jnp.any((x0 == 3) | (x1 == 3) | (x2 == 3))
         k0, k1, k2 = (((x + 1) % 3, 0) for x in (x2, x0, x1))
+        # a row listing the face's corners the other way round has the opposite signed area
+        a, b = p1 - p0, p2 - p0
+        area = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        turned = (x1 - x0) % 3 == 2
+        clockwise_rows = (s.num_faces > 0) & jnp.all(jnp.where(turned, area > 0, area < 0))
 
     def beats(la, ka, lb, kb):
         # a is longer than b, or as long and with the smaller key
@@ -194,7 +203,7 @@ def _label_body(s, positions, vertex_ids, corners=None):
     # Def. 3 case "terminal edge": longest of both triangles (one dart kept, the smaller id);
     # case "border terminal edge": longest of its only triangle
     seed = inner & max_edge & (border_t | (max_t & (e < tw)))
-    return max_edge, frontier, seed, border_any, misplaced, tied
+    return max_edge, frontier, seed, border_any, misplaced, tied, clockwise_rows
 
 
 
@@ -629,20 +638,20 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         raise errors.PolyllaError(f"clockwise must be True, False or None, got {clockwise!r}")
     if corners is not None:
         cs = _checked_corners(corners, s.num_faces, pos.shape[0])
-        if clockwise is None:
-            clockwise = _all_clockwise(pos, cs)
-    clockwise = bool(clockwise)
     t0 = marks[0][0]
     with jax.enable_x64(True):
         pos_j = jnp.asarray(pos_s, jnp.float64)
         cs_j = None if cs is None else jnp.asarray(cs, jnp.int32)
-        max_edge, frontier, seed, border, misplaced, tied, nav_tables = _label_phase(
+        max_edge, frontier, seed, border, misplaced, tied, cw_rows, nav_tables = _label_phase(
             s, pos_j, vids_j, cs_j, tabulate=bool(tables))
         in_row_order = cs is None or not bool(misplaced)  # face f of s is row f of corners
+        if clockwise is None and cs is not None:  # read off the rows (a host pass if misplaced)
+            clockwise = bool(cw_rows) if in_row_order else _all_clockwise(pos, cs)
+        clockwise = bool(clockwise)
         if cs is not None and bool(misplaced) and bool(tied):
             # the structure numbers its faces its own way (pemb): the rows follow them
             cs_j = jnp.asarray(_corners_of_faces(s, cs, vids), jnp.int32)
-            max_edge, frontier, seed, border, misplaced, tied, nav_tables = _label_phase(
+            max_edge, frontier, seed, border, misplaced, tied, _, nav_tables = _label_phase(
                 s, pos_j, vids_j, cs_j, tabulate=bool(tables))
         t1 = done(seed)
     # the later phases navigate the same structure with the label phase's tables (pemb: twin and
@@ -777,7 +786,7 @@ def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
         bad = np.nonzero((c < 0) | (c >= num_vertices))[0]
         raise errors.PolyllaError(f"corners row {int(bad[0])} {c[bad[0]].tolist()} refers to a vertex "
                                   f"outside [0, {num_vertices})")
-    return c.astype(np.int64, copy=False)
+    return c if c.dtype in (np.int32, np.int64) else c.astype(np.int64)
 
 
 def _all_clockwise(pos: np.ndarray, corners: np.ndarray) -> bool:
