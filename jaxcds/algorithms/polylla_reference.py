@@ -129,6 +129,11 @@ def _seeds_in_order(cand, H, face, row, row_id, corners):
 
 @numba.njit(cache=True)
 def _kernel(H, face, row, row_id, corners, cand):
+    """The reference's ``Polylla`` constructor after its labels, on the dart rows ``H``: for
+    each seed in half-edge order ``travel_triangles``, ``has_BarrierEdgeTip`` on the vertex list,
+    and for a polygon with tips ``barrieredge_tip_reparation`` (``search_middle_edge`` per tip,
+    marked at once; pieces by ``generate_repaired_polygon`` from the last middle-edge dart).
+    Returns ``(status, where, offsets, indices, seed ids, tips, polygons repaired)``."""
     E = H.shape[0]
     budget = E + 1
     seeds, seed_ids, bad = _seeds_in_order(cand, H, face, row, row_id, corners)
@@ -252,7 +257,9 @@ def _kernel(H, face, row, row_id, corners, cand):
 def dart_rows(nxt, twin, org, frontier, border):
     """``(E, 4)`` int32, the kernel's row per dart: ``next``, ``twin``, ``origin`` and the flags
     (frontier, border). Works on numpy and on jax arrays (the caller builds it jitted)."""
-    xp = np if isinstance(nxt, np.ndarray) else __import__("jax.numpy", fromlist=["numpy"])
+    import jax.numpy as jnp
+
+    xp = np if isinstance(nxt, np.ndarray) else jnp
     flags = xp.where(frontier, _FRONTIER, 0) | xp.where(border, _BORDER, 0)
     return xp.stack([xp.asarray(x).astype(xp.int32) for x in (nxt, twin, org, flags)], axis=1)
 
