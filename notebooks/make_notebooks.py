@@ -778,6 +778,13 @@ print("half-edge and pemb give the same polygons:", same)
 assert same
 display(Markdown("| | " + " | ".join(pm.summary()) + " |\\n|---|" + "---:|" * len(pm.summary()) + "\\n| value | " +
                  " | ".join(f"{v:,}" for v in pm.summary().values()) + " |"))
+# the two modes: canonical (above: order-free, every tip repaired) and reference (the
+# reference implementation's own sequential walk and repair on the input's numbering; the
+# default of run() and of `jaxcds polylla`)
+ref = polylla(build_structure(tri, "halfedge"), tri.points, corners=tri.input_faces, mode="reference")
+apart = set(polygons_as_cycles(ref.polygons())) ^ set(polygons_as_cycles(pm.polygons()))
+print(f"reference mode: {ref.num_polygons} polygons, canonical mode: {pm.num_polygons}; "
+      f"{len(apart)} polygons are in one output only")
 print("summary from polylla.run (the `jaxcds polylla` command):", {k: v for k, v in run(pts).items() if k != "timings"})'''),
     ("code", '''\
 polys = pm.polygons()
