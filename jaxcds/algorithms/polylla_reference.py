@@ -43,9 +43,27 @@ __all__ = ["reference_walks", "dart_rows"]
 _OK, _NO_FRONTIER, _OPEN_WALK, _BAD_CORNER = 0, 1, 2, 3
 
 
-# one row of 4 int32 per dart (the reference's array of structs): a walk step reads one line
-_NXT, _TWIN, _ORG, _FLAGS = 0, 1, 2, 3
-_FRONTIER, _BORDER = 1, 2
+# one row of 4 int32 per dart (the reference's array of structs): next, twin, the clockwise turn
+# next(twin) (a turn step reads one row, not two), and the origin with two flags in its top bits
+_NXT, _TWIN, _CW, _OF = 0, 1, 2, 3
+_ORG_BITS = (1 << 30) - 1
+_FRONTIER = 1 << 30
+_BORDER_BIT = 31  # the sign bit: a border dart's row word is negative
+
+
+@numba.njit(cache=True, inline="always")
+def _org(H, e):
+    return H[e, _OF] & _ORG_BITS
+
+
+@numba.njit(cache=True, inline="always")
+def _frontier(H, e):
+    return (H[e, _OF] & _FRONTIER) != 0
+
+
+@numba.njit(cache=True, inline="always")
+def _border(H, e):
+    return H[e, _OF] < 0
 
 
 @numba.njit(cache=True)
@@ -53,8 +71,8 @@ def _search(e, H, budget):
     """``search_frontier_edge``: turn clockwise (``next(twin(e))``) until a frontier dart; -1
     after ``budget`` turns (a vertex with no frontier dart: a tie cycle or a broken table)."""
     k = 0
-    while not (H[e, _FLAGS] & _FRONTIER):
-        e = H[H[e, _TWIN], _NXT]
+    while not _frontier(H, e):
+        e = H[e, _CW]
         k += 1
         if k > budget:
             return -1
@@ -77,7 +95,7 @@ def _half_edge_id(d, H, face, row, row_id, corners):
     """The reference's id ``3 i + j`` of inner dart ``d``: row ``i`` of its face, ``j`` the
     corner of that row its origin is (-1: none, the corners do not match)."""
     r = row[face[d]]
-    o = H[d, _ORG]
+    o = _org(H, d)
     for j in range(3):
         if corners[r, j] == o:
             return 3 * row_id[r] + j
@@ -91,11 +109,11 @@ def _edge_of_vertex(e, H, face, row, row_id, corners, budget):
     last). Turns once around ``v``: only the tips' vertices ask."""
     best, arg, d, k = np.int64(-1), e, e, 0
     while True:
-        if not (H[d, _FLAGS] & _BORDER):
+        if not _border(H, d):
             r = _half_edge_id(d, H, face, row, row_id, corners)
             if r > best:
                 best, arg = r, d
-        d = H[H[d, _TWIN], _NXT]
+        d = H[d, _CW]
         k += 1
         if d == e or k > budget:
             return arg
@@ -115,7 +133,7 @@ def _seeds_in_order(cand, H, face, row, row_id, corners):
         t = H[d, _TWIN]
         if rd < 0:
             return darts, np.full(n, -1, np.int64), d
-        if not (H[t, _FLAGS] & _BORDER):
+        if not _border(H, t):
             rt = _half_edge_id(t, H, face, row, row_id, corners)
             if rt < 0:
                 return darts, np.full(n, -1, np.int64), t
@@ -157,9 +175,9 @@ def _kernel(H, face, row, row_id, corners, cand):
         e_init = _search(seeds[s_i], H, budget)
         if e_init < 0:
             return _NO_FRONTIER, seeds[s_i], nothing, nothing, nothing, 0, 0
-        v_init = H[e_init, _ORG]
+        v_init = _org(H, e_init)
         e = H[e_init, _NXT]
-        v = H[e, _ORG]
+        v = _org(H, e)
         poly, L = _push(poly, 0, v)
         via, _ = _push(via, 0, e)
         while e != e_init and v != v_init:
@@ -167,7 +185,7 @@ def _kernel(H, face, row, row_id, corners, cand):
             if e < 0 or L > E:
                 return _OPEN_WALK, seeds[s_i], nothing, nothing, nothing, 0, 0
             e = H[e, _NXT]
-            v = H[e, _ORG]
+            v = _org(H, e)
             via, _ = _push(via, L, e)
             poly, L = _push(poly, L, v)
         tip = False
@@ -192,10 +210,10 @@ def _kernel(H, face, row, row_id, corners, cand):
                          H, budget)
             if fe < 0:
                 return _NO_FRONTIER, via[(i + 1) % L], nothing, nothing, nothing, 0, 0
-            n_ = H[H[fe, _TWIN], _NXT]
+            n_ = H[fe, _CW]
             adv = 1
             while n_ != fe:  # the degree of the tip (every dart leaving it)
-                n_ = H[H[n_, _TWIN], _NXT]
+                n_ = H[n_, _CW]
                 adv += 1
                 if adv > E:
                     return _OPEN_WALK, fe, nothing, nothing, nothing, 0, 0
@@ -203,13 +221,13 @@ def _kernel(H, face, row, row_id, corners, cand):
             adv = adv // 2 - 1 if adv % 2 == 0 else adv // 2
             if adv < 0:  # degree 1: the reference's unsigned count wraps (no valid input has it)
                 return _OPEN_WALK, fe, nothing, nothing, nothing, 0, 0
-            m = H[H[fe, _TWIN], _NXT]
+            m = H[fe, _CW]
             while adv != 0:
-                m = H[H[m, _TWIN], _NXT]
+                m = H[m, _CW]
                 adv -= 1
             tm = H[m, _TWIN]
-            H[m, _FLAGS] |= _FRONTIER
-            H[tm, _FLAGS] |= _FRONTIER
+            H[m, _OF] |= _FRONTIER
+            H[tm, _OF] |= _FRONTIER
             stack, ntop = _push(stack, ntop, m)
             stack, ntop = _push(stack, ntop, tm)
             mark[m] = True
@@ -222,9 +240,9 @@ def _kernel(H, face, row, row_id, corners, cand):
             mark[t] = False
             # generate_repaired_polygon (t is frontier: no turn before the walk)
             e_init = t
-            v_init = H[e_init, _ORG]
+            v_init = _org(H, e_init)
             e = H[e_init, _NXT]
-            v = H[e, _ORG]
+            v = _org(H, e)
             mark[e] = False
             start = nidx
             idx, nidx = _push(idx, nidx, v_init)  # the list from its starting vertex (see above)
@@ -232,15 +250,15 @@ def _kernel(H, face, row, row_id, corners, cand):
                 idx, nidx = _push(idx, nidx, v)
             while e != e_init and v != v_init:
                 k = 0
-                while not (H[e, _FLAGS] & _FRONTIER):
-                    e = H[H[e, _TWIN], _NXT]
+                while not _frontier(H, e):
+                    e = H[e, _CW]
                     mark[e] = False
                     k += 1
                     if k > budget:
                         return _NO_FRONTIER, e, nothing, nothing, nothing, 0, 0
                 mark[e] = False
                 e = H[e, _NXT]
-                v = H[e, _ORG]
+                v = _org(H, e)
                 mark[e] = False
                 if v != v_init:
                     idx, nidx = _push(idx, nidx, v)
@@ -255,22 +273,26 @@ def _kernel(H, face, row, row_id, corners, cand):
 
 
 def dart_rows(nxt, twin, org, frontier, border):
-    """``(E, 4)`` int32, the kernel's row per dart: ``next``, ``twin``, ``origin`` and the flags
-    (frontier, border). Works on numpy and on jax arrays (the caller builds it jitted)."""
+    """``(E, 4)`` int32, the kernel's row per dart: ``next``, ``twin``, the clockwise turn
+    ``next(twin)``, and the origin (below ``2^30``) with the frontier flag in bit 30 and the
+    border flag in bit 31. Works on numpy and on jax arrays (the caller builds it jitted)."""
     import jax.numpy as jnp
 
     xp = np if isinstance(nxt, np.ndarray) else jnp
-    flags = xp.where(frontier, _FRONTIER, 0) | xp.where(border, _BORDER, 0)
-    return xp.stack([xp.asarray(x).astype(xp.int32) for x in (nxt, twin, org, flags)], axis=1)
+    nxt, twin = xp.asarray(nxt).astype(xp.int32), xp.asarray(twin).astype(xp.int32)
+    cw = nxt[xp.clip(twin, 0, nxt.shape[0] - 1)]
+    word = (xp.asarray(org).astype(xp.int32) | xp.where(frontier, _FRONTIER, 0).astype(xp.int32)
+            | xp.where(border, xp.int32(-(1 << 31)), 0).astype(xp.int32))
+    return xp.stack([nxt, twin, cw, word], axis=1)
 
 
 def reference_walks(H, face, seed, row_of_face, corners, vid, row_id=None):
     """The reference's traversal and repair on dart arrays (see the module docstring).
 
     Args (host arrays over the ``E`` darts of a structure, in the reference's orientation):
-      H: ``(E, 4)`` :func:`dart_rows` (``next``, ``twin``, ``origin`` in structure vertex ids,
-        flags: frontier as the label phase found it, border darts frontier; border: on the
-        outer face or not a dart). Changed in place (a read-only array is copied first): the
+      H: ``(E, 4)`` :func:`dart_rows` (``next``, ``twin``, ``next(twin)``, ``origin`` in
+        structure vertex ids with the flags: frontier as the label phase found it, border darts
+        frontier; border: on the outer face or not a dart). Changed in place (a read-only array is copied first): the
         repair's middle edges become frontier.
       face: the dart's face id (anything on border darts); ``row_of_face``: the input row of
         each face; ``corners``: ``(F, 3)`` input rows (input vertex ids, as listed); ``vid``:
@@ -290,6 +312,9 @@ def reference_walks(H, face, seed, row_of_face, corners, vid, row_id=None):
       StructureError: a walk meets no frontier dart or does not close (tables that are not
         those of a triangulation), or a dart's origin is not a corner of its face's row.
     """
+    if np.asarray(vid).size > _ORG_BITS:
+        raise errors.PolyllaError(f"Polylla (reference mode) holds vertex ids in 30 bits: "
+                                  f"{np.asarray(vid).size} vertices are too many")
     H = np.ascontiguousarray(H, np.int32)
     if not H.flags.writeable:  # a view of a jax array: the repair marks middle edges in it
         H = H.copy()
