@@ -572,26 +572,25 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         input vertex pair), and an input of clockwise triangles gives clockwise polygons and the
         reference's middle edges (``clockwise``, below). Rows in the face order of ``s`` when it
         keeps the input's (``HalfEdge.from_faces``); otherwise matched to its faces here (a host
-        sort, only when some triangle has a tie).
+        sort: in canonical mode only when some triangle has a tie, in reference mode always).
       clockwise: every input triangle is clockwise (default: read off ``corners``; False
         without them). Given, it is taken as the caller's word (``run`` passes what it read).
         The reference keeps the input's orientation: its polygons are then clockwise, and its
         barrier-edge repair turns the other way round (:func:`middle_edges`).
-
-    mode: ``"reference"`` (the default when ``corners`` are given) runs the traversal and
-      repair as the reference implementation does, sequentially, on the input's numbering
-      (:mod:`jaxcds.algorithms.polylla_reference`): its walk stops at its starting vertex and
-      its tips are repaired one after the other from ``edge_of_vertex``, so the output is the
-      reference's polygon for polygon (order and vertex order included), its order dependence
-      and the tips it leaves in included. ``"canonical"`` (the default without ``corners``)
-      runs the order-free vectorised phases: every tip of a region is repaired, every polygon
-      walked to its starting dart, the output independent of the numbering (sorted, each
-      polygon from its smallest directed edge). Without ``corners``, ``"reference"`` takes
-      the structure's faces as the input rows.
-    canonical: sort the polygons by their first directed edge (canonical mode; default True).
-      Reference mode keeps the reference's order and ignores it.
-    row_ids: reference mode: the input index of each row of ``corners`` (default: its own), for
-      a piece of a larger input (the reference's half-edge ids are the whole input's).
+      mode: ``"reference"`` (the default when ``corners`` are given) runs the traversal and
+        repair as the reference implementation does, sequentially, on the input's numbering
+        (:mod:`jaxcds.algorithms.polylla_reference`): its walk stops at its starting vertex and
+        its tips are repaired one after the other from ``edge_of_vertex``, so the output is the
+        reference's polygon for polygon (order and vertex order included), its order dependence
+        and the tips it leaves in included. ``"canonical"`` (the default without ``corners``)
+        runs the order-free vectorised phases: every tip of a region is repaired, every polygon
+        walked to its starting dart, the output independent of the numbering (sorted, each
+        polygon from its smallest directed edge). Without ``corners``, ``"reference"`` takes
+        the structure's faces as the input rows.
+      canonical: sort the polygons by their first directed edge (canonical mode; default
+        True). Reference mode keeps the reference's order and ignores it.
+      row_ids: reference mode: the input index of each row of ``corners`` (default: its own),
+        for a piece of a larger input (the reference's half-edge ids are the whole input's).
 
     ``tables``: let the structure build per-run navigation tables (:func:`_tabulated`; pemb:
     twin, origin and first dart of every face, 41.5 bytes per vertex while the run lasts, its
@@ -601,7 +600,9 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
 
     Lengths are compared in float64 (``jax.enable_x64`` around the label phase). Returns a
     :class:`PolyllaMesh`; raises :class:`~jaxcds.errors.StructureError` if the successor map
-    does not close into cycles covering every frontier dart (a structure bug).
+    does not close into cycles covering every frontier dart, or a reference-mode walk does not
+    close (a structure bug), and :class:`~jaxcds.errors.PolyllaError` for ``corners`` that are
+    not the structure's triangles or an unknown ``mode``.
     """
     from jaxcds.polylla_io import unit_scale
 
