@@ -649,9 +649,16 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         if clockwise is None and cs is not None:  # read off the rows (a host pass if misplaced)
             clockwise = bool(cw_rows) if in_row_order else _all_clockwise(pos, cs)
         clockwise = bool(clockwise)
-        if cs is not None and bool(misplaced) and bool(tied):
-            # the structure numbers its faces its own way (pemb): the rows follow them
-            cs_j = jnp.asarray(_corners_of_faces(s, cs, vids), jnp.int32)
+        # the row of each face: matched once (a host sort) where the structure numbers its faces
+        # its own way (pemb) and a later step needs it, read through the label phase's tables
+        rows = None
+        if cs is not None and in_row_order:
+            rows = np.arange(s.num_faces)
+        elif cs is not None and (mode == "reference" or bool(tied)):
+            tabulated = None if nav_tables is None else s.with_tables(tables=nav_tables)
+            rows = _rows_of_faces(s, cs, vids, tabulated)
+        if not in_row_order and bool(tied):  # ties follow the rows: label again in face order
+            cs_j = jnp.asarray(cs[rows], jnp.int32)
             max_edge, frontier, seed, border, misplaced, tied, _, nav_tables = _label_phase(
                 s, pos_j, vids_j, cs_j, tabulate=bool(tables))
         t1 = done(seed)
@@ -663,8 +670,8 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     n_frontier = int(jnp.sum(frontier)) // 2  # undirected, before repair
     regions = int(jnp.sum(seed))
     if mode == "reference":
-        return _reference_run(s, nav, pos, vids, cs, row_ids, seed, frontier, clockwise,
-                              n_frontier, t, clock, marks, in_row_order)
+        return _reference_run(s, nav, pos, vids, cs, rows, row_ids, seed, frontier, clockwise,
+                              n_frontier, t, clock, marks)
     succ, ok, tips = _traversal_and_tips(nav, frontier, border, tabulate=bool(tables))
     del border
     tip_darts = np.nonzero(np.asarray(tips))[0].astype(np.int32)
@@ -748,15 +755,14 @@ def _reference_darts(s, frontier, mirror: bool):
     return dart_rows(nxt, tw, org, frontier, border), face
 
 
-def _reference_run(s, nav, pos, vids, cs, row_ids, seed, frontier, clockwise, n_frontier,
-                   t, clock, marks, in_row_order):
+def _reference_run(s, nav, pos, vids, cs, rows, row_ids, seed, frontier, clockwise, n_frontier,
+                   t, clock, marks):
     """Reference mode of :func:`polylla` after its label phase: the sequential traversal and
-    repair of :mod:`jaxcds.algorithms.polylla_reference` on ``nav``'s darts (``in_row_order``:
-    the label phase found every face of ``s`` in its row of ``cs``)."""
+    repair of :mod:`jaxcds.algorithms.polylla_reference` on ``nav``'s darts (``rows``: the row
+    of ``cs`` holding each face of ``s``)."""
     from jaxcds.algorithms.polylla_reference import reference_walks
 
     t1 = marks[-1][0]
-    rows = np.arange(s.num_faces) if in_row_order else _rows_of_faces(s, cs, vids, nav)
     H, face = (np.asarray(x) for x in _reference_darts(nav, frontier, bool(clockwise)))
     off, idx, seeds, tips, repaired, regions = reference_walks(
         H, face, np.asarray(seed), rows, cs, vids, row_id=row_ids)
@@ -842,11 +848,6 @@ def _rows_of_faces(s, corners: np.ndarray, vids: np.ndarray, nav=None) -> np.nda
     out = np.empty(fv.shape[0], np.int64)
     out[oa] = ob
     return out
-
-
-def _corners_of_faces(s, corners: np.ndarray, vids: np.ndarray) -> np.ndarray:
-    """The rows of ``corners`` in the face order of ``s`` (matched by vertex set, host sort)."""
-    return corners[_rows_of_faces(s, corners, vids)]
 
 
 def _reversed_cycles(offsets: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:

@@ -47,8 +47,7 @@ _OK, _NO_FRONTIER, _OPEN_WALK, _BAD_CORNER = 0, 1, 2, 3
 # next(twin) (a turn step reads one row, not two), and the origin with two flags in its top bits
 _NXT, _TWIN, _CW, _OF = 0, 1, 2, 3
 _ORG_BITS = (1 << 30) - 1
-_FRONTIER = 1 << 30
-_BORDER_BIT = 31  # the sign bit: a border dart's row word is negative
+_FRONTIER = 1 << 30  # and the sign bit (bit 31) marks a border dart: its row word is negative
 
 
 @numba.njit(cache=True, inline="always")
@@ -81,7 +80,7 @@ def _search(e, H, budget):
 
 @numba.njit(cache=True)
 def _push(buf, n, x):
-    """Append ``x`` to the growable int64 buffer ``buf`` holding ``n`` values."""
+    """Append ``x`` to the growable buffer ``buf`` holding ``n`` values (doubled when full)."""
     if n == buf.size:
         big = np.empty(2 * buf.size + 16, buf.dtype)
         big[:n] = buf[:n]
