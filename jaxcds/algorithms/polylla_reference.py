@@ -79,14 +79,79 @@ def _search(e, H, budget):
 
 
 @numba.njit(cache=True)
+def _grown(buf, n):
+    """``buf`` (holding ``n`` values) copied into one twice as large. Called only when full: the
+    hot loops store in place and test the size, so no array crosses a call per value."""
+    big = np.empty(2 * buf.size + 16, buf.dtype)
+    big[:n] = buf[:n]
+    return big
+
+
+@numba.njit(cache=True)
 def _push(buf, n, x):
-    """Append ``x`` to the growable buffer ``buf`` holding ``n`` values (doubled when full)."""
+    """Append ``x`` to the growable buffer ``buf`` holding ``n`` values (cold paths only)."""
     if n == buf.size:
-        big = np.empty(2 * buf.size + 16, buf.dtype)
-        big[:n] = buf[:n]
-        buf = big
+        buf = _grown(buf, n)
     buf[n] = x
     return buf, n + 1
+
+
+@numba.njit(cache=True)
+def _walk(e_init, H, poly, budget):
+    """``travel_triangles`` from frontier dart ``e_init``: the vertices it lists (from the
+    vertex after ``origin(e_init)``, up to the first return to it) into ``poly`` (grown when
+    full). ``(poly, L)``; ``L = -1``: no frontier dart met, ``-2``: the walk does not close."""
+    v_init = _org(H, e_init)
+    e = H[e_init, _NXT]
+    v = _org(H, e)
+    poly[0] = v
+    L = 1
+    while e != e_init and v != v_init:
+        k = 0
+        while not _frontier(H, e):  # search_frontier_edge, inlined: the hot loop
+            e = H[e, _CW]
+            k += 1
+            if k > budget:
+                return poly, -1
+        e = H[e, _NXT]
+        v = _org(H, e)
+        if L == poly.size:
+            if L > budget:
+                return poly, -2
+            poly = _grown(poly, L)
+        poly[L] = v
+        L += 1
+    return poly, L
+
+
+@numba.njit(cache=True)
+def _leaving(e_init, H, via, L):
+    """The darts by which the walk from ``e_init`` reaches its ``L`` listed vertices (each the
+    dart leaving its vertex into the region), into ``via`` (grown when short). Walked again,
+    before any middle edge is marked, only for the few polygons with tips: the walk itself
+    keeps one list."""
+    if via.size < L:
+        via = np.empty(2 * L, via.dtype)
+    e = H[e_init, _NXT]
+    via[0] = e
+    for i in range(1, L):
+        while not _frontier(H, e):
+            e = H[e, _CW]
+        e = H[e, _NXT]
+        via[i] = e
+    return via
+
+
+@numba.njit(cache=True)
+def _is_tip(poly, L, i):
+    """Listed vertex ``i + 1`` is a barrier-edge tip: the walk comes back the way it went
+    (``poly[i] == poly[i + 2]``, indices cyclic; no division in the test)."""
+    j = i + 2
+    if j >= L:
+        j -= L
+        if j >= L:  # L == 1
+            j -= L
+    return poly[i] == poly[j]
 
 
 @numba.njit(cache=True)
@@ -174,41 +239,35 @@ def _kernel(H, face, row, row_id, corners, cand):
         e_init = _search(seeds[s_i], H, budget)
         if e_init < 0:
             return _NO_FRONTIER, seeds[s_i], nothing, nothing, nothing, 0, 0
-        v_init = _org(H, e_init)
-        e = H[e_init, _NXT]
-        v = _org(H, e)
-        poly, L = _push(poly, 0, v)
-        via, _ = _push(via, 0, e)
-        while e != e_init and v != v_init:
-            e = _search(e, H, budget)
-            if e < 0 or L > E:
-                return _OPEN_WALK, seeds[s_i], nothing, nothing, nothing, 0, 0
-            e = H[e, _NXT]
-            v = _org(H, e)
-            via, _ = _push(via, L, e)
-            poly, L = _push(poly, L, v)
+        poly, L = _walk(e_init, H, poly, budget)
+        if L < 0:
+            return _OPEN_WALK, seeds[s_i], nothing, nothing, nothing, 0, 0
         tip = False
         for i in range(L):
-            if poly[i] == poly[(i + 2) % L]:
+            if _is_tip(poly, L, i):
                 tip = True
                 break
-        if not tip:  # written from its starting vertex, as the reference's files list it
-            for i in range(L):
-                idx, nidx = _push(idx, nidx, poly[(i + L - 1) % L])
+        if not tip:  # written from its starting vertex (listed last), as the reference's files
+            while nidx + L > idx.size:
+                idx = _grown(idx, nidx)
+            idx[nidx] = poly[L - 1]
+            idx[nidx + 1: nidx + L] = poly[: L - 1]
+            nidx += L
             off, _ = _push(off, npoly + 1, nidx)
             seed_of, npoly = _push(seed_of, npoly, s_i)
             continue
+        via = _leaving(e_init, H, via, L)
         # barrieredge_tip_reparation: middle edges one after the other, marked at once
         to_repair += 1
         ntop = 0
         for i in range(L):
-            if poly[i] != poly[(i + 2) % L]:
+            if not _is_tip(poly, L, i):
                 continue
             tips += 1
-            fe = _search(_edge_of_vertex(via[(i + 1) % L], H, face, row, row_id, corners, budget),
-                         H, budget)
+            d_tip = via[i + 1 if i + 1 < L else 0]  # a dart leaving the tip
+            fe = _search(_edge_of_vertex(d_tip, H, face, row, row_id, corners, budget), H, budget)
             if fe < 0:
-                return _NO_FRONTIER, via[(i + 1) % L], nothing, nothing, nothing, 0, 0
+                return _NO_FRONTIER, d_tip, nothing, nothing, nothing, 0, 0
             n_ = H[fe, _CW]
             adv = 1
             while n_ != fe:  # the degree of the tip (every dart leaving it)
