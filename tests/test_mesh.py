@@ -249,6 +249,46 @@ def test_edge_table_and_duplicates_match_sorting_oracles(seed):
 
 
 @pytest.mark.parametrize("seed", range(4))
+def test_match_triangles_pairs_rows_by_vertex_set(seed):
+    from jaxcds import _mesh_kernels as kernels
+
+    rng = np.random.default_rng(seed)
+    nv = int(rng.integers(4, 30))
+    f = np.stack([rng.choice(nv, 3, replace=False) for _ in range(int(rng.integers(1, 200)))])
+    f[-1] = f[0][::-1]  # a vertex set twice: each copy must pair with a copy of its own
+    perm = rng.permutation(len(f))
+    b = np.stack([np.roll(r, int(k)) for r, k in zip(f[perm], rng.integers(0, 3, len(f)))])
+    got, where = kernels.match_triangles(f, b, nv)
+    assert where == -1
+    assert sorted(got.tolist()) == list(range(len(f)))  # each row of b used once
+    np.testing.assert_array_equal(np.sort(b[got], axis=1), np.sort(f, axis=1))
+    same, where = kernels.match_triangles(f, f[:, [1, 2, 0]], nv)  # in order: the identity
+    assert where == -1 and (same == np.arange(len(f))).all()
+    c = b.copy()
+    row = int(np.nonzero(perm == len(f) // 2)[0][0])
+    c[row] = [nv, nv + 1, nv + 2]  # the vertex set of f[len(f) // 2] is gone from c
+    _, where = kernels.match_triangles(f, c, nv + 3)
+    assert where == len(f) // 2 or np.array_equal(np.sort(f[where]), np.sort(f[len(f) // 2]))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_all_clockwise_matches_signed_areas(seed):
+    from jaxcds import _mesh_kernels as kernels
+    from jaxcds.polylla_io import twice_signed_areas
+
+    rng = np.random.default_rng(seed)
+    p = rng.random((40, 2))
+    f = np.stack([rng.choice(40, 3, replace=False) for _ in range(100)])
+    a = twice_signed_areas(p, f)
+    cw = np.where((a < 0)[:, None], f, f[:, ::-1])  # every row turned clockwise
+    assert kernels.all_clockwise(p, cw) and not kernels.all_clockwise(p, cw[:, ::-1])
+    mixed = cw.copy()
+    mixed[-1] = mixed[-1][::-1]  # one counter-clockwise row, the last one read
+    assert not kernels.all_clockwise(p, mixed)
+    assert not kernels.all_clockwise(p, f[:0])
+
+
+@pytest.mark.parametrize("seed", range(4))
 def test_components_and_fans_match_scipy(seed):
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components

@@ -797,11 +797,12 @@ def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
 
 
 def _all_clockwise(pos: np.ndarray, corners: np.ndarray) -> bool:
-    """Every triangle of ``corners`` turns clockwise (negative signed area)."""
-    from jaxcds.polylla_io import twice_signed_areas
+    """Every triangle of ``corners`` turns clockwise (negative signed area); one numba pass
+    that stops at the first one that does not."""
+    from jaxcds._mesh_kernels import all_clockwise
 
-    a = twice_signed_areas(pos, corners)
-    return bool(a.size) and bool(np.all(a < 0))
+    return bool(all_clockwise(np.ascontiguousarray(pos[:, :2], np.float64),
+                              np.ascontiguousarray(corners)))
 
 
 _faces_of = jax.jit(lambda s: s.face_vertices())
@@ -816,38 +817,33 @@ def _face_triples(s):
     return jnp.stack([s.origin(e0), s.origin(e1), s.origin(s.next(e1))], axis=1)
 
 
-def _triangle_keys(t: np.ndarray, n: int) -> Optional[np.ndarray]:
-    """One int64 per row of ``t`` (vertex ids below ``n``), equal for rows with the same vertex
-    set: smallest, middle and largest id packed (the middle one is the sum less the other two,
-    no sort); None when ``n**3`` does not fit."""
-    if n >= 1 << 21:
-        return None
-    t = t.astype(np.int64)
-    lo, hi = t.min(axis=1), t.max(axis=1)
-    return (lo * n + (t.sum(axis=1) - lo - hi)) * n + hi
-
-
 def _rows_of_faces(s, corners: np.ndarray, vids: np.ndarray, nav=None) -> np.ndarray:
-    """``(F,)`` the row of ``corners`` holding each face of ``s`` (matched by vertex set; the
-    identity, without a sort, when the structure keeps the rows' order, as the half-edge).
-    ``nav``: the same structure with per-run tables, to read the faces from."""
-    fv = vids[np.asarray(_face_triples(s if nav is None else nav))]
-    n = int(max(fv.max(initial=0), corners.max(initial=0))) + 1
-    ka, kb = _triangle_keys(fv, n), _triangle_keys(corners, n)
-    if ka is not None and np.array_equal(ka, kb):
-        return np.arange(fv.shape[0])
-    if ka is None:  # too many vertices for one key: sort the rows' sorted ids
-        a, b = np.sort(fv, axis=1), np.sort(corners, axis=1)
-        oa, ob = np.lexsort(a.T[::-1]), np.lexsort(b.T[::-1])
-        same = np.array_equal(a[oa], b[ob])
-    else:
-        oa, ob = np.argsort(ka), np.argsort(kb)
-        same = np.array_equal(ka[oa], kb[ob])
-    if not same:
-        raise errors.PolyllaError("corners are not the triangles of the structure")
-    out = np.empty(fv.shape[0], np.int64)
-    out[oa] = ob
-    return out
+    """``(F,)`` the row of ``corners`` holding each face of ``s`` (matched by vertex set in one
+    numba pass, :func:`jaxcds._mesh_kernels.match_triangles`; one read of the rows when the
+    structure keeps their order, as the half-edge). ``nav``: the same structure with per-run
+    tables, to read the faces from."""
+    from jaxcds._mesh_kernels import match_triangles
+
+    fs = np.asarray(_face_triples(s if nav is None else nav))
+    cs = corners
+    if not np.array_equal(vids, np.arange(vids.size)):
+        # matched in the structure's vertex ids: its faces come in an order local in those ids
+        # (pemb: a traversal), so the buckets are read nearly in order; in the input's ids (of
+        # points in any order) every lookup would be a cache miss
+        inv = np.full(int(max(vids.max(initial=0), corners.max(initial=0))) + 1, -1, np.int32)
+        inv[vids] = np.arange(vids.size, dtype=np.int32)
+        cs = inv[corners]
+        if cs.size and cs.min() < 0:
+            bad = int(np.nonzero((cs < 0).any(axis=1))[0][0])
+            raise errors.PolyllaError(f"corners row {bad} {corners[bad].tolist()} holds a vertex "
+                                      "the structure does not have")
+    n = int(max(fs.max(initial=0), cs.max(initial=0))) + 1
+    perm, where = match_triangles(np.ascontiguousarray(fs), np.ascontiguousarray(cs), n)
+    if where >= 0:
+        raise errors.PolyllaError(
+            f"corners are not the triangles of the structure: its face {int(where)} "
+            f"{vids[fs[where]].tolist()} is no row of corners")
+    return perm
 
 
 def _reversed_cycles(offsets: np.ndarray, indices: np.ndarray, n: int) -> np.ndarray:
