@@ -744,15 +744,7 @@ def _reference_darts(s, frontier, mirror: bool):
     nxt = s.prev(d) if mirror else fwd
     org = s.origin(tw) if mirror else s.origin(d)
     border = s.is_border(d) | ~s.dart_valid(d)
-    # every dart's face from the faces' darts (three scatters), not one face() per dart (on
-    # pemb that is an enclose search each)
-    f = jnp.arange(s.num_faces, dtype=jnp.int32)
-    e0 = s.edge_of_face(f)
-    e1 = fwd[e0]
-    face = jnp.full((s.num_darts,), s.num_faces, jnp.int32)
-    for e in (e0, e1, fwd[e1]):
-        face = face.at[e].set(f, mode="drop")
-    return dart_rows(nxt, tw, org, frontier, border), face
+    return dart_rows(nxt, tw, org, frontier, border), s.dart_faces()
 
 
 def _reference_run(s, nav, pos, vids, cs, rows, row_ids, seed, frontier, clockwise, n_frontier,

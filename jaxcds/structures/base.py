@@ -390,6 +390,20 @@ class MeshStructure:
         e2 = self.next(e1)
         return jnp.stack([self.origin(e0), self.origin(e1), self.origin(e2)], axis=-1)
 
+    def dart_faces(self) -> Int:
+        """``(num_darts,)`` int32, :meth:`face` of every dart (``num_faces`` on a border or
+        unused dart), all at once. The default writes each face's id to its three darts (three
+        scatters from :meth:`edge_of_face`), which beats one :meth:`face` per dart where that is
+        a search (pemb: an ``enclose`` each); a structure whose ``face`` is arithmetic answers
+        with it."""
+        f = jnp.arange(self.num_faces, dtype=jnp.int32)
+        e0 = self.edge_of_face(f)
+        e1 = self.next(e0)
+        out = jnp.full((self.num_darts,), self.num_faces, jnp.int32)
+        for e in (e0, e1, self.next(e1)):
+            out = out.at[e].set(f, mode="drop")
+        return out
+
     def face_vertices_padded(self):
         """``(faces (R, 3) int32, valid (R,) bool or None)``: every face exactly once among the
         rows where ``valid`` holds, in *any* order, plus padding rows (any ids in

@@ -175,6 +175,9 @@ class CornerTable(MeshStructure):
     def face(self, e: Int) -> Int:
         return (e // 3).astype(jnp.int32)
 
+    def dart_faces(self) -> Int:
+        return self.face(jnp.arange(self.num_darts, dtype=jnp.int32))  # arithmetic: no scatter
+
     def edge_of_vertex(self, v: Int) -> Int:
         return self.vertex_corner[v]
 

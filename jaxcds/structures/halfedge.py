@@ -104,6 +104,9 @@ class HalfEdge(MeshStructure):
     def face(self, e: Int) -> Int:
         return jnp.where(e < 3 * self.num_faces, e // 3, self.num_faces).astype(jnp.int32)
 
+    def dart_faces(self) -> Int:
+        return self.face(jnp.arange(self.num_darts, dtype=jnp.int32))  # arithmetic: no scatter
+
     def edge_of_vertex(self, v: Int) -> Int:
         return self.vertex_edge[v]
 

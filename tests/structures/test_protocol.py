@@ -180,6 +180,24 @@ def test_ids_that_are_not_darts_terminate(structure):
         np.testing.assert_array_equal(got[pos], w)
 
 
+@pytest.mark.parametrize("structure", slow_params(
+    STRUCTURES, set(STRUCTURES) - {"halfedge", "corner_table", "pemb", "cds6n"}))
+def test_dart_faces_is_face_of_every_dart(structure):
+    """The whole-mesh ``dart_faces`` (scatters by default, arithmetic where ``face`` is) equals
+    ``face`` on every dart, border darts included (``num_faces``)."""
+    import jax
+    import jax.numpy as jnp
+
+    m = prepared("grid.off" if structure in BORDER_AWARE else "cube.off", structure)
+    s = registry.build(structure, m)
+    d = np.asarray(s.all_darts())
+    got, want = (np.asarray(x) for x in jax.jit(
+        lambda s, e: (s.dart_faces(), s.face(e)))(s, jnp.asarray(d)))
+    assert got.shape == (s.num_darts,)
+    np.testing.assert_array_equal(got[d], want)
+    assert (structure not in BORDER_AWARE) or (want == s.num_faces).any()  # borders were met
+
+
 @pytest.mark.parametrize("structure", slow_params(["cds6n", "cds4n", "lr"], {"cds4n", "lr"}))  # 14-32 s each
 def test_verify_takes_the_open_or_the_user_closed_mesh(structure):
     """verify(s, mesh) with the mesh the user gave the builder, open or closed by the user: a
