@@ -351,6 +351,39 @@ def test_random_points_exercise_repair():
         assert all(p[i] != p[(i + 2) % len(p)] for i in range(len(p))) or len(p) < 3
 
 
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_polygon_lists_host_route_equals_pointer_doubling(monkeypatch, clockwise):
+    """Canonical mode's polygon lists on a CPU device come from one walk per cycle on the host
+    (``polylla_cycles``); on other devices from ``cycles_to_csr``'s doubling: same arrays, same
+    order (``canonical=False``: by head dart), same repaired-region count."""
+    tri = random_tri(1)
+    s = P.build_structure(tri, "halfedge", check=False)
+    # clockwise: the polygons reversed after the lists (the reference's orientation)
+    kw = dict(mode="canonical", canonical=False, clockwise=clockwise)
+    host = P.polylla(s, tri.points, **kw)
+    monkeypatch.setattr(P, "_on_cpu", lambda x: False)
+    dev = P.polylla(s, tri.points, **kw)
+    assert host.repaired_polygons > 0 and host.num_polygons > 100
+    np.testing.assert_array_equal(host.offsets, dev.offsets)
+    np.testing.assert_array_equal(host.indices, dev.indices)
+    assert host.repaired_polygons == dev.repaired_polygons
+
+
+def test_polygon_lists_host_route_refuses_a_broken_successor_map():
+    from jaxcds.algorithms.polylla_cycles import cycles_csr_host
+
+    E = 8
+    vo = np.arange(E, dtype=np.int32)
+    ok_map = np.array([1, 2, 0, 4, 3, E, E, E], np.int32)  # cycles (0 1 2), (3 4)
+    off, idx, pod, ok = cycles_csr_host(ok_map, vo)
+    assert ok and off.tolist() == [0, 3, 5] and idx.tolist() == [0, 1, 2, 3, 4]
+    assert pod.tolist() == [0, 0, 0, 1, 1, -1, -1, -1]
+    for broken in ([1, 2, 1, 4, 3, E, E, E],   # 0 -> 1 -> 2 -> 1: a rho
+                   [1, 2, 5, 4, 3, E, E, E],   # 2 -> 5, a dart off the frontier
+                   [1, 2, 0, 4, 3, 3, E, E]):  # 5 -> 3: two darts share a successor
+        assert not cycles_csr_host(np.array(broken, np.int32), vo)[3]
+
+
 def test_domain_with_holes_random():
     rng = np.random.default_rng(7)
     pts = rng.random((600, 2))
