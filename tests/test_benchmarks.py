@@ -179,6 +179,16 @@ def test_race_queries_times_every_route(capsys):
     assert "halfedge target" in out and "cds5n-o1 target" in out
 
 
+def test_race_o1_first_read_routes_agree(capsys):
+    """benchmarks/race_o1_first_read.py: the old row route and the column route answer alike
+    (it exits otherwise) and every route is timed."""
+    from benchmarks import race_o1_first_read
+
+    assert race_o1_first_read.main(["--vertices", "300", "--queries", "5000", "--rounds", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "rows" in out and "columns" in out and "halfedge" in out
+
+
 def test_race_row_orders_every_order_gives_the_face_list_normals(capsys):
     """Every row order of benchmarks/race_row_orders.py sums the same normals as the face list,
     for packed LR and packed CDS, and for one LR and one CDS mesh."""

@@ -702,6 +702,26 @@ def _lf_unword(q):
     return q >> 3, (q >> 1) & 3, q & 1
 
 
+class _RowColumns:
+    """Row ``i`` of ``refs`` read column by column: ``row[..., k]`` is ``refs[i, k]`` gathered
+    on its own, so a case analysis asks only the columns it uses, each one scalar gather.
+
+    Why: the batched CDS5n-O(1) Target's first read, a gather of whole ``(5,)`` rows, was its
+    slowest pass; four scalar gathers of the columns the plan reads (they hit the row's one
+    cache line) ran it faster in races in turn (``halfedge`` / row gather / columns, ns per
+    query, 10M random darts, 2026-12-02): 100K vertices 4.9 / 13.8 / 9.4 (min of 15 rounds), 2.5M
+    24.1 / 58.4 / 41.2 (9 rounds), 3.5K 2.9 / 9.3 / 9.6 (in L1 it makes no difference). The
+    second read keeps the row gather (columns there: 3.5K and 100K slower)."""
+
+    def __init__(self, refs, i):
+        # flat ids: ``refs[i, k]`` as a 2-D gather ran slower than ``flat[w i + k]`` (100K: 15.3
+        # against 9.5 ns per query)
+        self.flat, self.base = refs.reshape(-1), refs.shape[1] * i
+
+    def __getitem__(self, key):
+        return self.flat[self.base + key[-1]]
+
+
 def _psel(cond, a, b):
     """``jnp.where`` over two darts in parts."""
     return tuple(jnp.where(cond, x, y) for x, y in zip(a, b))
@@ -1734,7 +1754,7 @@ class CDS5nO1(CDS4n):
         u, c = e // 3, e % 3
         own = ((d & 1) == 0) != want_target  # the answer is the source u of the edge
         # ... which needs no row: those read row 0, which stays in cache
-        y, second = self._target_plan_r(u, c, self.refs[jnp.where(own, 0, u)])
+        y, second = self._target_plan_r(u, c, _RowColumns(self.refs, jnp.where(own, 0, u)))
         # two arrays, not one packed word: with two consumers XLA writes the gathered rows out
         # in a pure gather pass, which keeps many cache misses in flight; packed, the row read
         # fuses into the case analysis and stalls on each miss (2.5M vertices: 22 vs 52 ns;
