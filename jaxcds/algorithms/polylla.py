@@ -653,14 +653,19 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         if clockwise is None and cs is not None:  # read off the rows (a host pass if misplaced)
             clockwise = bool(cw_rows) if in_row_order else _all_clockwise(pos, cs)
         clockwise = bool(clockwise)
-        # the row of each face: matched once (a host sort) where the structure numbers its faces
-        # its own way (pemb) and a later step needs it, read through the label phase's tables
-        rows = None
+        # the row of each face: matched once (a numba pass) where the structure numbers its
+        # faces its own way (pemb) and a later step needs it, read through the label phase's
+        # tables; the rows in structure vertex ids once, for the match and the walks
+        rows = cs_s = None
+        if cs is not None and (mode == "reference" or (not in_row_order and bool(tied))):
+            from jaxcds.algorithms.polylla_reference import corners_in_structure_ids
+
+            cs_s = corners_in_structure_ids(cs, vids)
         if cs is not None and in_row_order:
             rows = np.arange(s.num_faces)
         elif cs is not None and (mode == "reference" or bool(tied)):
             tabulated = None if nav_tables is None else s.with_tables(tables=nav_tables)
-            rows = _rows_of_faces(s, cs, vids, tabulated)
+            rows = _rows_of_faces(s, cs_s, vids, tabulated)
         if not in_row_order and bool(tied):  # ties follow the rows: label again in face order
             cs_j = jnp.asarray(cs[rows], jnp.int32)
             max_edge, frontier, seed, border, misplaced, tied, _, nav_tables = _label_phase(
@@ -674,7 +679,7 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     n_frontier = int(jnp.sum(frontier)) // 2  # undirected, before repair
     regions = int(jnp.sum(seed))
     if mode == "reference":
-        return _reference_run(s, nav, pos, vids, cs, rows, row_ids, seed, frontier, clockwise,
+        return _reference_run(s, nav, pos, vids, cs_s, rows, row_ids, seed, frontier, clockwise,
                               n_frontier, t, clock, marks)
     succ, ok, tips = _traversal_and_tips(nav, frontier, border, tabulate=bool(tables))
     del border
@@ -773,17 +778,17 @@ def _reference_darts(s, frontier, mirror: bool):
     return dart_rows(nxt, tw, org, frontier, border), s.dart_faces()
 
 
-def _reference_run(s, nav, pos, vids, cs, rows, row_ids, seed, frontier, clockwise, n_frontier,
+def _reference_run(s, nav, pos, vids, cs_s, rows, row_ids, seed, frontier, clockwise, n_frontier,
                    t, clock, marks):
     """Reference mode of :func:`polylla` after its label phase: the sequential traversal and
-    repair of :mod:`jaxcds.algorithms.polylla_reference` on ``nav``'s darts (``rows``: the row
-    of ``cs`` holding each face of ``s``)."""
+    repair of :mod:`jaxcds.algorithms.polylla_reference` on ``nav``'s darts (``cs_s``: the
+    input rows in the structure's vertex ids; ``rows``: the row holding each face of ``s``)."""
     from jaxcds.algorithms.polylla_reference import reference_walks
 
     t1 = marks[-1][0]
     H, face = (np.asarray(x) for x in _reference_darts(nav, frontier, bool(clockwise)))
     off, idx, seeds, tips, repaired, regions = reference_walks(
-        H, face, np.asarray(seed), rows, cs, vids, row_id=row_ids)
+        H, face, np.asarray(seed), rows, cs_s, s.num_vertices, row_id=row_ids)
     t2 = clock()
     t["traversal"] = t2 - t1  # the walks and the repair are one sequential pass here
     t["repair"] = 0.0
@@ -835,28 +840,20 @@ def _face_triples(s):
     return jnp.stack([s.origin(e0), s.origin(e1), s.origin(s.next(e1))], axis=1)
 
 
-def _rows_of_faces(s, corners: np.ndarray, vids: np.ndarray, nav=None) -> np.ndarray:
-    """``(F,)`` the row of ``corners`` holding each face of ``s`` (matched by vertex set in one
-    numba pass, :func:`jaxcds._mesh_kernels.match_triangles`; one read of the rows when the
-    structure keeps their order, as the half-edge). ``nav``: the same structure with per-run
-    tables, to read the faces from."""
+def _rows_of_faces(s, corners_s: np.ndarray, vids: np.ndarray, nav=None) -> np.ndarray:
+    """``(F,)`` the row of ``corners_s`` (the input rows in the structure's vertex ids,
+    :func:`~jaxcds.algorithms.polylla_reference.corners_in_structure_ids`) holding each face of
+    ``s``: matched by vertex set in one numba pass (:func:`jaxcds._mesh_kernels.
+    match_triangles`; one read of the rows when the structure keeps their order, as the
+    half-edge). Matched in the structure's ids because its faces come in an order local in
+    those (pemb: a traversal), so the buckets are read nearly in order; in the input's ids (of
+    points in any order) every lookup would be a cache miss. ``vids`` names a face in the error;
+    ``nav``: the same structure with per-run tables, to read the faces from."""
     from jaxcds._mesh_kernels import match_triangles
 
     fs = np.asarray(_face_triples(s if nav is None else nav))
-    cs = corners
-    if not np.array_equal(vids, np.arange(vids.size)):
-        # matched in the structure's vertex ids: its faces come in an order local in those ids
-        # (pemb: a traversal), so the buckets are read nearly in order; in the input's ids (of
-        # points in any order) every lookup would be a cache miss
-        inv = np.full(int(max(vids.max(initial=0), corners.max(initial=0))) + 1, -1, np.int32)
-        inv[vids] = np.arange(vids.size, dtype=np.int32)
-        cs = inv[corners]
-        if cs.size and cs.min() < 0:
-            bad = int(np.nonzero((cs < 0).any(axis=1))[0][0])
-            raise errors.PolyllaError(f"corners row {bad} {corners[bad].tolist()} holds a vertex "
-                                      "the structure does not have")
-    n = int(max(fs.max(initial=0), cs.max(initial=0))) + 1
-    perm, where = match_triangles(np.ascontiguousarray(fs), np.ascontiguousarray(cs), n)
+    n = int(max(fs.max(initial=0), corners_s.max(initial=0))) + 1
+    perm, where = match_triangles(np.ascontiguousarray(fs), np.ascontiguousarray(corners_s), n)
     if where >= 0:
         raise errors.PolyllaError(
             f"corners are not the triangles of the structure: its face {int(where)} "

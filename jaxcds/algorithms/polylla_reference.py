@@ -37,7 +37,7 @@ import numpy as np
 
 from jaxcds import errors
 
-__all__ = ["reference_walks", "dart_rows"]
+__all__ = ["reference_walks", "dart_rows", "corners_in_structure_ids"]
 
 # status codes of the kernel (0: fine)
 _OK, _NO_FRONTIER, _OPEN_WALK, _BAD_CORNER = 0, 1, 2, 3
@@ -344,7 +344,30 @@ def dart_rows(nxt, twin, org, frontier, border):
     return xp.stack([nxt, twin, cw, word], axis=1)
 
 
-def reference_walks(H, face, seed, row_of_face, corners, vid, row_id=None):
+def corners_in_structure_ids(corners, vid) -> np.ndarray:
+    """``(F, 3)`` int32: the input rows ``corners`` (input vertex ids) in a structure's vertex
+    ids, ``vid`` the input id of each structure vertex (the rows as they are when the structure
+    keeps the input's numbering). One inverse table and one gather; the walks compare origins
+    with these rows, and :func:`jaxcds.algorithms.polylla._rows_of_faces` matches faces in them.
+
+    Raises:
+      PolyllaError: a row holds a vertex the structure does not have.
+    """
+    vid = np.asarray(vid)
+    corners = np.asarray(corners)
+    if np.array_equal(vid, np.arange(vid.size)):
+        return corners.astype(np.int32, copy=False)
+    inv = np.full(int(max(vid.max(initial=0), corners.max(initial=0))) + 1, -1, np.int32)
+    inv[vid] = np.arange(vid.size, dtype=np.int32)
+    out = inv[corners]
+    if out.size and out.min() < 0:
+        bad = int(np.nonzero((out < 0).any(axis=1))[0][0])
+        raise errors.PolyllaError(f"corners row {bad} {corners[bad].tolist()} holds a vertex "
+                                  "the structure does not have")
+    return out
+
+
+def reference_walks(H, face, seed, row_of_face, corners, num_vertices: int, row_id=None):
     """The reference's traversal and repair on dart arrays (see the module docstring).
 
     Args (host arrays over the ``E`` darts of a structure, in the reference's orientation):
@@ -353,8 +376,9 @@ def reference_walks(H, face, seed, row_of_face, corners, vid, row_id=None):
         frontier; border: on the outer face or not a dart). Changed in place (a read-only array is copied first): the
         repair's middle edges become frontier.
       face: the dart's face id (anything on border darts); ``row_of_face``: the input row of
-        each face; ``corners``: ``(F, 3)`` input rows (input vertex ids, as listed); ``vid``:
-        input id of each structure vertex; ``row_id``: the reference's triangle index of each
+        each face; ``corners``: ``(F, 3)`` input rows as listed, in structure vertex ids
+        (:func:`corners_in_structure_ids`); ``num_vertices``: the structure's; ``row_id``: the
+        reference's triangle index of each
         row, increasing (default: the row's own index; a piece of a larger input passes its
         rows' indices there, so the half-edge ids are the whole input's).
       seed: one dart per terminal or border terminal edge (the label phase's).
@@ -370,25 +394,18 @@ def reference_walks(H, face, seed, row_of_face, corners, vid, row_id=None):
       StructureError: a walk meets no frontier dart or does not close (tables that are not
         those of a triangulation), or a dart's origin is not a corner of its face's row.
     """
-    if np.asarray(vid).size > _ORG_BITS:
+    if num_vertices > _ORG_BITS:
         raise errors.PolyllaError(f"Polylla (reference mode) holds vertex ids in 30 bits: "
-                                  f"{np.asarray(vid).size} vertices are too many")
+                                  f"{num_vertices} vertices are too many")
     H = np.ascontiguousarray(H, np.int32)
     if not H.flags.writeable:  # a view of a jax array: the repair marks middle edges in it
         H = H.copy()
-    vid = np.asarray(vid)
     corners = np.asarray(corners)
-    if np.array_equal(vid, np.arange(vid.size)):  # the structure keeps the input's numbering
-        corners_s = corners.astype(np.int32, copy=False)
-    else:  # the input rows in structure vertex ids (the walks compare origins with them)
-        inv = np.full(max(int(vid.max()) + 1, vid.size) if vid.size else 0, -1, np.int32)
-        inv[vid] = np.arange(vid.size, dtype=np.int32)
-        corners_s = inv[corners]
     row_id = np.arange(len(corners), dtype=np.int64) if row_id is None else np.asarray(row_id, np.int64)
     cand = np.flatnonzero(np.asarray(seed)).astype(np.int32)
     status, where, off, idx, seed_ids, tips, repaired = _kernel(
         H, np.ascontiguousarray(face, np.int32), np.ascontiguousarray(row_of_face, np.int32),
-        row_id, np.ascontiguousarray(corners_s, np.int32), cand)
+        row_id, np.ascontiguousarray(corners, np.int32), cand)
     if status == _BAD_CORNER:
         raise errors.StructureError(
             f"Polylla (reference mode): dart {where} leaves a vertex that is not a corner of "
