@@ -31,25 +31,21 @@ def _cycles(succ, vo):
     for s in range(E):
         if succ[s] >= E or pod[s] >= 0:
             continue
-        best = (np.int64(vo[s]) << 32) | np.int64(vo[succ[s]])
-        h = s
-        d = s
+        best, h, d = np.int64(np.iinfo(np.int64).max), s, s
         while True:
+            n = succ[d]
+            if n < 0 or n >= E:  # a successor off the frontier
+                return 1, np.zeros(1, np.int64), np.zeros(0, np.int32), pod
+            key = (np.int64(vo[d]) << 32) | np.int64(vo[n])
+            if key < best:
+                best, h = key, d
             pod[d] = s
             total += 1
-            n = succ[d]
-            if n < 0:
-                return 1, np.zeros(1, np.int64), np.zeros(0, np.int32), pod
             if n == s:
                 break
             if pod[n] >= 0:  # met an earlier cycle, or itself away from its start: a rho
                 return 1, np.zeros(1, np.int64), np.zeros(0, np.int32), pod
             d = n
-            if succ[d] >= E or succ[d] < 0:  # a successor off the frontier
-                return 1, np.zeros(1, np.int64), np.zeros(0, np.int32), pod
-            key = (np.int64(vo[d]) << 32) | np.int64(vo[succ[d]])
-            if key < best:
-                best, h = key, d
         head[h] = True
     offsets = np.zeros(E + 1, np.int64)
     indices = np.empty(total, np.int32)
