@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from benchmarks.race_queries import race  # noqa: E402
+from benchmarks.race_queries import race, random_darts, report  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import base, cds, registry  # noqa: E402
 
@@ -43,9 +43,7 @@ def main(argv=None) -> int:
     mesh = random_planar_triangulation(a.vertices, seed=1)
     rng = np.random.default_rng(0)
     he, o1 = registry.build("halfedge", mesh), registry.build("cds5n-o1", mesh)
-    dh = jnp.asarray(np.asarray(he.all_darts())[rng.integers(0, he.num_darts, a.queries)], jnp.int32)
-    da = np.asarray(o1.all_darts())
-    do = jnp.asarray(da[rng.integers(0, da.size, a.queries)], jnp.int32)
+    dh, do = random_darts(he, rng, a.queries), random_darts(o1, rng, a.queries)
     now = cds.CDS5nO1._dart_end
 
     def before(s, d):  # traced with the old first read, then the class restored
@@ -61,11 +59,7 @@ def main(argv=None) -> int:
     old, new = (np.asarray(jax.jit(f)(o1, do)) for f in (before, items[2][1]))
     if not np.array_equal(old, new):  # the two routes must answer alike
         raise SystemExit("cds5n-o1 Target: the column route disagrees with the row route")
-    res = race(items, a.queries, a.rounds)
-    print(f"random:{a.vertices}, {a.queries} random darts, {a.rounds} rounds, load average "
-          f"{os.getloadavg()[0]:.2f}")
-    for k, (lo, med) in res.items():
-        print(f"{k:28s} min {lo:8.2f}  median {med:8.2f} ns/query")
+    report(race(items, a.queries, a.rounds), a.vertices, a.queries, a.rounds)
     return 0
 
 

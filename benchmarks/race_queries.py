@@ -60,16 +60,25 @@ def main(argv=None) -> int:
     items = []
     for name in a.structures:
         s = registry.build(name, mesh)
-        darts = np.asarray(s.all_darts())
-        d = jnp.asarray(darts[rng.integers(0, darts.size, a.queries)], jnp.int32)
+        d = random_darts(s, rng, a.queries)
         for op in a.ops:
             items.append((f"{name} {op}", (lambda op: lambda s, d: getattr(s, op)(d))(op), (s, d)))
-    res = race(items, a.queries, a.rounds)
-    print(f"random:{a.vertices}, {a.queries} random darts, {a.rounds} rounds, load average "
+    report(race(items, a.queries, a.rounds), a.vertices, a.queries, a.rounds)
+    return 0
+
+
+def random_darts(s, rng, n: int):
+    """``n`` darts of ``s`` drawn uniformly (holes of its id space left out), int32."""
+    darts = np.asarray(s.all_darts())
+    return jnp.asarray(darts[rng.integers(0, darts.size, n)], jnp.int32)
+
+
+def report(res: dict, vertices: int, queries: int, rounds: int) -> None:
+    """Print :func:`race`'s ``{name: (min, median)}`` with the run's setting and load."""
+    print(f"random:{vertices}, {queries} random darts, {rounds} rounds, load average "
           f"{os.getloadavg()[0]:.2f}")
     for k, (lo, med) in res.items():
         print(f"{k:32s} min {lo:8.2f}  median {med:8.2f} ns/query")
-    return 0
 
 
 if __name__ == "__main__":
