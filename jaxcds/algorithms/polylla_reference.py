@@ -333,15 +333,14 @@ def _kernel(H, face, row, row_id, corners, cand):
 def dart_rows(nxt, twin, org, frontier, border):
     """``(E, 4)`` int32, the kernel's row per dart: ``next``, ``twin``, the clockwise turn
     ``next(twin)``, and the origin (below ``2^30``) with the frontier flag in bit 30 and the
-    border flag in bit 31. Works on numpy and on jax arrays (the caller builds it jitted)."""
+    border flag in bit 31 (jittable; the caller builds it inside its jitted dart pass)."""
     import jax.numpy as jnp
 
-    xp = np if isinstance(nxt, np.ndarray) else jnp
-    nxt, twin = xp.asarray(nxt).astype(xp.int32), xp.asarray(twin).astype(xp.int32)
-    cw = nxt[xp.clip(twin, 0, nxt.shape[0] - 1)]
-    word = (xp.asarray(org).astype(xp.int32) | xp.where(frontier, _FRONTIER, 0).astype(xp.int32)
-            | xp.where(border, xp.int32(-(1 << 31)), 0).astype(xp.int32))
-    return xp.stack([nxt, twin, cw, word], axis=1)
+    nxt, twin = jnp.asarray(nxt, jnp.int32), jnp.asarray(twin, jnp.int32)
+    cw = nxt[jnp.clip(twin, 0, nxt.shape[0] - 1)]
+    word = (jnp.asarray(org, jnp.int32) | jnp.where(frontier, _FRONTIER, 0).astype(jnp.int32)
+            | jnp.where(border, jnp.int32(-(1 << 31)), 0).astype(jnp.int32))
+    return jnp.stack([nxt, twin, cw, word], axis=1)
 
 
 def corners_in_structure_ids(corners, vid) -> np.ndarray:
