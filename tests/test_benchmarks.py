@@ -225,6 +225,22 @@ def test_race_face_derivation_checks_each_route_against_the_face_list(capsys):
     assert "packed:2 lr/given_rows" in out and "grid.off cds5n: skipped" in out, out
 
 
+def test_race_in_loop_checks_both_routes_against_the_face_list(capsys):
+    """benchmarks/race_in_loop.py traces the CDS5n-O(1) normals with the Target plans inside and
+    outside the one-trip loop (``base.IN_LOOP_MAX_VERTICES`` forced each way) and checks both
+    against the face list before timing: the outside route of meshes from 16K vertices up is
+    also checked on small ones here."""
+    from benchmarks import race_in_loop
+    from jaxcds.structures import base
+
+    limit = base.IN_LOOP_MAX_VERTICES
+    assert race_in_loop.main(["--meshes", "random:300,decimated-knight.off", "--rounds", "1"]) == 0
+    assert base.IN_LOOP_MAX_VERTICES == limit  # restored
+    rows = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
+    assert [r["mesh"] for r in rows] == ["random:300", "decimated-knight.off"], rows
+    assert all(set(r["x_face_list"]) == {"cds5n-o1/in_loop", "cds5n-o1/outside"} for r in rows), rows
+
+
 def test_race_dummy_mask_checks_both_answers(capsys):
     """benchmarks/race_dummy_mask.py checks the open surface's answers with the mask and the
     closed surface's without it before timing."""

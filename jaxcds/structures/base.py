@@ -51,7 +51,7 @@ import numpy as np
 from jaxcds import errors
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
-           "materialize_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries"]
+           "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
 Bool = jnp.ndarray  # bool array, any shape
@@ -534,6 +534,46 @@ def _loop_once(xs):
 
     out = jax.lax.while_loop(lambda state: state[0] < trips, body, (jnp.int32(0),) + xs)
     return tuple(out[1:])
+
+
+#: under this many vertices the CDS5n-O(1) whole-mesh Targets compute their first reads inside
+#: a one-trip loop (:func:`computed_in_loop`; ``cds.CDS5nO1._targets_cols``: faster up to 7K
+#: vertices, level or slower from 20K); read at trace time
+IN_LOOP_MAX_VERTICES = 16_384
+
+
+def computed_in_loop(fn, *xs):
+    """``fn(*xs)`` (integer arrays in, a tuple of integer arrays out), computed in the body of a
+    ``while_loop`` that runs once, and written to memory as its state (as :func:`materialize_loop`).
+
+    Why: XLA:CPU decides how many threads run each kernel from a cost model of the entry
+    computation (``ParallelTaskAssigner``: a kernel with more flops than bytes is split once its
+    cost passes "100 us of work on a 2 GHz core", an estimate far above its real time for a few
+    thousand elements); a kernel in a loop body is split by its output size only (256 KB per
+    thread), since the cost analysis covers the entry computation only (XLA's
+    ``parallel_task_assignment.cc``). On this 2-core VM a split kernel waits for the second
+    thread: a CDS5n-O(1) Target plan over 3,485 entries took 95 us split against 16 us for a
+    like kernel unsplit (profiler trace, bunny, 2026-12-02). Used under
+    :data:`IN_LOOP_MAX_VERTICES` vertices.
+
+    ``xs`` are offset by the loop counter (0 on the one trip) inside the body, so XLA cannot hoist
+    ``fn`` out as a loop invariant; the trip count, always 1, is read from the data as in
+    :func:`materialize_loop`. Integer arrays only (no reverse-mode derivative)."""
+    def computed_in_loop(*xs):  # a nested jit of this name: readers can tell it from navigation
+        # 1 for every value, but read from the data (XLA cannot unroll the loop away); unlike
+        # materialize_loop's count, a negative first element (a packed reference with bit 31
+        # set) must still give one trip: the loop's initial state is zeros, not the values
+        trips = jnp.minimum(xs[0].reshape(-1)[0] & 0x7FFFFFFF, 0) + 1
+        shapes = jax.eval_shape(fn, *xs)
+
+        def body(state):
+            k, _ = state
+            return k + 1, tuple(fn(*(x + k.astype(x.dtype) for x in xs)))
+
+        init = tuple(jnp.zeros(sh.shape, sh.dtype) for sh in shapes)
+        return jax.lax.while_loop(lambda state: state[0] < trips, body, (jnp.int32(0), init))[1]
+
+    return jax.jit(computed_in_loop)(*xs)
 
 
 def _touch_first(v, cond):

@@ -99,6 +99,8 @@ from jaxcds._progress import want_progress as _want_progress
 from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
 from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows, split_padding
+from jaxcds.structures import base as _base
+from jaxcds.structures.base import computed_in_loop as _computed_in_loop
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
@@ -1772,18 +1774,37 @@ class CDS5nO1(CDS4n):
     def origin(self, d: Int) -> Int:
         return self._dart_end(d, False)
 
-    def _three_targets(self, u, row):
+    def _plans(self, u, row):
+        """The three first reads (:meth:`_target_plan_r`), flat: ``(y_red, second_red, y_blue, ...)``."""
+        return tuple(x for c in (RED, BLUE, BLACK) for x in self._target_plan_r(u, c, row))
+
+    def _three_targets(self, u, row, flat=None):
         """``(Target(u_red), Target(u_blue), Target(u_black))`` from ``row = refs[u]``: the three
-        first reads written to memory at once, then one second read each."""
-        plans = [self._target_plan_r(u, c, row) for c in (RED, BLUE, BLACK)]
-        flat = _materialize_loop(tuple(x for p in plans for x in p))
+        first reads written to memory at once (``flat``: already written), then one second read
+        each."""
+        flat = _materialize_loop(self._plans(u, row)) if flat is None else flat
         ys, seconds = flat[0::2], flat[1::2]
         return tuple(self._target_finish_r(y, k, self._second_row(y, k)) for y, k in zip(ys, seconds))
 
     def _targets_cols(self, lfs=None):
         """Every target at once, column by column: O(1) per edge, one row gather per colour (no
-        loop; ``lfs`` is not needed)."""
-        return self._three_targets(jnp.arange(self.num_vertices, dtype=jnp.int32), self.refs)
+        loop; ``lfs`` is not needed).
+
+        Under :data:`~jaxcds.structures.base.IN_LOOP_MAX_VERTICES` vertices the first reads are
+        computed in a one-trip loop's body (:func:`~jaxcds.structures.base.computed_in_loop`):
+        outside it, XLA:CPU split two of their kernels over both threads at 3,485 vertices, and
+        each waited for the second thread. Normals x the face list, raced in one process
+        (``benchmarks/race_in_loop.py``, 60-80 rounds, three runs, 2026-12-02): decimated-knight
+        (502 vertices) 1.59-1.79 -> 1.12-1.27, spot 1.95-2.41 -> 1.45-1.55, bunny 1.84-2.21 ->
+        1.37-1.52, elephant 1.63 -> 1.55, cheburashka 1.50-1.57 -> 1.31-1.50, fandisk 1.59-1.63 ->
+        1.45-1.51; from 20K vertices up no gain (bumpy-cube 1.49-1.54 -> 1.52-1.64, armadillo
+        1.36-1.39 -> 1.46). The same for CDS6n/5n/4n (their LeftFronts and pointer-jumping start
+        in the loop, as parts or as words) gave no consistent gain: not used."""
+        u = jnp.arange(self.num_vertices, dtype=jnp.int32)
+        flat = None
+        if self.num_vertices < _base.IN_LOOP_MAX_VERTICES:
+            flat = _computed_in_loop(lambda refs: self._plans(u, refs), self.refs)
+        return self._three_targets(u, self.refs, flat)
 
     def _out_targets(self, u):
         """Targets of the three edges leaving ``u`` (``num_vertices`` where absent): one row for

@@ -52,13 +52,14 @@ def _order(s, n):
 
 
 def _has_loop(fn, *args):
-    """A ``while`` anywhere in the traced program, except inside ``base.materialize_loop`` (a
-    nested jit of that name whose loop runs once: a materialisation point, not navigation)."""
+    """A ``while`` anywhere in the traced program, except inside ``base.materialize_loop`` or
+    ``base.computed_in_loop`` (nested jits of those names whose loop runs once: a
+    materialisation point, not navigation)."""
     def walk(jaxpr):
         for eqn in jaxpr.eqns:
             if eqn.primitive.name == "while":
                 return True
-            if eqn.params.get("name") == "materialize_loop":
+            if eqn.params.get("name") in ("materialize_loop", "computed_in_loop"):
                 continue
             for v in eqn.params.values():
                 for sub in (v if isinstance(v, (tuple, list)) else (v,)):
@@ -76,6 +77,23 @@ def test_has_loop_sees_loops_but_not_the_materialisation_point():
     assert _has_loop(lambda a: jax.jit(lambda b: jax.lax.fori_loop(0, b[0], lambda i, c: c + i, b))(a), x)
     assert not _has_loop(lambda a: materialize_loop((a + 1,))[0] * 2, x)
     np.testing.assert_array_equal(np.asarray(materialize_loop((x + 1, x * 2))[1]), np.arange(5) * 2)
+
+
+def test_computed_in_loop_computes_in_the_body():
+    from jaxcds.structures.base import computed_in_loop
+    x = jnp.arange(7, dtype=jnp.int32)
+    fn = lambda a, b: (a * 3 + b, jnp.where(a > 2, b, -a))  # noqa: E731
+    # the first element negative too (a CDS reference with bit 31 set): still one trip
+    for first in (x, x - 3, x.at[0].set(jnp.iinfo(jnp.int32).min), x.at[0].set(-1)):
+        got = computed_in_loop(fn, first, x[::-1])
+        for g, w in zip(got, fn(first, x[::-1])):
+            np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+    assert not _has_loop(lambda a: computed_in_loop(fn, a, a)[0], x)
+    # the multiply is in the loop body, not hoisted in front of the loop (the point of the helper)
+    loop = jax.make_jaxpr(lambda a: computed_in_loop(fn, a, a)[0])(x).jaxpr
+    (outer,) = [e for e in loop.eqns if e.params.get("name") == "computed_in_loop"]
+    (w,) = [e for e in outer.params["jaxpr"].eqns if e.primitive.name == "while"]
+    assert any(e.primitive.name == "mul" for e in w.params["body_jaxpr"].eqns)
 
 
 # ---------------------------------------------------------------- one structure, many claims
