@@ -563,7 +563,7 @@ def computed_in_loop(fn, *xs):
         # 1 for every value, but read from the data (XLA cannot unroll the loop away); unlike
         # materialize_loop's count, a negative first element (a packed reference with bit 31
         # set) must still give one trip: the loop's initial state is zeros, not the values
-        trips = jnp.minimum(xs[0].reshape(-1)[0] & 0x7FFFFFFF, 0) + 1
+        trips = jnp.minimum(xs[0].reshape(-1)[0].astype(jnp.int32) & 0x7FFFFFFF, 0) + 1
         shapes = jax.eval_shape(fn, *xs)
 
         def body(state):
