@@ -88,6 +88,9 @@ def test_computed_in_loop_computes_in_the_body():
         got = computed_in_loop(fn, first, x[::-1])
         for g, w in zip(got, fn(first, x[::-1])):
             np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+    small = jnp.asarray([65535, 1, 2], jnp.uint16)  # another integer dtype sets the trip count
+    np.testing.assert_array_equal(np.asarray(computed_in_loop(lambda a: (a + 1,), small)[0]),
+                                  np.asarray(small + 1))
     assert not _has_loop(lambda a: computed_in_loop(fn, a, a)[0], x)
     # the multiply is in the loop body, not hoisted in front of the loop (the point of the helper)
     loop = jax.make_jaxpr(lambda a: computed_in_loop(fn, a, a)[0])(x).jaxpr
