@@ -537,7 +537,7 @@ def _loop_once(xs):
 
 
 #: under this many vertices the CDS5n-O(1) whole-mesh Targets compute their first reads inside
-#: a one-trip loop (:func:`computed_in_loop`; ``cds.CDS5nO1._targets_cols``: faster up to 7K
+#: a one-trip loop on CPU (:func:`computed_in_loop`; ``cds.CDS5nO1._targets_cols``: faster up to 7K
 #: vertices, level or slower from 20K); read at trace time
 IN_LOOP_MAX_VERTICES = 16_384
 

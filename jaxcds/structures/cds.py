@@ -1802,7 +1802,8 @@ class CDS5nO1(CDS4n):
         in the loop, as parts or as words) gave no consistent gain: not used."""
         u = jnp.arange(self.num_vertices, dtype=jnp.int32)
         flat = None
-        if self.num_vertices < _base.IN_LOOP_MAX_VERTICES:
+        # XLA:CPU's thread split only; on a GPU a loop costs a host round trip per trip test
+        if self.num_vertices < _base.IN_LOOP_MAX_VERTICES and jax.default_backend() == "cpu":
             flat = _computed_in_loop(lambda refs: self._plans(u, refs), self.refs)
         return self._three_targets(u, self.refs, flat)
 
