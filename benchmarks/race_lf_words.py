@@ -68,6 +68,16 @@ def _in_order(s, *arrays):
     return tuple(x[order] for x in arrays)
 
 
+def face_list_baseline(m):
+    """``(positions, faces, normals, runs)`` of mesh ``m`` for a race: float32 positions, int32
+    faces, the face list's normals (the reference every route is checked against) and the run
+    table holding the face list itself (``{"face_list": (fn, args)}``)."""
+    faces = jnp.asarray(np.asarray(m.faces, np.int32))
+    pos = jnp.asarray(np.asarray(m.vertices, np.float32))
+    want = np.asarray(N.face_list_vertex_normals(pos, faces))
+    return pos, faces, want, {"face_list": (N.face_list_vertex_normals, (pos, faces))}
+
+
 def race_in_turn(runs, rounds: int, seed: int = 0):
     """``{name: [seconds per run]}``: every ``(f, args)`` of ``runs`` once per round, in an order
     shuffled each round (seeded). A rotated order kept each route's cyclic neighbours: a cheap
