@@ -28,7 +28,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from race_lf_words import _in_order, _meshes, _structure, race_in_turn  # noqa: E402
+from race_lf_words import _in_order, _meshes, _structure, face_list_baseline, race_in_turn  # noqa: E402
 
 from jaxcds.algorithms import normals  # noqa: E402
 
@@ -49,10 +49,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         m, parts = _meshes(spec)
-        pos = jnp.asarray(np.asarray(m.vertices, np.float32))
-        faces = jnp.asarray(np.asarray(m.faces, np.int32))
-        want = np.asarray(normals.face_list_vertex_normals(pos, faces))
-        runs = {"face_list": (normals.face_list_vertex_normals, (pos, faces))}
+        pos, _, want, runs = face_list_baseline(m)
         for name in a.structures.split(","):
             s = _structure(name, m, parts)
             if s.num_vertices != pos.shape[0]:  # holes closed by dummy vertices: other positions

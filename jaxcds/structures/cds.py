@@ -100,7 +100,6 @@ from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_w
 from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows, split_padding
 from jaxcds.structures import base as _base
-from jaxcds.structures.base import computed_in_loop as _computed_in_loop
 from jaxcds.structures.base import materialize_loop as _materialize_loop
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
@@ -1804,7 +1803,7 @@ class CDS5nO1(CDS4n):
         flat = None
         # XLA:CPU's thread split only; on a GPU a loop costs a host round trip per trip test
         if self.num_vertices < _base.IN_LOOP_MAX_VERTICES and jax.default_backend() == "cpu":
-            flat = _computed_in_loop(lambda refs: self._plans(u, refs), self.refs)
+            flat = _base.computed_in_loop(lambda refs: self._plans(u, refs), self.refs)
         return self._three_targets(u, self.refs, flat)
 
     def _out_targets(self, u):

@@ -92,7 +92,8 @@ def test_computed_in_loop_computes_in_the_body():
     np.testing.assert_array_equal(np.asarray(computed_in_loop(lambda a: (a + 1,), small)[0]),
                                   np.asarray(small + 1))
     assert not _has_loop(lambda a: computed_in_loop(fn, a, a)[0], x)
-    # the multiply is in the loop body, not hoisted in front of the loop (the point of the helper)
+    # the multiply is traced in the loop body (the point of the helper; XLA cannot hoist it, its
+    # inputs depend on the loop counter)
     loop = jax.make_jaxpr(lambda a: computed_in_loop(fn, a, a)[0])(x).jaxpr
     (outer,) = [e for e in loop.eqns if e.params.get("name") == "computed_in_loop"]
     (w,) = [e for e in outer.params["jaxpr"].eqns if e.primitive.name == "while"]
