@@ -597,9 +597,20 @@ def with_target_rounds(structure):
 
 def jump_round(v):
     """One pointer-jumping round: every pending entry (``-(i + 1)``: "the value of entry ``i``")
-    takes the value of the entry it points to."""
+    takes the value of the entry it points to.
+
+    Written lean (``~v`` is ``-v - 1``; the index is never negative, so no wrap): each
+    elementwise operation counts in XLA:CPU's thread split (see :meth:`_CDS._target_start`),
+    and the wrap test of a plain ``v[i]`` took three more per entry than the round itself."""
     pend = v < 0
-    return jnp.where(pend, v[jnp.where(pend, -v - 1, 0)], v)
+    at = jnp.where(pend, ~v, 0)
+    return jnp.where(pend, v.at[at].get(mode="promise_in_bounds", wrap_negative_indices=False), v)
+
+
+def _padded(val, padded: bool):
+    """``val`` and, if ``padded``, the zeros :func:`pointer_jump` would append (resolved entries)."""
+    pad = split_padding(val.shape[0]) if padded else 0
+    return jnp.concatenate([val, jnp.zeros((pad,), val.dtype)]) if pad else val
 
 
 def pointer_jump(val, rounds: int):
@@ -662,20 +673,26 @@ def _fld(x):
 
 
 def _bit30(x):
-    return ((x >> 30) & 1).astype(bool)
+    """bit 30 of an int32 reference: shifted into the sign bit (two operations, where a shift, a
+    mask and a compare took three: XLA:CPU's thread split counts each, see _CDS._target_start)"""
+    return (x << 1) < 0
 
 
 def _bit31(x):
-    return ((x >> 31) & 1).astype(bool)
+    """bit 31 of an int32 reference: its sign"""
+    return x < 0
 
 
 def _parts(src, col, entering):
     """A dart ``2(3 src + col) + r`` kept in its parts ``(src, col, r)`` (int32 arrays): the
     whole-mesh routes read the source and the edge id of every ``LeftFront`` off the parts
     (``_dart`` packs them), where decoding a packed dart divides by 3 -- kernels of their own
-    on XLA:CPU (division is not duplicated into consumers)."""
+    on XLA:CPU (division is not duplicated into consumers). ``r`` stays a bool array when given
+    one (a select reads it as it is; converted, each reader paid a convert and a compare)."""
     i32 = jnp.int32
-    return (jnp.asarray(src, i32), jnp.asarray(col, i32), jnp.asarray(entering, i32))
+    entering = jnp.asarray(entering)
+    return (jnp.asarray(src, i32), jnp.asarray(col, i32),
+            entering if entering.dtype == bool else entering.astype(i32))
 
 
 _WORD_VERTICES = 1 << 28  # below: a LeftFront fits one int32 word (_lf_word)
@@ -896,12 +913,42 @@ class _CDS(MeshStructure):
                 (u != self.v_red) & (u != self.v_blue),
                 (u != self.v_red) & (u != self.v_blue) & (u != self.v_black))
 
-    def _target_start(self, lfs=None):
+    def _target_start(self, lfs=None, padded: bool = False):
         """``(3n,)`` pointer-jumping start of :meth:`_targets_cols`, edge id ``3u + c``: the
         target where ``LeftFront(u_c)`` leaves it (or the edge is absent), else ``-(w_c + 1)``
-        for the edge ``w_c`` whose target it shares (``lfs``: :meth:`_lf_parts_cols`)."""
-        n = self.num_vertices
+        for the edge ``w_c`` whose target it shares (``lfs``: :meth:`_lf_parts_cols`; a
+        ``LeftFront`` entering the target is ``w_c``, of colour ``c``, Thm 2).
+
+        With the roots known statically (a single mesh) the exterior and absent edges -- six
+        ids -- are patched after one lean pass rather than tested for at every vertex: XLA:CPU
+        splits a kernel over its threads once its flops exceed the bytes it moves
+        (``ParallelTaskAssigner``, see :func:`~jaxcds.structures.base.computed_in_loop`), and
+        the root tests, nine compares and selects per vertex, tipped this one over; on 2 cores
+        a split kernel waits for the second thread (bunny: 30 us against 3).
+
+        ``padded``: followed by the entries :func:`pointer_jump` pads with (resolved zeros, see
+        :func:`~jaxcds.structures.base.split_padding`), written in the same pass: padded after,
+        the whole array was copied once more (armadillo: 150 us of a 2.8 ms call)."""
         lfs = self._lf_parts_cols() if lfs is None else lfs
+        if not isinstance(self.v_red, int):  # a packed batch's view: per-vertex roots (arrays)
+            return _padded(self._target_start_masked(lfs), padded)
+        start = _padded(jnp.stack([jnp.where(r if r.dtype == bool else r != 0, src * -3 - (c + 1), src)
+                                   for c, (src, _, r) in enumerate(lfs)], axis=1).reshape(-1), padded)
+        ids, vals = [], []
+        # absent edges (Definition 1: V_red has no outgoing edge, V_blue only its red one, V_black
+        # no black one): any resolved value, here the stored source (garbage, as documented)
+        for u0, c in ((self.v_red, RED), (self.v_red, BLUE), (self.v_red, BLACK),
+                      (self.v_blue, BLUE), (self.v_blue, BLACK), (self.v_black, BLACK)):
+            ids.append(3 * u0 + c)
+            vals.append(lfs[c][0][u0])
+        # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
+        ids += [3 * self.v_blue + RED, 3 * self.v_black + BLUE]
+        vals += [jnp.int32(self.v_red), jnp.int32(self.v_blue)]
+        return start.at[np.asarray(ids, np.int32)].set(jnp.stack(vals).astype(start.dtype))
+
+    def _target_start_masked(self, lfs):
+        """:meth:`_target_start` with the root tests at every vertex (roots as arrays)."""
+        n = self.num_vertices
         u = jnp.arange(n, dtype=jnp.int32)
         vals = []
         for c, ((src, col, r), ok) in enumerate(zip(lfs, self._valid_cols())):
@@ -933,7 +980,8 @@ class _CDS(MeshStructure):
         it gathers from) cost as much as the gather itself on meshes under 1M vertices. The
         data-driven loop follows as a safety net: it runs no round when ``target_rounds`` is
         right, and all of them when it is ``-1`` (a structure built without it)."""
-        t = pointer_jump(self._target_start(lfs), self.target_rounds).reshape(self.num_vertices, 3)
+        n = self.num_vertices
+        t = pointer_jump(self._target_start(lfs, padded=True), self.target_rounds)[:3 * n].reshape(n, 3)
         return t[:, 0], t[:, 1], t[:, 2]
 
     def all_edge_targets(self) -> Int:
@@ -973,10 +1021,11 @@ class _CDS(MeshStructure):
         elif self._gathered_lf:  # materialised once: XLA would otherwise re-evaluate the red source,
             src_r, = _materialize_loop((lf_r[0],))  # a table gather, in every gather that reads it
             lf_r = (src_r,) + lf_r[1:]
+        # the targets' start patches the exterior itself (_target_start): the rows as stored
+        t_r, t_b, t_k = self._targets_cols((lf_r, lf_b, lf_k))
         # _EXTERIOR: LeftFront((V_blue, V_red)) = (V_red, V_black): the red slot of V_blue is the
         # outer face (V_blue, V_red, V_black)
         lf_r = _psel(u == self.v_blue, _parts(self.v_black, RED, 1), lf_r)  # self._d1, in parts
-        t_r, t_b, t_k = self._targets_cols((lf_r, lf_b, lf_k))
         if self._fusible_targets:  # a while_loop's result is in memory already
             t_r, t_b, t_k = _materialize_loop((t_r, t_b, t_k))
         # red triangles: w = Source(LeftFront) when it is w_red entering v, else Target(v_blue)

@@ -264,3 +264,45 @@ def test_slot_faces_without_lf_words(name, monkeypatch):
     got = np.asarray(vertex_normals.__wrapped__(s, jnp.asarray(q)))
     ref = np.asarray(face_list_vertex_normals(jnp.asarray(q), jnp.asarray(want)))
     np.testing.assert_allclose(got, ref, atol=1e-5)
+
+
+@pytest.mark.parametrize("name", CDS)
+def test_target_start_with_static_roots_equals_the_masked_one(name):
+    """The pointer-jumping start of a single structure (roots static: one lean pass, the six root
+    and absent ids patched after) equals the per-vertex masked start of the packed views, entry
+    by entry; padded, it is followed by resolved zeros only."""
+    from jaxcds.structures import base as base_module
+
+    for mesh in (_mesh("cube.off"), _mesh("random:2000/7"), _mesh("bunny.off")):
+        s = registry.build(name, mesh)
+        lean = np.asarray(jax.jit(lambda s: s._target_start())(s))
+        masked = np.asarray(jax.jit(lambda s: s._target_start_masked(s._lf_parts_cols()))(s))
+        assert lean.shape == (3 * s.num_vertices,)
+        np.testing.assert_array_equal(lean, masked)
+        padded = np.asarray(jax.jit(lambda s: s._target_start(padded=True))(s))
+        assert padded.shape[0] == lean.shape[0] + base_module.split_padding(lean.shape[0])
+        np.testing.assert_array_equal(padded[:lean.shape[0]], lean)
+        assert (padded[lean.shape[0]:] == 0).all()
+
+
+@pytest.mark.parametrize("name", CDS)
+def test_small_mesh_normals_split_no_more_kernels_over_threads_than_the_face_list(name):
+    """XLA:CPU splits a kernel over its threads once its flops pass the bytes it moves (a cost
+    model of the entry computation, ``ParallelTaskAssigner``), and on 2 cores a split kernel of a
+    few thousand elements waits for the second thread (bunny: 30 us against 3). The CDS
+    whole-mesh routes are written so that on the bunny no kernel of theirs is split; the face
+    list's program has none either. A jax upgrade that changes the cost model fails here: the
+    small-mesh normals must then be measured again (``benchmarks/race_face_derivation.py``).
+    Counted in the compiled HLO (``outer_dimension_partitions``); nothing is timed."""
+    from jaxcds.algorithms import normals as normals_module
+
+    mesh = load_shared("bunny.off")
+    pos = jnp.asarray(np.asarray(mesh.vertices, np.float32))
+    faces = jnp.asarray(np.asarray(mesh.faces, np.int32))
+    s = registry.build(name, mesh)
+
+    def splits(f, *args):
+        return jax.jit(f).lower(*args).compile().as_text().count("outer_dimension_partitions")
+
+    face_list = splits(face_list_vertex_normals, pos, faces)
+    assert splits(lambda s, p: normals_module._vertex_normals.__wrapped__(s, p), s, pos) <= face_list
