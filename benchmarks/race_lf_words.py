@@ -1,7 +1,7 @@
 """CDS normals with the slot rows' LeftFronts read two ways, raced in turn against the plain-JAX
 face list in one process (ns per vertex, medians, ratio to the face list, fastest run):
 
-* ``words``: the library's route from 8,192 (``cds._WORD_MIN_VERTICES``) to 2^28 vertices: the
+* ``words``: the library's route from 2^22 (``cds._WORD_MIN_VERTICES``) to 2^28 vertices: the
   three LeftFronts of every vertex written once as one shift-decoded word each
   (``cds._lf_word``; forced here on any size);
 * ``parts``: the route outside that range: every consumer reads the dart's parts off the table

@@ -696,12 +696,16 @@ def _parts(src, col, entering):
 
 
 _WORD_VERTICES = 1 << 28  # below: a LeftFront fits one int32 word (_lf_word)
-# ... and from here up the word is worth its pass: under it the mesh is in cache and the three
-# word kernels of the one-trip loop cost more than the consumers' re-reads of the rows. Normals,
-# parts against words, raced in turn (60 rounds, 2026-12-01): bunny (3.5K) cds6n / cds5n / cds4n
-# / cds5n-o1 0.83 / 0.84 / 0.89 / 0.93x, spot (2.9K) 0.85 / 0.93 (cds4n) / 0.94 (o1), elephant (6K)
-# 0.86-0.98x, cheburashka (6.7K) 0.95-1.0x, fandisk (7.2K) 0.96-1.0x, bumpy-cube (20K) 1.0x
-_WORD_MIN_VERTICES = 8192
+# ... and from here up the word is worth its pass: under it the three word kernels of the one-trip
+# loop cost as much as the consumers' re-reads of the rows or more. Normals x the face list, words
+# against parts, raced in turn (benchmarks/race_lf_words.py, Intel Xeon host, 2026-12-02, after
+# the lean pointer-jumping start): cheburashka (6.7K) cds6n 1.76 / 1.42x, bumpy-cube (20K) 1.32 /
+# 1.30x, armadillo (43K) 1.72 / 1.69x, random 200K 1.12 / 1.04x, 1M 1.24 / 1.16x, packed 1,000
+# meshes (2.7M) 1.39 / 1.36x, random 5M 1.29 / 1.29x, packed 3,000 meshes (8.2M) 1.39 / 2.45x
+# (medians; the parts' fastest run 1.46x); at 10,000 meshes (27.5M, Zen 3 host, 2026-11-30) the
+# parts ran 1.9x the words. Was 8,192 (Zen 3 host, 2026-12-01: bunny to fandisk 0.83-1.0x the
+# words with parts, 20K 1.0x)
+_WORD_MIN_VERTICES = 1 << 22
 
 
 def _lf_word(p):
