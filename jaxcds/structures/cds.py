@@ -607,6 +607,12 @@ def jump_round(v):
     return jnp.where(pend, v.at[at].get(mode="promise_in_bounds", wrap_negative_indices=False), v)
 
 
+def _join(cols, by_colour: bool):
+    """Three ``(n,)`` columns as one ``(3n,)`` array: one block after the other (``by_colour``),
+    else interleaved, entry ``3u + c``."""
+    return jnp.concatenate(cols) if by_colour else jnp.stack(cols, axis=1).reshape(-1)
+
+
 def _padded(val, padded: bool):
     """``val`` and, if ``padded``, the zeros :func:`pointer_jump` would append (resolved entries)."""
     pad = split_padding(val.shape[0]) if padded else 0
@@ -917,11 +923,16 @@ class _CDS(MeshStructure):
                 (u != self.v_red) & (u != self.v_blue),
                 (u != self.v_red) & (u != self.v_blue) & (u != self.v_black))
 
-    def _target_start(self, lfs=None, padded: bool = False):
+    def _target_start(self, lfs=None, padded: bool = False, by_colour: bool = False):
         """``(3n,)`` pointer-jumping start of :meth:`_targets_cols`, edge id ``3u + c``: the
         target where ``LeftFront(u_c)`` leaves it (or the edge is absent), else ``-(w_c + 1)``
         for the edge ``w_c`` whose target it shares (``lfs``: :meth:`_lf_parts_cols`; a
         ``LeftFront`` entering the target is ``w_c``, of colour ``c``, Thm 2).
+
+        ``by_colour``: entry ``c n + u`` for edge ``u_c`` instead (three blocks of ``n``, the
+        pointers ``-(c n + w + 1)`` likewise): the three columns are then written one after the
+        other, where interleaved (``3u + c``) each entry paid an index division by 3 and a
+        select among the columns (armadillo: 197 us, the slowest kernel of the normals).
 
         With the roots known statically (a single mesh) the exterior and absent edges -- six
         ids -- are patched after one lean pass rather than tested for at every vertex: XLA:CPU
@@ -933,38 +944,43 @@ class _CDS(MeshStructure):
         ``padded``: followed by the entries :func:`pointer_jump` pads with (resolved zeros, see
         :func:`~jaxcds.structures.base.split_padding`), written in the same pass: padded after,
         the whole array was copied once more (armadillo: 150 us of a 2.8 ms call)."""
+        n = self.num_vertices
         lfs = self._lf_parts_cols() if lfs is None else lfs
+        at = (lambda u, c: c * n + u) if by_colour else (lambda u, c: 3 * u + c)
         if not isinstance(self.v_red, int):  # a packed batch's view: per-vertex roots (arrays)
-            return _padded(self._target_start_masked(lfs), padded)
-        start = _padded(jnp.stack([jnp.where(r if r.dtype == bool else r != 0, src * -3 - (c + 1), src)
-                                   for c, (src, _, r) in enumerate(lfs)], axis=1).reshape(-1), padded)
+            return _padded(self._target_start_masked(lfs, by_colour), padded)
+        # pointer to edge w_c: -(at(w, c) + 1), i.e. src * k - (offset + 1) with k = -1 or -3
+        k, off = (-1, lambda c: c * n) if by_colour else (-3, lambda c: c)
+        cols = [jnp.where(r if r.dtype == bool else r != 0, src * k - (off(c) + 1), src)
+                for c, (src, _, r) in enumerate(lfs)]
+        start = _padded(_join(cols, by_colour), padded)
         ids, vals = [], []
         # absent edges (Definition 1: V_red has no outgoing edge, V_blue only its red one, V_black
         # no black one): any resolved value, here the stored source (garbage, as documented)
         for u0, c in ((self.v_red, RED), (self.v_red, BLUE), (self.v_red, BLACK),
                       (self.v_blue, BLUE), (self.v_blue, BLACK), (self.v_black, BLACK)):
-            ids.append(3 * u0 + c)
+            ids.append(at(u0, c))
             vals.append(lfs[c][0][u0])
         # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
-        ids += [3 * self.v_blue + RED, 3 * self.v_black + BLUE]
+        ids += [at(self.v_blue, RED), at(self.v_black, BLUE)]
         vals += [jnp.int32(self.v_red), jnp.int32(self.v_blue)]
         return start.at[np.asarray(ids, np.int32)].set(jnp.stack(vals).astype(start.dtype))
 
-    def _target_start_masked(self, lfs):
+    def _target_start_masked(self, lfs, by_colour: bool = False):
         """:meth:`_target_start` with the root tests at every vertex (roots as arrays)."""
         n = self.num_vertices
         u = jnp.arange(n, dtype=jnp.int32)
         vals = []
         for c, ((src, col, r), ok) in enumerate(zip(lfs, self._valid_cols())):
             leaving = r == 0
-            val = jnp.where(leaving | ~ok, src, -(3 * src + col + 1))
+            val = jnp.where(leaving | ~ok, src, -((src + col * n) if by_colour else (3 * src + col)) - 1)
             # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
             if c == RED:
                 val = jnp.where(u == self.v_blue, self.v_red, val)
             if c == BLUE:
                 val = jnp.where(u == self.v_black, self.v_blue, val)
             vals.append(val)
-        return jnp.stack(vals, axis=1).reshape(-1)  # edge id 3u + c
+        return _join(vals, by_colour)
 
     def _targets_cols(self, lfs=None):
         """``Target(u_c)`` of every edge, per colour (three ``(n,)`` arrays, garbage where the
@@ -985,8 +1001,9 @@ class _CDS(MeshStructure):
         data-driven loop follows as a safety net: it runs no round when ``target_rounds`` is
         right, and all of them when it is ``-1`` (a structure built without it)."""
         n = self.num_vertices
-        t = pointer_jump(self._target_start(lfs, padded=True), self.target_rounds)[:3 * n].reshape(n, 3)
-        return t[:, 0], t[:, 1], t[:, 2]
+        start = self._target_start(lfs, padded=True, by_colour=True)
+        t = pointer_jump(start, self.target_rounds)[:3 * n].reshape(3, n)
+        return t[0], t[1], t[2]
 
     def all_edge_targets(self) -> Int:
         """``(3n,)`` ``Target(u_c)`` of every edge id ``3u + c`` (garbage on absent ids)."""

@@ -270,7 +270,8 @@ def test_slot_faces_without_lf_words(name, monkeypatch):
 def test_target_start_with_static_roots_equals_the_masked_one(name):
     """The pointer-jumping start of a single structure (roots static: one lean pass, the six root
     and absent ids patched after) equals the per-vertex masked start of the packed views, entry
-    by entry; padded, it is followed by resolved zeros only."""
+    by entry, in both layouts (edge id ``3u + c``; by colour, ``c n + u``: the same values
+    renumbered); padded, it is followed by resolved zeros only."""
     from jaxcds.structures import base as base_module
 
     for mesh in (_mesh("cube.off"), _mesh("random:2000/7"), _mesh("bunny.off")):
@@ -283,6 +284,13 @@ def test_target_start_with_static_roots_equals_the_masked_one(name):
         assert padded.shape[0] == lean.shape[0] + base_module.split_padding(lean.shape[0])
         np.testing.assert_array_equal(padded[:lean.shape[0]], lean)
         assert (padded[lean.shape[0]:] == 0).all()
+        # by colour (entry c n + u, pointers likewise): the same start, renumbered
+        n = s.num_vertices
+        by_colour = np.asarray(jax.jit(lambda s: s._target_start(by_colour=True))(s))
+        np.testing.assert_array_equal(
+            by_colour, np.asarray(jax.jit(lambda s: s._target_start_masked(s._lf_parts_cols(), True))(s)))
+        edge = np.where(by_colour < 0, -(3 * ((-by_colour - 1) % n) + (-by_colour - 1) // n) - 1, by_colour)
+        np.testing.assert_array_equal(edge.reshape(3, n).T.reshape(-1), lean)
 
 
 @pytest.mark.parametrize("name", CDS)
