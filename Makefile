@@ -17,7 +17,7 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/jaxcds demo
 
-# The quick set (CI runs this: 16.5-17.7 min on 2 cores from a fresh clone, install included, 2026-12-01/02, Zen 3 box): every structure on
+# The quick set (CI runs this: 16.5-18.2 min on 2 cores from a fresh clone, install included, on the Zen 3 box of 2026-12-01/02; 8.7 min on the Intel host of stop 28): every structure on
 # every kind of input. `test-all` adds the slow cases: every accepted shared mesh, large random
 # triangulations, notebooks at full size, benchmark probes.
 PYTEST := $(PY) -m pytest -q -n 2 --timeout 900 --timeout-method thread --durations 15
