@@ -101,6 +101,7 @@ from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows, split_padding
 from jaxcds.structures import base as _base
 from jaxcds.structures.base import materialize_loop as _materialize_loop
+from jaxcds.structures.base import take_nonnegative as _take
 
 __all__ = ["CDS6n", "CDS5n", "CDS4n", "CDS5nO1", "build_cds", "cw_bfs_order", "relabel_wood",
            "edge_fronts", "face_slots", "assign_face_slots", "tables_reference", "target_rounds", "with_target_rounds"]
@@ -599,23 +600,18 @@ def jump_round(v):
     """One pointer-jumping round: every pending entry (``-(i + 1)``: "the value of entry ``i``")
     takes the value of the entry it points to.
 
-    Written lean (``~v`` is ``-v - 1``; the index is never negative, so no wrap): each
-    elementwise operation counts in XLA:CPU's thread split (see :meth:`_CDS._target_start`),
-    and the wrap test of a plain ``v[i]`` took three more per entry than the round itself."""
+    Written lean (``~v`` is ``-v - 1``; the index is never negative, so no wrap,
+    :func:`~jaxcds.structures.base.take_nonnegative`): each elementwise operation counts in
+    XLA:CPU's thread split (see :meth:`_CDS._target_start`), and the wrap test of a plain ``v[i]``
+    took three more per entry than the round itself."""
     pend = v < 0
-    at = jnp.where(pend, ~v, 0)
-    return jnp.where(pend, v.at[at].get(mode="promise_in_bounds", wrap_negative_indices=False), v)
+    return jnp.where(pend, _take(v, jnp.where(pend, ~v, 0)), v)
 
 
-def _rows(table, i):
-    """``table[i]`` for indices known not to be negative (vertex ids read off the tables, or
-    ``jnp.where(..., 0, id)``): without the wrap of a negative index that ``table[i]`` adds,
-    three operations per read (each counts in XLA:CPU's thread split, see
-    :meth:`_CDS._target_start`). Out-of-range indices are clamped, as XLA's gather does.
-    Normals x the face list with and without the wrap, raced (2026-12-02): cds5n-o1 bunny 1.36 ->
-    1.32x, cheburashka 1.59 -> 1.47x, armadillo 1.43 -> 1.33x; cds5n cheburashka 1.61 -> 1.46x;
-    cds6n level (it reads two such gathers)."""
-    return table.at[i].get(mode="promise_in_bounds", wrap_negative_indices=False)
+def _layout(n: int, by_colour: bool):
+    """``(scale, step)``: edge ``u_c``'s entry of a ``(3n,)`` per-edge array is ``scale u + step c``
+    -- ``c n + u`` by colour, else the edge id ``3u + c``."""
+    return (1, n) if by_colour else (3, 1)
 
 
 def _join(cols, by_colour: bool):
@@ -651,9 +647,8 @@ def pointer_jump(val, rounds: int):
         return jump_round(w)
 
     m = val.shape[0]
-    pad = split_padding(m)
-    if pad:
-        val = jnp.concatenate([val, jnp.zeros((pad,), val.dtype)])
+    val = _padded(val, True)
+    pad = val.shape[0] - m
     rounds = max(rounds, 0)
     val = jax.lax.fori_loop(0, rounds // 2, two_rounds, val)
     if rounds % 2:
@@ -957,12 +952,16 @@ class _CDS(MeshStructure):
         the whole array was copied once more (armadillo: 150 us of a 2.8 ms call)."""
         n = self.num_vertices
         lfs = self._lf_parts_cols() if lfs is None else lfs
-        at = (lambda u, c: c * n + u) if by_colour else (lambda u, c: 3 * u + c)
         if not isinstance(self.v_red, int):  # a packed batch's view: per-vertex roots (arrays)
             return _padded(self._target_start_masked(lfs, by_colour), padded)
-        # pointer to edge w_c: -(at(w, c) + 1), i.e. src * k - (offset + 1) with k = -1 or -3
-        k, off = (-1, lambda c: c * n) if by_colour else (-3, lambda c: c)
-        cols = [jnp.where(r if r.dtype == bool else r != 0, src * k - (off(c) + 1), src)
+        scale, step = _layout(n, by_colour)
+
+        def at(u, c):  # entry of edge u_c
+            return scale * u + step * c
+
+        # pointer to edge w_c: -(at(w, c) + 1), written src * -scale - (step c + 1): a multiply
+        # and an add per entry (the thread split counts them)
+        cols = [jnp.where(r if r.dtype == bool else r != 0, src * -scale - (step * c + 1), src)
                 for c, (src, _, r) in enumerate(lfs)]
         start = _padded(_join(cols, by_colour), padded)
         ids, vals = [], []
@@ -981,10 +980,11 @@ class _CDS(MeshStructure):
         """:meth:`_target_start` with the root tests at every vertex (roots as arrays)."""
         n = self.num_vertices
         u = jnp.arange(n, dtype=jnp.int32)
+        scale, step = _layout(n, by_colour)
         vals = []
         for c, ((src, col, r), ok) in enumerate(zip(lfs, self._valid_cols())):
             leaving = r == 0
-            val = jnp.where(leaving | ~ok, src, -((src + col * n) if by_colour else (3 * src + col)) - 1)
+            val = jnp.where(leaving | ~ok, src, -(scale * src + step * col) - 1)
             # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
             if c == RED:
                 val = jnp.where(u == self.v_blue, self.v_red, val)
@@ -1018,7 +1018,7 @@ class _CDS(MeshStructure):
 
     def all_edge_targets(self) -> Int:
         """``(3n,)`` ``Target(u_c)`` of every edge id ``3u + c`` (garbage on absent ids)."""
-        return jnp.stack(self._targets_cols(), axis=1).reshape(-1).astype(jnp.int32)
+        return _join(self._targets_cols(), False).astype(jnp.int32)
 
     def target_table(self) -> Int:
         """``(num_darts,)`` Target of every dart id (garbage on invalid ids), for whole-mesh loops
@@ -1062,12 +1062,12 @@ class _CDS(MeshStructure):
             t_r, t_b, t_k = _materialize_loop((t_r, t_b, t_k))
         # red triangles: w = Source(LeftFront) when it is w_red entering v, else Target(v_blue)
         entering_r = lf_r[2] == 1
-        w_r = jnp.where(entering_r, lf_r[0], _rows(t_b, jnp.where(entering_r, 0, lf_r[0])))
+        w_r = jnp.where(entering_r, lf_r[0], _take(t_b, jnp.where(entering_r, 0, lf_r[0])))
         red = jnp.stack([u, t_r, w_r], axis=1)
         # black triangle of b (LeftFront(b_black) black, entering) or blue triangle of F_blue[b]:
         # the blue triangle of every vertex as one (n, 3) table, so F_blue costs one row gather
         black_matched = (lf_k[2] == 1) & self._valid_cols()[BLACK]
-        blue_o = _rows(jnp.stack([u, t_b, lf_b[0]], axis=1), self.F_blue)
+        blue_o = _take(jnp.stack([u, t_b, lf_b[0]], axis=1), self.F_blue)
         black = jnp.stack([u, t_k, lf_k[0]], axis=1)
         kb = jnp.where(black_matched[:, None], black, blue_o)
         return jnp.concatenate([red, kb], axis=0)
@@ -1599,7 +1599,7 @@ class CDS5n(_CDS):
         # C_red^toleft = red: LeftFront is w_red entering v, S = w
         # C_red^toleft = blue: LeftFront is v_blue, S = v
         # C_red^toleft = black: S = q, LeftFront = (v, w) = twin(RightFront(q_black)) = v_blue
-        q = _fld(_rows(self.refs[:, self._COL_BLACK_R], s))
+        q = _fld(_take(self.refs[:, self._COL_BLACK_R], s))
         return _parts(jnp.where(ctl >= 2, q, s), jnp.where(ctl == 0, RED, BLUE), ctl == 0)
 
     def _lf_red_r(self, u, row):
@@ -1761,7 +1761,7 @@ class CDS5nO1(CDS4n):
         # C_red^toleft = red: LeftFront is w_red with w = u + 1 (next cw sibling, cwBFS)
         # blue: LeftFront = v_blue with v = Target(u_red) = S
         # black: S = q; LeftFront = v_blue with v = Source(RightFront(q_black))
-        q = _fld(_rows(self.refs[:, self._COL_BLACK_R], s))
+        q = _fld(_take(self.refs[:, self._COL_BLACK_R], s))
         src = jnp.where(ctl == 0, u + 1, jnp.where(ctl == 1, s, q))
         return _parts(src, jnp.where(ctl == 0, RED, BLUE), ctl == 0)
 
@@ -1820,7 +1820,7 @@ class CDS5nO1(CDS4n):
     def _second_row(self, y, second):
         """Row ``y`` for :meth:`_target_finish_r`; row 0 where no second read is needed
         (``second == 0``): that row stays in cache, a random row would be a cache miss."""
-        return _rows(self.refs, jnp.where(second == 0, 0, y))
+        return _take(self.refs, jnp.where(second == 0, 0, y))
 
     def _dart_end(self, d, want_target: bool):
         """Target (``want_target``) or Origin of darts ``d``, Thm 6: O(1), no loop; the row of

@@ -40,7 +40,7 @@ from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
 from jaxcds.construct.ring_search import check_sweeps, improve_ring
 from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
-from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows
+from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows, take_nonnegative
 from jaxcds.structures.corner_table import CornerTable
 
 __all__ = ["LR", "LRBits", "build_lr", "stats", "render_list", "expand_render_list",
@@ -216,18 +216,6 @@ def _slot_triangles(xp, dec, m, nv, v):
     return left, right, ok_l, ok_r
 
 
-def _take_nonneg(a, i):
-    """``a[i]`` for indices known not to be negative (clipped offsets into ``VO*``, mesh ids of
-    a packed batch): without jnp's wrap of negative indices, three operations per read.
-    Out-of-range indices are clamped, as XLA's gather does. ``a`` may be a packed batch's
-    segment view (``lr_packed._Seg``), which reads the same way. Normals x the face list with
-    and without the wrap, raced (2026-12-02, Intel host): packed 3,000 meshes lr 1.33 -> 1.28x,
-    lr-bits 1.38 -> 1.30x; bunny lr-bits 1.80 -> 1.67x; armadillo and 200K level."""
-    if hasattr(a, "at"):
-        return a.at[i].get(mode="promise_in_bounds", wrap_negative_indices=False)
-    return a[i]
-
-
 def _wrap(x, m):
     """``x mod m`` for ``-m <= x < 2m``."""
     return jnp.where(x < 0, x + m, jnp.where(x >= m, x - m, x))
@@ -286,7 +274,7 @@ class _LRNavigation(MeshStructure):
         irr_r = (d.irr == 1) & ((i == 4) | (i == 6))
         k = jnp.where(irr_l, d.lo + (i == 2), jnp.where(irr_r, d.ro + (i == 6), 0))
         k = jnp.clip(k, 0, self.VOs.shape[0] - 1)
-        ring = jnp.where(irr_l | irr_r, _take_nonneg(self.VOs, k), cheap)
+        ring = jnp.where(irr_l | irr_r, take_nonnegative(self.VOs, k), cheap)
         return jnp.where(t0, self.O0[self._t0_index(c)], ring).astype(jnp.int32)
 
     def n(self, c: Int) -> Int:
@@ -580,7 +568,7 @@ class LR(_LRNavigation):
         top = self.VOs.shape[0] - 1
         la = jnp.clip(3 * ia, 0, top)
         lb = jnp.clip(3 * ib, 0, top)
-        return _Slot(l=jnp.where(irl == 1, _take_nonneg(self.VOs, la), ia), r=jnp.where(irr == 1, _take_nonneg(self.VOs, lb), ib),
+        return _Slot(l=jnp.where(irl == 1, take_nonnegative(self.VOs, la), ia), r=jnp.where(irr == 1, take_nonnegative(self.VOs, lb), ib),
                      skl=skl, skr=skr, irl=irl, irr=irr, lo=3 * ia + 1, ro=3 * ib + 1)
 
     @property
@@ -669,8 +657,8 @@ class LRBits(_LRNavigation):
         # v + offset is at most one ring length off: one conditional wrap instead of a floor
         # modulo (a division when m_r is per element, as in a packed batch). Long entries compute
         # garbage here and take VO* below.
-        lv = jnp.where(long_, _take_nonneg(self.VOs, a), _wrap(v + (el >> 1), m))
-        rv = jnp.where(long_, _take_nonneg(self.VOs, a + 1), _wrap(v + (er >> 1), m))
+        lv = jnp.where(long_, take_nonnegative(self.VOs, a), _wrap(v + (el >> 1), m))
+        rv = jnp.where(long_, take_nonnegative(self.VOs, a + 1), _wrap(v + (er >> 1), m))
         return _Slot(l=lv, r=rv,
                      skl=jnp.where(long_, payload & 1, fl & (one - fr)),
                      skr=jnp.where(long_, (payload >> 1) & 1, fr & (one - fl)),

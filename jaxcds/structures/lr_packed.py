@@ -37,8 +37,8 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass
 from jaxcds.structures.base import (_chunk_queries, interleave_windows, materialize_loop,
-                                    parts_of_one_class)
-from jaxcds.structures.lr import _slot_triangles, _take_nonneg
+                                    parts_of_one_class, take_nonnegative)
+from jaxcds.structures.lr import _slot_triangles
 
 __all__ = ["concatenate_lr", "packed_class"]
 
@@ -55,7 +55,7 @@ class _Seg:
         self.a, self.off, self.n = a, off, n
 
     def __getitem__(self, i):
-        return _take_nonneg(self.a, self.off + i)
+        return take_nonnegative(self.a, self.off + i)
 
     @property
     def shape(self):
@@ -246,7 +246,7 @@ class _PackedMixin:
         jv = self._arrays.index("VOs")
         tab = jnp.stack([rstart, mr, self.mesh_vertex_offsets, self.mesh_array_offsets[:, jv],
                          self.mesh_array_lengths[:, jv], nvm], axis=1)
-        meta = _take_nonneg(tab, mesh)  # (M_r, 6): one gather per ring vertex, read by every column below
+        meta = take_nonnegative(tab, mesh)  # (M_r, 6): one gather per ring vertex, read by every column below
         v = jnp.arange(self.num_ring, dtype=jnp.int32) - meta[:, 0]
         view = self._ring_view(meta[:, 1], meta[:, 5], _Seg(self.VOs, meta[:, 3], meta[:, 4]))
         # the ring tables are the meshes' own, m_r (LR16: 2 m_r) entries each, in mesh order
