@@ -73,6 +73,15 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     mesh = load_mesh(mesh)
     if check and close:
         mesh = validate_and_close(mesh, structure="the 4n-bit encoding")
+        # closed, connected, manifold: chi = V - F/2. Refused here naming the file (the
+        # Schnyder wood's own check below knows only the counts)
+        chi = mesh.num_vertices - mesh.num_faces // 2
+        if chi != 2:
+            raise errors.UnsupportedTopologyError(
+                f"{mesh.source}: the 4n-bit encoding needs a genus-0 surface (holes allowed); this "
+                f"mesh has genus {(2 - chi) // 2} (Euler characteristic {chi}"
+                f"{' after closing its holes' if mesh.closed_boundaries else ''}); the 'lr' or "
+                "'halfedge' structure takes it (`jaxcds build -s lr`)")
     elif check:
         validate(mesh, connected=True, structure="the 4n-bit encoding")
     elif close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
@@ -124,10 +133,11 @@ def decode(words: Words, *, structure: str = "faces", dummy=None):
 
 
 # --------------------------------------------------------------------------- files
-def _float32_geometry(vertices: np.ndarray, path) -> np.ndarray:
+def _float32_geometry(vertices: np.ndarray, path, real=None) -> np.ndarray:
     """The float32 geometry of a ``.cds`` file, or :class:`NonFiniteCoordinateError` naming the
     first vertex whose finite coordinate float32 cannot hold (|x| > 3.4e38): it was written as
-    inf, and read_cds refused the file it had just written."""
+    inf, and read_cds refused the file it had just written; or :class:`MeshError` naming two
+    vertices that float32 makes one (:func:`_refuse_float32_collapse`)."""
     with np.errstate(over="ignore"):
         p = np.asarray(vertices).astype(np.float32)
     bad = np.flatnonzero(~np.isfinite(p).all(axis=1))
@@ -137,7 +147,34 @@ def _float32_geometry(vertices: np.ndarray, path) -> np.ndarray:
             f"cannot write {os.fspath(path)!r}: vertex {v} at {np.asarray(vertices)[v].tolist()} is "
             f"past float32's range (|x| <= {float(np.finfo(np.float32).max):.4g}), the .cds geometry "
             f"is float32 ({bad.size} such vertices); scale the mesh first")
+    _refuse_float32_collapse(np.asarray(vertices), p, path, real)
     return p
+
+
+def _refuse_float32_collapse(v: np.ndarray, p: np.ndarray, path, real=None) -> None:
+    """:class:`MeshError` naming two vertices that are apart in ``v`` (float64) but one point in
+    ``p`` (their float32 geometry): far from the origin (1e8: float32 steps of 8) or at subnormal
+    scales (1e-310: every coordinate 0), the file held a mesh of coincident vertices and
+    zero-area faces, written without a word. ``real``: mask of the vertices to check (a hole's
+    dummy vertex is dropped on reading)."""
+    idx = np.arange(p.shape[0]) if real is None else np.flatnonzero(real)
+    if idx.size < 2:
+        return
+    q = p[idx]
+    o = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+    same = np.flatnonzero((q[o[1:]] == q[o[:-1]]).all(axis=1))
+    if same.size == 0:
+        return
+    a, b = idx[o[same]], idx[o[same + 1]]
+    apart = np.flatnonzero((v[a] != v[b]).any(axis=1))
+    if apart.size == 0:  # the same point in float64 too (an unwelded input): not ours to refuse
+        return
+    i, j = sorted((int(a[apart[0]]), int(b[apart[0]])))
+    raise errors.MeshError(
+        f"cannot write {os.fspath(path)!r}: vertices {i} {v[i].tolist()} and {j} {v[j].tolist()} "
+        f"are one point in float32, the .cds geometry ({apart.size} such pairs): the decoded mesh "
+        "would have coincident vertices and zero-area faces; move the mesh near the origin or "
+        "scale it first")
 
 
 def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometry: bool = True,
@@ -157,7 +194,8 @@ def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometr
     m = enc.mesh
     pos = None
     if geometry:
-        pos = _float32_geometry(m.vertices, path)[enc.order]
+        real = None if m.dummy_vertices is None else ~np.asarray(m.dummy_vertices, bool)
+        pos = _float32_geometry(m.vertices, path, real)[enc.order]
     dummy = None
     if m.dummy_vertices is not None and m.dummy_vertices.any():
         dummy = m.dummy_vertices[enc.order]
@@ -306,11 +344,37 @@ def write_mesh_atomic(path: str | os.PathLike, mesh: TriMesh) -> None:
         raise errors.OutputError(f"cannot write {path!r}: unknown suffix {ext!r} "
                                  f"(use {', '.join(_MESH_TYPES)})")
     ff.check_writable(path)
-    tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False, validate=False)
-    data = tm.export(file_type=_MESH_TYPES[ext])
-    if isinstance(data, str):
-        data = data.encode()
+    if ext in (".off", ".obj"):
+        # trimesh writes text coordinates with a fixed 10 (OFF) or 8 (OBJ) decimals: 1e-9
+        # became 0 and 1.2345678e-5 lost two digits. Written here in full precision instead.
+        data = _mesh_text(mesh, ext).encode()
+    else:  # binary PLY (float64) and binary STL (float32): the values as they are
+        tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False, validate=False)
+        data = tm.export(file_type=_MESH_TYPES[ext])
+        if isinstance(data, str):
+            data = data.encode()
     ff.atomic_write_bytes(path, data)
+
+
+def _mesh_text(mesh: TriMesh, ext: str) -> str:
+    """OFF or OBJ text of ``mesh`` whose coordinates read back exactly: 9 significant digits
+    where every coordinate is a float32 (a decoded ``.cds`` geometry), else 17."""
+    import io
+
+    v = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
+    with np.errstate(over="ignore", invalid="ignore"):
+        single = bool(np.all(v.astype(np.float32).astype(np.float64) == v))
+    g = "%.9g" if single else "%.17g"
+    buf = io.StringIO()
+    if ext == ".off":
+        buf.write(f"OFF\n{v.shape[0]} {f.shape[0]} 0\n")
+        np.savetxt(buf, v, fmt=g)
+        np.savetxt(buf, f, fmt="3 %d %d %d")
+    else:
+        np.savetxt(buf, v, fmt=f"v {g} {g} {g}")
+        np.savetxt(buf, f + 1, fmt="f %d %d %d")
+    return buf.getvalue()
 
 
 def encode_file(mesh_path: str | os.PathLike, out_path: str | os.PathLike, *, mixed: bool = True,

@@ -72,6 +72,65 @@ def test_info_and_cli_helpers(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".tmp")) == []
 
 
+
+@pytest.mark.parametrize("shift,scale", [(1e8, 1.0), (0.0, 1e-310)])
+def test_vertices_that_float32_merges_are_refused_and_no_file_left(tmp_path, shift, scale):
+    """Robustness sweep: a unit sphere at 1e8 (float32 steps of 8 there) or at 1e-310
+    (subnormal: float32 makes every coordinate 0) was encoded without a word into a file whose
+    vertices all coincide. Refused, naming the two vertices; nothing written."""
+    import dataclasses
+
+    m = icosphere(1)
+    far = dataclasses.replace(m, vertices=m.vertices * scale + shift)
+    with pytest.raises(errors.MeshError, match=r"vertices \d+ .* and \d+ .* are one point in float32"):
+        write_cds(tmp_path / "far.cds", far)
+    assert os.listdir(tmp_path) == []
+    write_cds(tmp_path / "near.cds", dataclasses.replace(m, vertices=m.vertices + 1e4))  # still apart
+
+
+def test_genus_refusal_of_the_encoder_names_the_file(tmp_path):
+    """The encoder's genus refusal named only the counts (the Schnyder wood's check); it names
+    the mesh, its genus and the structures that take it, as `jaxcds build` does."""
+    import trimesh
+
+    from jaxcds.mesh import load_mesh
+
+    t = trimesh.creation.torus(1.0, 0.3, major_sections=12, minor_sections=6)
+    path = tmp_path / "torus.off"
+    path.write_text(t.export(file_type="off"))
+    with pytest.raises(errors.UnsupportedTopologyError, match=r"torus\.off: .* genus 1 .*'lr'"):
+        write_cds(tmp_path / "t.cds", load_mesh(path))
+    assert sorted(os.listdir(tmp_path)) == ["torus.off"]
+
+
+@pytest.mark.parametrize("ext", [".off", ".obj", ".ply"])
+def test_decoded_mesh_files_keep_every_float32_digit(tmp_path, ext):
+    """Robustness sweep: `jaxcds decode -o x.obj|x.off` wrote the coordinates with trimesh's
+    fixed 8 / 10 decimals, so a mesh in small units (1e-9: every vertex 0) or 1.2345678e-5
+    (two digits lost) came back wrong without a word. The written file now reads back to the
+    float32 geometry of the .cds file exactly."""
+    import dataclasses
+
+    from jaxcds.codec import write_mesh_atomic
+    from jaxcds.mesh import load_mesh
+
+    m = icosphere(1)
+    for scale in (1e-9, 1.2345678e-5, 3e30):
+        small = dataclasses.replace(m, vertices=m.vertices * scale)
+        write_cds(tmp_path / "s.cds", small)
+        out = tmp_path / ("s" + ext)
+        decode_file(tmp_path / "s.cds", out)
+        back = load_mesh(out, weld=False)
+        ref, _ = read_cds(tmp_path / "s.cds")
+        assert np.array_equal(back.vertices.astype(np.float32), ref.vertices.astype(np.float32))
+        assert np.array_equal(back.faces, ref.faces)
+    if ext == ".ply":  # trimesh's PLY holds float32
+        return
+    v = np.array([[1e-300, 0, 0], [1 / 3, 1, 0], [0, 0, 1e300], [1, 1, 1]])  # float64 exact too
+    f = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], dtype=np.int32)
+    write_mesh_atomic(tmp_path / ("d" + ext), load_mesh(v, f))
+    assert np.array_equal(load_mesh(tmp_path / ("d" + ext), weld=False).vertices, v)
+
 def test_writers_refuse_a_folder_or_a_missing_folder_before_any_work(tmp_path, monkeypatch):
     """write_cds / write_mesh_atomic onto a folder, into a folder that does not exist, or when
     the OS refuses the write: an OutputError naming the path, no temporary file left."""
