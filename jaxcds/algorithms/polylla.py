@@ -924,6 +924,20 @@ def _checked_mesh(tri, structure: str, check: bool):
                 str(exc).split("; jaxcds.mesh.load_mesh")[0] + f"; {structure} needs every point "
                 "in a triangle: remove it from the input, or run Polylla on the half-edge "
                 "(--structure halfedge), which accepts points in holes") from None
+        except errors.InconsistentOrientationError as exc:
+            from jaxcds.polylla_io import twice_signed_areas, unit_scale
+
+            if not (twice_signed_areas(unit_scale(tri.points), tri.faces) > 0).all():
+                raise  # a hand-made Triangulation2D with clockwise rows: their orientation
+            # every triangle was turned counter-clockwise by its area (polylla_io): two that
+            # still run along an edge the same way lie on one side of it, on top of each other.
+            # "orient faces consistently" asked for what the input cannot change
+            msg = str(exc).replace("; orient faces consistently", "")
+            raise errors.InconsistentOrientationError(
+                f"{msg}: each triangle is taken counter-clockwise (by the sign of its area), so "
+                "these two lie on the same side of that edge and overlap: the triangulation "
+                "folds over itself there (a misplaced point or a wrong corner in the .ele / OFF "
+                "faces)") from None
     return mesh
 
 

@@ -840,3 +840,22 @@ def test_a_point_in_no_triangle_on_pemb_gives_a_polylla_hint():
         P.run(tri, structure="pemb")
     assert "load_mesh" not in str(exc.value)
     assert P.run(tri, structure="halfedge")["polygons"] >= 1
+
+
+@pytest.mark.parametrize("structure", ["halfedge", "pemb"])
+def test_overlapping_triangles_are_named_as_a_fold_not_an_orientation(tmp_path, structure):
+    """Robustness sweep: two triangles on the same side of their shared edge (a misplaced
+    point: (0.5, 0.5) instead of (3, 3)) were refused with "orient faces consistently", which
+    the input cannot do (every triangle is oriented by its area). The message names the two
+    triangles, the edge and the overlap; a hand-made clockwise Triangulation2D keeps the
+    orientation message."""
+    (tmp_path / "fold.node").write_text("4 2 0 0\n0 0 0\n1 2 0\n2 0 2\n3 0.5 0.5\n")
+    (tmp_path / "fold.ele").write_text("2 3 0\n0 0 1 2\n1 1 2 3\n")
+    with pytest.raises(errors.InconsistentOrientationError,
+                       match=r"faces \[0, 1\] .* edge \(1, 2\) .* overlap: the triangulation folds") as exc:
+        P.run(str(tmp_path / "fold.node"), structure=structure)
+    assert "orient faces consistently" not in str(exc.value)
+    pts = np.array([[0, 0], [2, 0], [0, 2], [2, 2]], float)
+    hand = io.Triangulation2D(points=pts, faces=np.array([[0, 1, 2], [1, 2, 3]], np.int32))
+    with pytest.raises(errors.InconsistentOrientationError, match="orient faces consistently"):
+        P.run(hand, structure=structure)
