@@ -128,8 +128,6 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
     if suffix != ".stl" and raw[:2] == b"\x1f\x8b":  # (a binary STL's header is free text)
         raise errors.UnreadableMeshError(f"{path}: gzip-compressed data (bytes 0-1 are 0x1f 0x8b), "
                                          f"not {suffix[1:].upper()} text: decompress it first")
-    import trimesh
-
     text = None
     try:
         # process=False: we weld ourselves, to count and report it.
@@ -143,8 +141,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             else:
                 text = _prepare_off(text)  # first: splitlines() breaks at \v and \f too
                 _check_off_counts(text, path)
-            loaded = trimesh.load(io.StringIO(text), file_type=suffix[1:], process=False,
-                                  force="mesh")
+            loaded = _trimesh_load(io.StringIO(text), suffix[1:])
         else:
             if suffix == ".ply":
                 mixed = _check_ply(raw, path)
@@ -156,8 +153,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                     # vertical tab); a binary body may hold those bytes, so ASCII only
                     raw = raw.translate(bytes.maketrans(b"\t\v\f", b"   "))
             # the bytes read above, not the path again: it may have changed in between
-            loaded = trimesh.load(io.BytesIO(raw), file_type=suffix[1:], process=False,
-                                  force="mesh")
+            loaded = _trimesh_load(io.BytesIO(raw), suffix[1:])
     except errors.JaxcdsError:
         raise
     except Exception as exc:  # trimesh raises many kinds; all mean "cannot parse"
@@ -186,6 +182,24 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")
     return vertices, faces
+
+
+def _trimesh_load(stream, file_type: str):
+    """``trimesh.load`` of ``stream`` without the warnings trimesh logs on the way: with no
+    logging set up, Python printed them to stderr, tracebacks included ("failed to extract
+    face_normals" and two chained tracebacks for an ASCII STL with a bad "facet normal" line,
+    whose normals jaxcds never reads). What trimesh cannot read raises, and is named above."""
+    import logging
+
+    import trimesh
+
+    log = logging.getLogger("trimesh")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    try:
+        return trimesh.load(stream, file_type=file_type, process=False, force="mesh")
+    finally:
+        log.setLevel(level)
 
 
 def _file_kind(mode: int) -> str:
@@ -485,7 +499,7 @@ def _check_off_counts(text: str, path: str) -> None:
         nv, nf = int(head[0]), int(head[1])
     except (IndexError, ValueError):
         nv = nf = -1
-    if nv >= 0 and nf >= 0 and len(data) - start >= nv + nf:
+    if nv >= 0 and nf >= 0 and len(data) - start == nv + nf:
         face = data[start + nv:start + nv + nf]
         try:
             arr = np.array(" ".join(face).split(), dtype=np.int64)
@@ -528,6 +542,11 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
         raise errors.UnreadableMeshError(
             f"{path}: the OFF header declares {nv} vertices and {nf} faces; the file has "
             f"{min(len(body), nv)} vertex lines and {have_f} face lines (truncated?)")
+    if len(body) > nv + nf:  # trimesh read the declared faces and dropped the rest unsaid
+        raise errors.UnreadableMeshError(
+            f"{path}: line {body[nv + nf][0]}: data past the last face the OFF header declares "
+            f"({nv} vertices, {nf} faces); the file has {len(body) - nv - nf} more data line(s) "
+            "(a wrong count in the header?)")
     if indices:
         for k, (no, tok) in enumerate(body[:nv]):
             if len(tok) < 3:

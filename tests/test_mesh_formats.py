@@ -124,6 +124,21 @@ def test_off_defects_are_named(text, kind, match, tmp_path):
         load_mesh(_write(tmp_path, "bad.off", text))
 
 
+@pytest.mark.parametrize("head", ["OFF\n4 3 0\n", "OFF 4 3 0\n"])
+def test_off_face_lines_past_the_declared_count_are_named(head, tmp_path):
+    """Robustness sweep: a header declaring fewer faces than the file lists (3 of the tet's 4)
+    loaded the declared ones and dropped the rest without a word: a closed tetrahedron read
+    as an open one. Refused naming the first extra line, as the PLY reader does."""
+    text = head + "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n# c\n3 1 2 3\n"
+    line = text.count("\n")
+    with pytest.raises(errors.UnreadableMeshError,
+                       match=f"line {line}: data past the last face the OFF header declares "
+                             r"\(4 vertices, 3 faces\); the file has 1 more"):
+        load_mesh(_write(tmp_path, "extra.off", text))
+    ok = load_mesh(_write(tmp_path, "ok.off", text.replace(" 3 0\n", " 4 0\n", 1) + "\n  \n"))
+    assert ok.num_faces == 4 and topology(ok)["closed"]
+
+
 # ------------------------------------------------------------------------------------ PLY
 def _ascii_ply(faces: str, nv=5, nf=3, comments=0) -> str:
     return ("ply\nformat ascii 1.0\n" + "".join(f"comment {'x' * 60}\n" for _ in range(comments)) +
@@ -309,6 +324,23 @@ def test_ascii_stl_defects_are_named(loop, match, tmp_path):
     text = f"solid t\nfacet normal 0 0 1\nouter loop\n{loop}endloop\nendfacet\nendsolid t\n"
     with pytest.raises(errors.UnreadableMeshError, match=match):
         load_mesh(_write(tmp_path, "bad.stl", text))
+
+
+def test_ascii_stl_with_a_bad_normal_loads_without_a_traceback(tmp_path, capfd):
+    """Robustness sweep: an ASCII STL whose "facet normal" holds a non-number (normals are not
+    read) loaded, but trimesh logged "failed to extract face_normals" with two chained Python
+    tracebacks, which Python printed on stderr (`jaxcds info` showed them)."""
+    import logging
+
+    facets = "".join(f"facet normal 0 0 1{'x' if k == 0 else ''}\nouter loop\n"
+                     + "".join(f"vertex {' '.join(map(str, _TET_V[i]))}\n" for i in f)
+                     + "endloop\nendfacet\n" for k, f in enumerate(_TET_F))
+    level = logging.getLogger("trimesh").level
+    m = load_mesh(_write(tmp_path, "n.stl", f"solid t\n{facets}endsolid t\n"))
+    assert m.num_vertices == 4 and m.num_faces == 4 and topology(m)["closed"]
+    out, err = capfd.readouterr()
+    assert "Traceback" not in err and "face_normals" not in err and err == ""
+    assert logging.getLogger("trimesh").level == level  # put back as it was
 
 
 # ------------------------------------------------------------------------- non-regular files
