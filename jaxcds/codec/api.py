@@ -22,8 +22,8 @@ from jaxcds.codec import fileformat as ff
 from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n
 from jaxcds.codec.encode import encode_faces
 from jaxcds.codec.words import Words, to_mixed
-from jaxcds.mesh import (TriMesh, boundary_loops, close_boundaries, load_mesh, topology, validate,
-                         validate_and_close)
+from jaxcds.construct.schnyder import prepare_mesh
+from jaxcds.mesh import TriMesh, boundary_loops, close_boundaries, load_mesh, topology, validate
 
 __all__ = ["EncodedMesh", "encode_mesh", "decode", "write_cds", "read_cds", "cds_info",
            "encode_file", "decode_file", "write_mesh_atomic"]
@@ -72,16 +72,9 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
             raise errors.ArgumentError(f"encode_mesh: {flag} must be True or False, got {value!r}")
     mesh = load_mesh(mesh)
     if check and close:
-        mesh = validate_and_close(mesh, structure="the 4n-bit encoding")
-        # closed, connected, manifold: chi = V - F/2. Refused here naming the file (the
-        # Schnyder wood's own check below knows only the counts)
-        chi = mesh.num_vertices - mesh.num_faces // 2
-        if chi != 2:
-            raise errors.UnsupportedTopologyError(
-                f"{mesh.source}: the 4n-bit encoding needs a genus-0 surface (holes allowed); this "
-                f"mesh has genus {(2 - chi) // 2} (Euler characteristic {chi}"
-                f"{' after closing its holes' if mesh.closed_boundaries else ''}); the 'lr' or "
-                "'halfedge' structure takes it (`jaxcds build -s lr`)")
+        # holes closed, then genus 0 refused naming the file and the structures that take it:
+        # the same checks (and messages) as the CDS builders
+        mesh, _ = prepare_mesh(mesh, structure="the 4n-bit encoding (Schnyder woods)")
     elif check:
         validate(mesh, connected=True, structure="the 4n-bit encoding")
     elif close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
