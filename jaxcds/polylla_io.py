@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import tempfile
 from typing import Optional
 
 import numpy as np
@@ -438,46 +437,30 @@ def read_input(path: str) -> Triangulation2D:
 
 # ------------------------------------------------------------------------------ OFF output
 def write_polygon_off(path: str, points: np.ndarray, offsets: np.ndarray, indices: np.ndarray) -> None:
-    """Write a polygon mesh as OFF (``z = 0``), atomically (temporary file + ``os.replace``)."""
+    """Write a polygon mesh as OFF (``z = 0``), atomically (temporary file + ``os.replace``:
+    :func:`jaxcds.codec.fileformat.atomic_write_bytes`, :class:`OutputError` naming ``path``)."""
+    from jaxcds.codec.fileformat import atomic_write_bytes, rows_text
+
     points = np.asarray(points, dtype=np.float64)
     offsets = np.asarray(offsets, dtype=np.int64)
     indices = np.asarray(indices, dtype=np.int64)
     npoly = offsets.shape[0] - 1
-    from jaxcds.codec.fileformat import check_writable
-
-    check_writable(path)  # not over a device or FIFO (the rename would replace the node)
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".polylla-", suffix=".off", dir=d)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(f"OFF\n{points.shape[0]} {npoly} 0\n")
-            np.savetxt(fh, np.column_stack([points[:, :2], np.zeros(points.shape[0])]), fmt="%.17g")
-            sizes = np.diff(offsets)
-            # one line per polygon: size then its vertices (grouped by size for vectorised writes)
-            lines = np.empty(npoly, dtype=object)
-            for k in np.unique(sizes):
-                sel = np.nonzero(sizes == k)[0]
-                rows = indices[offsets[sel][:, None] + np.arange(k)]
-                txt = np.char.add(f"{k} ", _join_rows(rows))
-                lines[sel] = txt
-            if npoly:
-                fh.write("\n".join(lines.tolist()))
-                fh.write("\n")
-        umask = os.umask(0)  # mkstemp creates the file 0600: give it the usual 0666 & ~umask
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    xyz = np.column_stack([points[:, :2], np.zeros(points.shape[0])])
+    text = (f"OFF\n{points.shape[0]} {npoly} 0\n" + rows_text("%.17g %.17g %.17g\n", xyz)
+            + _polygon_lines(offsets, indices))
+    atomic_write_bytes(path, text.encode())
 
 
-def _join_rows(rows: np.ndarray) -> np.ndarray:
-    out = rows[:, 0].astype(str)
-    for j in range(1, rows.shape[1]):
-        out = np.char.add(np.char.add(out, " "), rows[:, j].astype(str))
-    return out
+def _polygon_lines(offsets: np.ndarray, indices: np.ndarray, chunk: int = 1 << 16) -> str:
+    """``"k i_1 ... i_k\\n"`` per polygon, in order: one ``%`` per chunk of polygons over the
+    concatenation of their size's row format (the polygons' vertices are contiguous in
+    ``indices``, so the chunk's arguments are one slice of it)."""
+    sizes = np.diff(offsets)
+    row = {int(k): f"{k}" + " %d" * int(k) + "\n" for k in np.unique(sizes)}
+    return "".join(
+        "".join(row[k] for k in sizes[a:a + chunk].tolist())
+        % tuple(indices[offsets[a]:offsets[min(a + chunk, sizes.size)]].tolist())
+        for a in range(0, sizes.size, chunk))
 
 
 def read_polygon_off(path: str) -> tuple[np.ndarray, list[list[int]]]:

