@@ -150,11 +150,18 @@ def _refuse_float32_collapse(v: np.ndarray, p: np.ndarray, path, real=None) -> N
     scales (1e-310: every coordinate 0), the file held a mesh of coincident vertices and
     zero-area faces, written without a word. ``real``: mask of the vertices to check (a hole's
     dummy vertex is dropped on reading)."""
-    idx = np.arange(p.shape[0]) if real is None else np.flatnonzero(real)
-    if idx.size < 2:
-        return
+    exact = (p == v).all(axis=1)  # (p promoted to float64: exact)
+    if real is not None:
+        exact |= ~np.asarray(real, bool)
+    if exact.all():
+        return  # float32 held every coordinate: its equal points are equal in float64 too
+    if real is None:
+        idx = _same_hash(p + np.float32(0), np.arange(p.shape[0]))
+    else:  # (+ 0: -0.0 and 0.0 are one point, as == says)
+        idx = np.flatnonzero(real)
+        idx = _same_hash(p[idx] + np.float32(0), idx)
     q = p[idx]
-    o = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+    o = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))  # the few candidates only: stable, by vertex
     same = np.flatnonzero((q[o[1:]] == q[o[:-1]]).all(axis=1))
     if same.size == 0:
         return
@@ -168,6 +175,19 @@ def _refuse_float32_collapse(v: np.ndarray, p: np.ndarray, path, real=None) -> N
         f"are one point in float32, the .cds geometry ({apart.size} such pairs): the decoded mesh "
         "would have coincident vertices and zero-area faces; move the mesh near the origin or "
         "scale it first")
+
+
+def _same_hash(q: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """The entries of ``idx`` (increasing) whose float32 point ``q`` shares its 64-bit hash with
+    another's: every group of equal points, and rare collisions (compared exactly by the
+    caller). One argsort of n hashes instead of a 3-key lexsort of n points (5M vertices:
+    0.4 s instead of 3.9 s in write_cds)."""
+    b = q.view(np.uint32).astype(np.uint64)
+    h = (b[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ b[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+         ^ b[:, 2] * np.uint64(0x165667B19E3779F9))
+    o = np.argsort(h)
+    dup = np.flatnonzero(h[o[1:]] == h[o[:-1]])
+    return idx[np.sort(o[np.union1d(dup, dup + 1)])]
 
 
 def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometry: bool = True,
