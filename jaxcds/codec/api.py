@@ -348,7 +348,9 @@ _MESH_TYPES = {".off": "off", ".obj": "obj", ".ply": "ply", ".stl": "stl"}
 
 def write_mesh_atomic(path: str | os.PathLike, mesh: TriMesh) -> None:
     """Write ``mesh`` as .off / .obj / .ply / .stl (by suffix) to a temporary file in the same
-    folder, then rename it over ``path``."""
+    folder, then rename it over ``path``. OFF and OBJ keep every digit (float64 too); PLY and
+    STL are binary float32, exact for a decoded ``.cds`` geometry (float32), rounded for a
+    float64 mesh."""
     import trimesh
 
     path = os.fspath(path)
@@ -361,7 +363,7 @@ def write_mesh_atomic(path: str | os.PathLike, mesh: TriMesh) -> None:
         # trimesh writes text coordinates with a fixed 10 (OFF) or 8 (OBJ) decimals: 1e-9
         # became 0 and 1.2345678e-5 lost two digits. Written here in full precision instead.
         data = _mesh_text(mesh, ext).encode()
-    else:  # binary PLY (float64) and binary STL (float32): the values as they are
+    else:  # binary PLY and STL: trimesh writes float32, the .cds geometry's own precision
         tm = trimesh.Trimesh(vertices=mesh.vertices, faces=mesh.faces, process=False, validate=False)
         data = tm.export(file_type=_MESH_TYPES[ext])
         if isinstance(data, str):
