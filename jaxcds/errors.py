@@ -138,3 +138,8 @@ class OutputError(JaxcdsError, OSError):
     """An output file cannot be written: its folder is missing, a folder is in its place, no
     permission, a full disk. Writes go to a temporary file renamed at the end, so nothing half
     written is left behind."""
+
+
+class ResourceLimitWarning(UserWarning):
+    """A process resource ran near its limit and jaxcds acted (``jaxcds._mappings.relieve``:
+    JAX's caches cleared before the kernel's memory-mapping limit crashed XLA)."""

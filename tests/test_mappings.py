@@ -1,0 +1,56 @@
+"""jaxcds._mappings: JAX's caches cleared before the kernel's memory-mapping limit crashes XLA."""
+
+from __future__ import annotations
+
+import warnings
+
+import jax
+import jax.numpy as jnp
+import pytest
+
+from jaxcds import _mappings, errors
+from jaxcds.structures import registry
+
+
+def _compiled_once():
+    f = jax.jit(lambda x: x + 1)
+    f(jnp.ones(3)).block_until_ready()
+    assert f._cache_size() == 1
+    return f
+
+
+def test_near_the_limit_caches_are_cleared_with_a_warning(monkeypatch):
+    f = _compiled_once()
+    monkeypatch.setattr(_mappings, "_max_map_count", lambda: 1000)
+    monkeypatch.setattr(_mappings, "_map_count", lambda: 900)
+    with pytest.warns(errors.ResourceLimitWarning, match=r"900 memory mappings, 90% .*max_map_count = 1000"):
+        assert _mappings.relieve()
+    assert f._cache_size() == 0  # the executable is gone (its mappings with it)
+
+
+def test_below_the_limit_or_off_linux_nothing_is_cleared(monkeypatch):
+    f = _compiled_once()
+    monkeypatch.setattr(_mappings, "_max_map_count", lambda: 1000)
+    monkeypatch.setattr(_mappings, "_map_count", lambda: 799)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not _mappings.relieve()
+        monkeypatch.setattr(_mappings, "_max_map_count", lambda: None)  # no /proc
+        assert not _mappings.relieve()
+    assert f._cache_size() == 1
+
+
+def test_the_real_counts_are_read_on_linux():
+    limit, count = _mappings._max_map_count(), _mappings._map_count()
+    if limit is None:
+        pytest.skip("no /proc/sys/vm/max_map_count here")
+    assert 0 < count < limit
+
+
+def test_build_relieves_before_building(monkeypatch):
+    calls = []
+    monkeypatch.setattr(_mappings, "relieve", lambda: calls.append(1) or False)
+    import trimesh
+
+    registry.build("halfedge", trimesh.creation.icosahedron())
+    assert calls == [1]
