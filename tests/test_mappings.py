@@ -19,6 +19,11 @@ def _compiled_once():
     return f
 
 
+@pytest.fixture(autouse=True)
+def _every_call_checks(monkeypatch):
+    monkeypatch.setattr(_mappings, "INTERVAL_S", 0.0)
+
+
 def test_near_the_limit_caches_are_cleared_with_a_warning(monkeypatch):
     f = _compiled_once()
     monkeypatch.setattr(_mappings, "_max_map_count", lambda: 1000)
@@ -38,6 +43,16 @@ def test_below_the_limit_or_off_linux_nothing_is_cleared(monkeypatch):
         monkeypatch.setattr(_mappings, "_max_map_count", lambda: None)  # no /proc
         assert not _mappings.relieve()
     assert f._cache_size() == 1
+
+
+def test_checks_are_throttled(monkeypatch):
+    monkeypatch.setattr(_mappings, "INTERVAL_S", 3600.0)
+    monkeypatch.setattr(_mappings, "_max_map_count", lambda: 1000)
+    monkeypatch.setattr(_mappings, "_map_count", lambda: 900)
+    monkeypatch.setattr(_mappings, "_last", [float("-inf")])
+    with pytest.warns(errors.ResourceLimitWarning):
+        assert _mappings.relieve()
+    assert not _mappings.relieve()  # within the interval: not read again
 
 
 def test_the_real_counts_are_read_on_linux():
