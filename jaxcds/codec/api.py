@@ -155,11 +155,9 @@ def _refuse_float32_collapse(v: np.ndarray, p: np.ndarray, path, real=None) -> N
         exact |= ~np.asarray(real, bool)
     if exact.all():
         return  # float32 held every coordinate: its equal points are equal in float64 too
-    if real is None:
-        idx = _same_hash(p + np.float32(0), np.arange(p.shape[0]))
-    else:  # (+ 0: -0.0 and 0.0 are one point, as == says)
-        idx = np.flatnonzero(real)
-        idx = _same_hash(p[idx] + np.float32(0), idx)
+    idx = np.arange(p.shape[0]) if real is None else np.flatnonzero(real)
+    q = p if real is None else p[idx]  # (no gather of every row when all are real)
+    idx = _same_hash(q + np.float32(0), idx)  # + 0: -0.0 and 0.0 are one point, as == says
     q = p[idx]
     o = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))  # the few candidates only: stable, by vertex
     same = np.flatnonzero((q[o[1:]] == q[o[:-1]]).all(axis=1))
