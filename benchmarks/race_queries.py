@@ -24,6 +24,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from jaxcds.algorithms import adjacent  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import registry  # noqa: E402
 
@@ -50,8 +51,8 @@ def main(argv=None) -> int:
     ap.add_argument("--vertices", type=int, default=100_000)
     ap.add_argument("--queries", type=int, default=1_000_000)
     ap.add_argument("--structures", nargs="+", default=["halfedge", "cds5n-o1"])
-    ap.add_argument("--ops", nargs="+", default=["target"], help="dart operators: target, origin, "
-                    "face_left, next, ...")
+    ap.add_argument("--ops", nargs="+", default=["target"], help="dart operators (target, origin, "
+                    "face_left, next, ...) or adjacent (vertex pairs: half of them edges)")
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
@@ -62,7 +63,12 @@ def main(argv=None) -> int:
         s = registry.build(name, mesh)
         d = random_darts(s, rng, a.queries)
         for op in a.ops:
-            items.append((f"{name} {op}", (lambda op: lambda s, d: getattr(s, op)(d))(op), (s, d)))
+            if op == "adjacent":
+                items.append((f"{name} {op}", adjacent, (s,) + random_pairs(s, rng, a.queries)))
+            elif callable(getattr(s, op, None)):
+                items.append((f"{name} {op}", (lambda op: lambda s, d: getattr(s, op)(d))(op), (s, d)))
+            else:
+                ap.error(f"--ops {op}: {name} has no dart operator {op!r} (nor is it 'adjacent')")
     report(race(items, a.queries, a.rounds), a.vertices, a.queries, a.rounds)
     return 0
 
@@ -73,9 +79,20 @@ def random_darts(s, rng, n: int):
     return jnp.asarray(darts[rng.integers(0, darts.size, n)], jnp.int32)
 
 
+def random_pairs(s, rng, n: int):
+    """``(u, v)``: ``n`` vertex pairs of ``s``, the even ones the two ends of a random dart (an
+    edge), the odd ones ``u`` with a vertex drawn uniformly (mostly not adjacent), int32."""
+    darts = np.asarray(s.all_darts())
+    e = jnp.asarray(darts[rng.integers(0, darts.size, n)], jnp.int32)
+    u = jax.jit(s.origin)(e)
+    other = jnp.asarray(rng.integers(0, s.num_vertices, n), jnp.int32)
+    v = jnp.where(jnp.arange(n) % 2 == 0, jax.jit(s.target)(e), other)
+    return u, v
+
+
 def report(res: dict, vertices: int, queries: int, rounds: int) -> None:
     """Print :func:`race`'s ``{name: (min, median)}`` with the run's setting and load."""
-    print(f"random:{vertices}, {queries} random darts, {rounds} rounds, load average "
+    print(f"random:{vertices}, {queries} random queries, {rounds} rounds, load average "
           f"{os.getloadavg()[0]:.2f}")
     for k, (lo, med) in res.items():
         print(f"{k:32s} min {lo:8.2f}  median {med:8.2f} ns/query")

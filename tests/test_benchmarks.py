@@ -174,9 +174,12 @@ def test_race_queries_times_every_route(capsys):
                              ("b", lambda x: x * 2, (np.arange(10, dtype=np.int32),))], 10, rounds=3)
     assert set(res) == {"a", "b"} and all(0 < lo <= med for lo, med in res.values())
     assert race_queries.main(["--vertices", "300", "--queries", "1000", "--rounds", "1",
-                              "--structures", "halfedge", "cds5n-o1", "--ops", "target"]) == 0
+                              "--structures", "halfedge", "cds5n-o1", "--ops", "target", "adjacent"]) == 0
     out = capsys.readouterr().out
-    assert "halfedge target" in out and "cds5n-o1 target" in out
+    assert "halfedge target" in out and "cds5n-o1 target" in out and "cds5n-o1 adjacent" in out
+    with pytest.raises(SystemExit):  # argparse's error: an operator no structure has
+        race_queries.main(["--vertices", "300", "--queries", "10", "--ops", "no_such_op"])
+    assert "no dart operator 'no_such_op'" in capsys.readouterr().err
 
 
 def test_race_o1_first_read_routes_agree(capsys):
