@@ -10,6 +10,11 @@ import pytest
 
 from jaxcds import _mappings, errors
 from jaxcds.structures import registry
+from jaxcds.structures.cds import CDS4n, CDS6n
+from jaxcds.structures.corner_table import CornerTable
+from jaxcds.structures.halfedge import HalfEdge
+from jaxcds.structures.lr import LR, LRBits
+from jaxcds.structures.pemb import PEMB
 
 
 def _compiled_once():
@@ -62,10 +67,24 @@ def test_the_real_counts_are_read_on_linux():
     assert 0 < count < limit
 
 
-def test_build_relieves_before_building(monkeypatch):
+BUILDERS = {
+    "registry.build": lambda m: registry.build("cds5n-o1", m),
+    "HalfEdge.from_mesh": lambda m: HalfEdge.from_mesh(m),
+    "CornerTable.from_mesh": lambda m: CornerTable.from_mesh(m),
+    "CDS6n.from_mesh": lambda m: CDS6n.from_mesh(m),
+    "CDS4n.from_mesh": lambda m: CDS4n.from_mesh(m),
+    "LR.from_mesh": lambda m: LR.from_mesh(m),
+    "LRBits.from_mesh": lambda m: LRBits.from_mesh(m),
+    "PEMB.from_mesh": lambda m: PEMB.from_mesh(m),
+}
+
+
+@pytest.mark.parametrize("builder", list(BUILDERS))
+def test_every_builder_relieves_before_building(monkeypatch, builder):
+    """The registry's and each class's own builder (a loop may call either)."""
     calls = []
     monkeypatch.setattr(_mappings, "relieve", lambda: calls.append(1) or False)
     import trimesh
 
-    registry.build("halfedge", trimesh.creation.icosahedron())
+    BUILDERS[builder](trimesh.creation.icosahedron())
     assert calls == [1]

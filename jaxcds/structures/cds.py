@@ -91,7 +91,7 @@ import jax.numpy as jnp
 import numba
 import numpy as np
 
-from jaxcds import errors
+from jaxcds import _mappings, errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds._progress import PROGRESS_MIN_VERTICES  # noqa: F401  (re-exported)
 from jaxcds._progress import Progress as _Progress
@@ -1938,6 +1938,7 @@ def build_cds(cls, mesh, root_face: Optional[int] = None, progress: Optional[boo
       UnsupportedTopologyError: genus > 0 (naming it and suggesting ``lr`` / ``halfedge``),
         several components, or fewer than 4 vertices; other :class:`MeshError` for defects.
     """
+    _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
     from jaxcds.construct.schnyder import prepare_mesh
 
     n0 = int(getattr(mesh, "num_vertices", 0) or 0)

@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numba
 import numpy as np
 
+from jaxcds import _mappings
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
@@ -96,6 +97,7 @@ class CornerTable(MeshStructure):
 
     @classmethod
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "CornerTable":
+        _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         twins = None
         if check:

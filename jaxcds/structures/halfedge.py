@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from jaxcds import _mesh_kernels as _kernels
-from jaxcds import errors
+from jaxcds import _mappings, errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
@@ -53,6 +53,7 @@ class HalfEdge(MeshStructure):
     @classmethod
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "HalfEdge":
         """Build from a validated mesh (borders allowed, several components allowed)."""
+        _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         twins = None
         if check:

@@ -33,7 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxcds import errors
+from jaxcds import _mappings, errors
 from jaxcds._args import is_integer
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
@@ -725,6 +725,7 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     ``ring_sweeps``: after RING-EXPANDER, anneal the ring for ``ring_sweeps * n`` local moves
     towards fewer references (:mod:`jaxcds.construct.ring_search`; beyond the paper, 0 = the
     paper's ring; about 0.2 us per triangle per sweep)."""
+    _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
     ring_sweeps = check_sweeps(ring_sweeps)
     ks = _check_k(k) if bits else None
     mesh, twins = _prepare(mesh)

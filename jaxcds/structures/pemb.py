@@ -65,7 +65,7 @@ import jax.numpy as jnp
 import numba
 import numpy as np
 
-from jaxcds import errors
+from jaxcds import _mappings, errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
@@ -262,6 +262,7 @@ class PEMB(MeshStructure):
         64 bits; with a BFS tree 55-93% do (100K random points, ``B`` 73%, ``B*`` 55% of the
         matches in the query's own word), which the two-stage searches of
         :class:`~jaxcds.structures.succinct.BalancedParens` answer without the min-max tree."""
+        _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         if check:
             # refuses vertices in no face too (UnreferencedVertexError): the spanning tree

@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable, Dict
 
-from jaxcds import _mappings, errors
+from jaxcds import errors
 from jaxcds.mesh import TriMesh, load_mesh
 
 __all__ = ["register", "build", "names", "STRUCTURES", "StructureInfo"]
@@ -53,9 +53,8 @@ def build(name: str, mesh) -> object:
     if name not in STRUCTURES:
         raise errors.JaxcdsError(
             f"unknown structure {name!r}; available: {', '.join(STRUCTURES)}")
-    mesh = load_mesh(mesh)
-    _mappings.relieve()  # a loop over many meshes: compiled programs pile up (see _mappings)
-    return STRUCTURES[name].builder(mesh)
+    # every builder calls _mappings.relieve() first: a loop over many meshes piles up programs
+    return STRUCTURES[name].builder(load_mesh(mesh))
 
 
 def _load_all() -> None:
