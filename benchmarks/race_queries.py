@@ -82,8 +82,7 @@ def random_darts(s, rng, n: int):
 def random_pairs(s, rng, n: int):
     """``(u, v)``: ``n`` vertex pairs of ``s``, the even ones the two ends of a random dart (an
     edge), the odd ones ``u`` with a vertex drawn uniformly (mostly not adjacent), int32."""
-    darts = np.asarray(s.all_darts())
-    e = jnp.asarray(darts[rng.integers(0, darts.size, n)], jnp.int32)
+    e = random_darts(s, rng, n)
     u = jax.jit(s.origin)(e)
     other = jnp.asarray(rng.integers(0, s.num_vertices, n), jnp.int32)
     v = jnp.where(jnp.arange(n) % 2 == 0, jax.jit(s.target)(e), other)

@@ -62,6 +62,8 @@ HOLED_GENUS0 = ["stanford-bunny.obj", "face.obj", "camelhead.off", "grid.off", "
 HIGHER_GENUS = ["rocker-arm.obj", "3holes.off"]
 # the Schnyder-wood structures (issue 3): genus-0 meshes only, holes closed by the builders
 CDS_FAMILY = ("cds6n", "cds5n", "cds4n", "cds5n-o1")
+# structures that keep borders as they are; the others close holes (their builder, or close_boundaries)
+BORDER_AWARE = {"halfedge", "pemb"}
 LARGE = {"armadillo.obj", "stanford-bunny.obj", "face.obj", "bumpy-cube.obj", "beetle.obj",
          "beetle.off"}
 
@@ -84,6 +86,17 @@ def mesh_params(names):
 
 
 _cache: dict = {}
+
+
+def as_accepted(mesh, structure: str):
+    """``mesh`` as ``structure`` takes it: as it is for the border-aware structures and those
+    whose builder closes holes itself, else closed by ``close_boundaries`` (the corner table)."""
+    from jaxcds.mesh import close_boundaries
+    from jaxcds.structures import registry
+
+    if structure in BORDER_AWARE or registry.STRUCTURES[structure].closes_boundaries:
+        return mesh
+    return close_boundaries(mesh)
 
 
 def load_shared(name: str):

@@ -17,12 +17,12 @@ import trimesh
 
 from jaxcds import errors
 from jaxcds.algorithms import vertex_degrees, vertex_normals
-from jaxcds.mesh import close_boundaries, load_mesh
+from jaxcds.mesh import load_mesh
 from jaxcds.structures import registry
 from jaxcds.structures.halfedge import HalfEdge
 from jaxcds.verify import verify
 
-BORDER_AWARE = {"halfedge", "pemb"}
+from conftest import as_accepted
 
 
 def _bipyramid(k):
@@ -86,8 +86,7 @@ SHAPES = {
 def test_every_structure_on_a_generated_shape(shape, structure):
     v, f = SHAPES[shape]()
     m = load_mesh(np.asarray(v, np.float64), np.asarray(f, np.int64))
-    closes = structure in BORDER_AWARE or registry.STRUCTURES[structure].closes_boundaries
-    mm = m if closes else close_boundaries(m)
+    mm = as_accepted(m, structure)
     try:
         s = registry.build(structure, mm)
     except errors.UnsupportedTopologyError as exc:

@@ -17,17 +17,14 @@ from jaxcds.structures import registry
 from jaxcds.structures.halfedge import HalfEdge
 from jaxcds.verify import verify
 
-from conftest import CDS_FAMILY, CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, LARGE, load_shared, mesh_params, slow_params
+from conftest import (BORDER_AWARE, CDS_FAMILY, CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, LARGE, as_accepted,
+                      load_shared, mesh_params, slow_params)
 
 STRUCTURES = registry.names()
-BORDER_AWARE = {"halfedge", "pemb"}
 
 
 def prepared(name, structure):
-    m = load_shared(name)
-    if structure in BORDER_AWARE or registry.STRUCTURES[structure].closes_boundaries:
-        return m
-    return close_boundaries(m)
+    return as_accepted(load_shared(name), structure)
 
 
 # The quick set (CI) covers each kind of input: a tiny closed genus-0 mesh, borders (closed by a
