@@ -43,6 +43,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from paired import paired_summary  # noqa: E402
+
 from jaxcds import batch as B
 from jaxcds.algorithms import face_list_vertex_normals, vertex_normals
 from jaxcds.generators import random_planar_triangulation
@@ -63,13 +66,14 @@ def timeit(fn, repeat: int):
     return first, statistics.median(ts)
 
 
-def timepair(fa, fb, repeat: int):
-    """``(median a, median b, fastest a, fastest b)`` of ``fa`` and ``fb`` timed in turn after one warm-up each, so that both see the
-    same machine load (the ratio is what the target is about). The order flips every round (a b,
+def timepair_runs(fa, fb, repeat: int):
+    """``(runs a, runs b)``: seconds of ``fa`` and ``fb`` timed in turn after one warm-up each, so
+    that both see the same machine load (the ratio is what the target is about). The order flips every round (a b,
     b a, ...): with a fixed order, the 10,000-mesh run of 2026-11-30 timed the face list at
     104-118 ns per vertex next to the CDS kinds, against 66-82 in races of rotating order, which
     made those ratios look better than they are (cause not found). The fastest runs give
-    ``vs_face_list_min`` in the rows."""
+    ``vs_face_list_min`` in the rows, the runs paired round by round ``vs_face_list_paired``
+    (``benchmarks/paired.py``)."""
     jax.block_until_ready(fa())
     jax.block_until_ready(fb())
     ta, tb = [], []
@@ -79,7 +83,27 @@ def timepair(fa, fb, repeat: int):
             t0 = time.perf_counter()
             jax.block_until_ready(fn())
             acc.append(time.perf_counter() - t0)
+    return ta, tb
+
+
+def timepair(fa, fb, repeat: int):
+    """``(median a, median b, fastest a, fastest b)`` of :func:`timepair_runs`."""
+    ta, tb = timepair_runs(fa, fb, repeat)
     return statistics.median(ta), statistics.median(tb), min(ta), min(tb)
+
+
+def against_face_list(face_list, packed, repeat: int):
+    """``(median seconds of packed, row fields)``: the two timed in turn (:func:`timepair_runs`);
+    the fields are the ratio of the medians (``vs_face_list``), of the fastest runs, the median of
+    the ratios paired run by run with its 95% interval and its verdict against issue 5's 1.5x
+    (``benchmarks/paired.py``; no interval under 6 runs), and the face list's median."""
+    runs_fl, runs = timepair_runs(face_list, packed, repeat)
+    t_fl, t = statistics.median(runs_fl), statistics.median(runs)
+    p = paired_summary(runs, runs_fl, target=1.5)
+    return t, dict(vs_face_list=t / t_fl, vs_face_list_min=min(runs) / min(runs_fl),
+                   vs_face_list_paired=p.median, vs_face_list_paired_low=p.low,
+                   vs_face_list_paired_high=p.high, verdict_at_1_5x=p.verdict,
+                   face_list_interleaved_s=t_fl)
 
 
 def make_meshes(k: int, lo: int, hi: int, seed: int):
@@ -150,12 +174,11 @@ def run(args) -> list[dict]:
         jax.block_until_ready(f(b, pos))
         first = time.perf_counter() - t0
         # face-list timed again, interleaved with the packed runs: same load for both
-        t_fl, t, lo_fl, lo = timepair(lambda: face_list_vertex_normals(pos, faces), lambda: f(b, pos),
-                                      args.repeat)
+        t, vs = against_face_list(lambda: face_list_vertex_normals(pos, faces), lambda: f(b, pos),
+                                  args.repeat)
         err = float(jnp.max(jnp.abs(f(b, pos) - face_list_vertex_normals(pos, faces))))
         emit(what="normals", impl=f"packed/{name}", vertices=nv, seconds=t, ns_per_vertex=1e9 * t / nv,
-             vs_face_list=t / t_fl, vs_face_list_min=lo / lo_fl,
-             face_list_interleaved_s=t_fl, first_call_s=first, max_abs_diff_vs_face_list=err)
+             **vs, first_call_s=first, max_abs_diff_vs_face_list=err)
 
         # Python loop over meshes (warm: compile every distinct size first, timed apart)
         ppos = [jnp.asarray(m.vertices, jnp.float32) for m in ms[:k]]
@@ -224,14 +247,13 @@ def run_compact(args, ms, emit):
         t0 = time.perf_counter()
         got = jax.block_until_ready(f(b, pos))
         first = time.perf_counter() - t0
-        t_fl, t, lo_fl, lo = timepair(lambda: face_list_vertex_normals(fl_pos, faces), lambda: f(b, pos),
-                                      args.repeat)
+        t, vs = against_face_list(lambda: face_list_vertex_normals(fl_pos, faces), lambda: f(b, pos),
+                                  args.repeat)
         want = np.asarray(face_list_vertex_normals(fl_pos, faces))
         want = want if order is None else want[np.asarray(order)]
         err = float(np.max(np.abs(np.asarray(got) - want)))
         emit(what="normals", impl=f"packed/{name}", meshes=k, vertices=nv, seconds=t,
-             ns_per_vertex=1e9 * t / nv, vs_face_list=t / t_fl, vs_face_list_min=lo / lo_fl,
-             face_list_interleaved_s=t_fl, first_call_s=first, max_abs_diff_vs_face_list=err)
+             ns_per_vertex=1e9 * t / nv, **vs, first_call_s=first, max_abs_diff_vs_face_list=err)
         # Python loop over the first --loop-meshes meshes (each mesh's static roots / sizes are
         # jit-static: one compilation per mesh, timed apart)
         kl = min(args.loop_meshes, k)
@@ -248,7 +270,7 @@ def run_compact(args, ms, emit):
         tl = statistics.median(ts)
         nvl = sum(p.num_vertices for p in parts[:kl])
         emit(what="normals", impl=f"loop/{name}", meshes=kl, vertices=nvl, seconds=tl,
-             ns_per_vertex=1e9 * tl / nvl, vs_face_list=(tl / nvl) / (t_fl / nv),
+             ns_per_vertex=1e9 * tl / nvl, vs_face_list=(tl / nvl) / (vs["face_list_interleaved_s"] / nv),
              first_pass_with_compiles_s=compile_loop)
         # Target on valid local darts (edge_of_vertex of random local vertices)
         qrng = np.random.default_rng(2)
@@ -279,9 +301,13 @@ def table(rows, args) -> str:
             vs = r.get("vs_face_list")
             same = r.get("vs_face_list_same_meshes")
             fastest = r.get("vs_face_list_min")
+            pm, plo, phi = (r.get(k) for k in ("vs_face_list_paired", "vs_face_list_paired_low",
+                                               "vs_face_list_paired_high"))
             lines.append(f"| {r['what']} | {r['impl']} | {r['seconds'] * 1e3:.1f} ms | {per:.2f} ns | "
                          f"{'' if vs is None else f'{vs:.2f}x'}"
                          f"{'' if fastest is None else f' (fastest runs {fastest:.2f}x)'}"
+                         f"{'' if pm is None else f'; paired {pm:.2f}x'}"
+                         f"{'' if plo is None else f' ({plo:.2f}-{phi:.2f})'}"
                          f"{'' if same is None else f' ({same:.2f}x vs face-list of the same meshes)'} |")
         elif r["what"] == "build":
             lines.append(f"| build | {r['impl']} | {r['seconds']:.2f} s "

@@ -8,7 +8,9 @@ faces. Three programs per structure, raced in one process (``race_lf_words.race_
 * ``<structure>``: ``vertex_normals`` on the structure, which derives those rows every call.
 
 ``given_rows / face_list`` is the row order's share of the ratio, ``structure / given_rows`` the
-derivation's. Meshes with holes are skipped for structures that close them (dummy
+derivation's. Each line gives the ratio of the medians and the median of the ratios paired round
+by round with its 95% interval and its verdict against ``--target`` (issue 3: 1.5x;
+``benchmarks/paired.py``: the pairing cancels the host's drift between rounds). Meshes with holes are skipped for structures that close them (dummy
 vertices). Each route's normals are checked against the face list's before timing.
 
     .venv/bin/python benchmarks/race_face_derivation.py --meshes random:200000,armadillo.obj --structures cds6n,cds5n-o1,lr
@@ -30,6 +32,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from race_lf_words import _in_order, _meshes, _structure, face_list_baseline, race_in_turn  # noqa: E402
 
+from paired import paired_summary  # noqa: E402
+
 from jaxcds.algorithms import normals  # noqa: E402
 
 
@@ -46,6 +50,7 @@ def main(argv=None) -> int:
     ap.add_argument("--meshes", default="random:200000,armadillo.obj")
     ap.add_argument("--structures", default="cds6n,cds5n-o1")
     ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--target", type=float, default=1.5, help="ratio the paired verdict is against")
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         m, parts = _meshes(spec)
@@ -71,7 +76,9 @@ def main(argv=None) -> int:
         base = statistics.median(t["face_list"])
         for key, v in t.items():
             med = statistics.median(v)
-            print(f"{spec} {key}: {med / n * 1e9:.1f} ns/vertex, {med / base:.2f}x the face list", flush=True)
+            pair = "" if key == "face_list" else f"; {paired_summary(v, t['face_list'], a.target)}"
+            print(f"{spec} {key}: {med / n * 1e9:.1f} ns/vertex, {med / base:.2f}x the face list{pair}",
+                  flush=True)
     return 0
 
 

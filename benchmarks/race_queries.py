@@ -24,6 +24,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from benchmarks.paired import paired_summary  # noqa: E402
 from jaxcds.algorithms import adjacent  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import registry  # noqa: E402
@@ -32,6 +33,12 @@ from jaxcds.structures import registry  # noqa: E402
 def race(items, n_items: int, rounds: int) -> dict:
     """``items``: ``(name, fn, args)``. AOT-compile each, warm up once, then run every program
     once per round for ``rounds`` rounds; returns ``{name: (min, median)}`` in ns per item."""
+    times = race_times(items, rounds)
+    return {k: (min(v) / n_items * 1e9, float(np.median(v)) / n_items * 1e9) for k, v in times.items()}
+
+
+def race_times(items, rounds: int) -> dict:
+    """:func:`race`'s ``{name: [seconds per round]}``, the rounds aligned across names."""
     compiled = []
     for name, fn, args in items:
         c = jax.jit(fn).lower(*args).compile()
@@ -43,7 +50,7 @@ def race(items, n_items: int, rounds: int) -> dict:
             t0 = time.perf_counter()
             jax.block_until_ready(c(*args))
             times[name].append(time.perf_counter() - t0)
-    return {k: (min(v) / n_items * 1e9, float(np.median(v)) / n_items * 1e9) for k, v in times.items()}
+    return times
 
 
 def main(argv=None) -> int:
@@ -55,6 +62,8 @@ def main(argv=None) -> int:
                     "face_left, next, ...) or adjacent (vertex pairs: half of them edges)")
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--target", type=float, default=2.0, help="ratio against the first structure's "
+                    "same op that the paired verdict is against (issue 3: 2x the half-edge)")
     a = ap.parse_args(argv)
     mesh = random_planar_triangulation(a.vertices, seed=1)
     rng = np.random.default_rng(a.seed)
@@ -69,7 +78,14 @@ def main(argv=None) -> int:
                 items.append((f"{name} {op}", (lambda op: lambda s, d: getattr(s, op)(d))(op), (s, d)))
             else:
                 ap.error(f"--ops {op}: {name} has no dart operator {op!r} (nor is it 'adjacent')")
-    report(race(items, a.queries, a.rounds), a.vertices, a.queries, a.rounds)
+    times = race_times(items, a.rounds)
+    res = {k: (min(v) / a.queries * 1e9, float(np.median(v)) / a.queries * 1e9) for k, v in times.items()}
+    report(res, a.vertices, a.queries, a.rounds)
+    first = a.structures[0]
+    for k, v in times.items():
+        name, op = k.split(" ", 1)
+        if name != first:
+            print(f"{k} / {first} {op}: {paired_summary(v, times[f'{first} {op}'], a.target)}")
     return 0
 
 

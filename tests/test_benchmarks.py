@@ -177,6 +177,7 @@ def test_race_queries_times_every_route(capsys):
                               "--structures", "halfedge", "cds5n-o1", "--ops", "target", "adjacent"]) == 0
     out = capsys.readouterr().out
     assert "halfedge target" in out and "cds5n-o1 target" in out and "cds5n-o1 adjacent" in out
+    assert "cds5n-o1 target / halfedge target: paired" in out  # one round: no interval
     with pytest.raises(SystemExit):  # argparse's error: an operator no structure has
         race_queries.main(["--vertices", "300", "--queries", "10", "--ops", "no_such_op"])
     assert "no dart operator 'no_such_op'" in capsys.readouterr().err
@@ -344,3 +345,30 @@ def test_no_uneven_split_loop_selects_a_gathered_value_in_cds_normals(capsys):
     from jaxcds.structures import base
 
     assert row["sizes"]["cds6n"]["targets_pad"] == base.split_padding(75_003)
+
+
+def test_paired_ratios_interval_and_verdict():
+    """benchmarks/paired.py: the sign-test interval of the median (ranks from the binomial tail),
+    the verdict only when the whole interval is on one side of the target, and refusals."""
+    from benchmarks import paired
+
+    # 60 rounds at 95%: ranks 22 and 39 (1-based), as the docstring says
+    x = list(range(1, 61))
+    med, lo, hi = paired.median_interval(x)
+    assert (med, lo, hi) == (30.5, 22, 39)
+    assert paired.median_interval([3.0, 1.0, 2.0, 5.0, 4.0]) == (3.0, None, None)  # 5 < 6 rounds
+    assert paired.median_interval([1, 2, 3, 4, 5, 6]) == (3.5, 1, 6)
+    # the drift cancels: b doubles from round to round, a stays 1.4x b
+    b = [2.0 ** i for i in range(12)]
+    s = paired.paired_summary([1.4 * y for y in b], b, target=1.5)
+    assert abs(s.median - 1.4) < 1e-12 and s.verdict == "met" and "met at 1.5x" in str(s)
+    assert paired.paired_summary([1.6 * y for y in b], b, target=1.5).verdict == "missed"
+    mixed = [1.3, 1.7] * 6
+    assert paired.paired_summary([m * y for m, y in zip(mixed, b)], b, target=1.5).verdict == "undecided"
+    assert paired.paired_summary([1.0] * 3, [1.0] * 3, target=1.5).verdict == "undecided"
+    assert paired.paired_summary([1.0] * 8, [1.0] * 8).verdict is None
+    for a, bb in (([1.0], [1.0, 2.0]), ([], []), ([1.0], [0.0])):
+        with pytest.raises(ValueError):
+            paired.paired_ratios(a, bb)
+    with pytest.raises(ValueError, match="level"):
+        paired.median_interval([1.0], level=1.0)
