@@ -1833,7 +1833,12 @@ class CDS5nO1(CDS4n):
         ``benchmarks/RESULTS.md``, "CDS: materialisation loop")."""
         d = _ids(d)
         e = d >> 1
-        u, c = e // 3, e % 3
+        # truncating division (ids are not negative): jnp's floor division and remainder are
+        # two kernels of their own here, each with a sign fix-up, written to memory for their
+        # many readers; ``e - 3 u`` fuses into them (100K vertices, 10M darts: 0.93x the time,
+        # 95% interval 0.90-0.96, 21 paired rounds, 2026-12-04; 3.5K 0.96x, 0.88-1.04)
+        u = jax.lax.div(e, jnp.int32(3))
+        c = e - 3 * u
         own = ((d & 1) == 0) != want_target  # the answer is the source u of the edge
         # ... which needs no row: those read row 0, which stays in cache
         y, second = self._target_plan_r(u, c, _RowColumns(self.refs, jnp.where(own, 0, u)))
