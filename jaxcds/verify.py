@@ -17,6 +17,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds.mesh import TriMesh
+from jaxcds.structures.base import per_query_routes
 from jaxcds.structures.halfedge import HalfEdge
 
 __all__ = ["VerifyReport", "verify", "DART_OPERATORS"]
@@ -73,6 +74,15 @@ def _apply_all(s, e):
 @jax.jit
 def _endpoints(s, e):
     return s.origin(e), s.target(e)
+
+
+@jax.jit
+def _endpoints_per_query(s, e):
+    """``(origin, target)`` by the per-query routes, where the structure would answer a batch
+    this large from a whole-mesh table (``MeshStructure.table_queries``): both routes are
+    checked on every dart."""
+    with per_query_routes():
+        return s.origin(e), s.target(e)
 
 
 @jax.jit
@@ -152,6 +162,10 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
         u, v = to_input(res["origin"]), to_input(res["target"])
         idx, found = he_lookup(_pair_keys(u, v, n))
         rep.add("dart_exists", ~found, len(e), f"dart {e[~found][:1]} = {u[~found][:1]}->{v[~found][:1]}")
+        if getattr(s, "table_queries", None):
+            for op, got in zip(("origin", "target"), _endpoints_per_query(s, jnp.asarray(e))):
+                bad = np.asarray(got) != res[op]
+                rep.add(f"{op} (per-query route)", bad, len(e), f"dart {e[bad][:1]}")
         for op in DART_OPERATORS:
             r = res[op]
             ru, rv = _endpoints(s, jnp.asarray(r))

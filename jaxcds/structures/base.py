@@ -51,7 +51,8 @@ import numpy as np
 from jaxcds import errors
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
-           "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries"]
+           "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries",
+           "by_table", "per_query_routes"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
 Bool = jnp.ndarray  # bool array, any shape
@@ -123,6 +124,32 @@ CHUNKED_QUERIES = ("origin", "source", "target", "twin", "next", "prev", "face",
 
 
 _ONE_PASS = threading.local()
+_NO_TABLE = threading.local()
+
+
+@contextlib.contextmanager
+def per_query_routes():
+    """Within this block, operators traced take no whole-mesh table route (``table_queries``):
+    every batch runs the per-query route of the paper's operator. Used inside a table's own
+    computation (which may ask the operators for a batch as large as the mesh), by tests that
+    check both routes and by benchmarks that race them."""
+    _NO_TABLE.depth = getattr(_NO_TABLE, "depth", 0) + 1
+    try:
+        yield
+    finally:
+        _NO_TABLE.depth -= 1
+
+
+def by_table(method):
+    """Mark ``method(self, ids)`` as a whole-mesh table route of a :class:`MeshStructure`
+    (see ``table_queries``): its body runs with table routes off (:func:`per_query_routes`)."""
+
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        with per_query_routes():
+            return method(self, *args, **kwargs)
+
+    return run
 
 
 @contextlib.contextmanager
@@ -162,9 +189,14 @@ def _chunked_query(method):
     @functools.wraps(method)
     def run(self, *ids, **kwargs):
         chunk = QUERY_CHUNK
-        if (kwargs or name not in self.chunked_queries or jax.default_backend() != "cpu"
-                or getattr(_ONE_PASS, "depth", 0)):
+        if kwargs or name not in self.chunked_queries or getattr(_ONE_PASS, "depth", 0):
             return method(self, *ids, **kwargs)
+        table_route = self.table_queries.get(name)
+        if (table_route is not None and len(ids) == 1 and not getattr(_NO_TABLE, "depth", 0)
+                and jnp.size(ids[0]) >= self.table_batch_ratio * self.num_darts):
+            return getattr(self, table_route)(ids[0])
+        if jax.default_backend() != "cpu":
+            return method(self, *ids)
         xs = [jnp.asarray(x) for x in ids]
         shape, size = xs[0].shape, xs[0].size
         if size < 2 * chunk or any(x.shape != shape for x in xs):
@@ -220,6 +252,20 @@ class MeshStructure:
     #: those of them whose chunks write their answers apart before the in-place update
     #: (:data:`WRITE_CHUNK_ANSWERS_APART`), as measured per class
     chunk_answers_apart: ClassVar[frozenset] = frozenset()
+    #: operators (of ``chunked_queries``) that answer a batch of at least
+    #: ``table_batch_ratio * num_darts`` ids (one id array, any backend) from a whole-mesh table
+    #: computed once per call: ``{operator: name of a method(ids) marked with by_table}``.
+    #: Why: an operator of O(d) per query (Thm 2's Target walk) or of several dependent reads
+    #: (Thm 6) costs more per query than one entry of the table costs to compute, so a batch
+    #: larger than the mesh is answered faster by computing every answer once, then one gather
+    #: per query. The cost is memory: the table's temporaries are about the structure's own
+    #: size while the call runs (24 bytes per vertex for CDS6n / CDS5n / CDS4n, 52 for
+    #: CDS5n-O(1), against 2-3 for the per-query route); trace under :func:`per_query_routes`
+    #: to keep the per-query route (``benchmarks/RESULTS.md``, "stop 33: batched Target by a
+    #: table")
+    table_queries: ClassVar[dict] = {}
+    #: the batch size, per dart of the id space, from which ``table_queries`` take the table
+    table_batch_ratio: ClassVar[float] = float("inf")
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

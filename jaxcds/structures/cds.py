@@ -796,6 +796,13 @@ class _CDS(MeshStructure):
     # several passes over a query batch: chunked on CPU (base._chunked_query; the Front/Back
     # routes measured 1.2-1.4x slower by chunks, twin and edge_of_vertex 3-5x)
     chunked_queries = frozenset({"target", "origin", "source", "face", "face_left", "face_right"})
+    # a batch of at least 1/16 of the dart ids (3n/8 darts): Target/Origin from every edge's
+    # Target, computed once per call by pointer jumping (~5 ns per edge) instead of Thm 2's O(d)
+    # walk per query (120-230 ns); at 1/16 the table route took 0.30x the per-query route's time
+    # at 2.5M vertices, 1/32 0.49x (base.MeshStructure.table_queries; RESULTS.md, "stop 33:
+    # batched Target by a table"). Transient: 24 bytes per vertex (the structure's own size)
+    table_queries = {"target": "_target_by_table", "origin": "_origin_by_table"}
+    table_batch_ratio = 1 / 16
 
     # ---- exterior darts
     @property
@@ -1028,6 +1035,34 @@ class _CDS(MeshStructure):
         d = jnp.arange(self.num_darts, dtype=jnp.int32)
         e = d >> 1
         return jnp.where((d & 1) == 0, self.all_edge_targets()[e], e // 3).astype(jnp.int32)
+
+    def _end_by_table(self, d, want_target: bool):
+        """Target (``want_target``) or Origin of a batch of darts larger than the mesh: every
+        edge's Target once (:meth:`all_edge_targets`, a ``(3n,)`` temporary), then one gather per
+        dart (``MeshStructure.table_queries``). Ids out of range read a clamped entry (garbage,
+        as the per-query route gives them; never out of bounds)."""
+        d = _ids(d)
+        e = d >> 1
+        # written to memory first: fused into the gather, Thm 6's loop-free targets ran once per
+        # query, not once per edge (100K vertices, 10M darts: 12.7 ns per query against 7.7 for
+        # the per-query route)
+        table = self._edge_target_table()
+        t = table.at[e].get(mode="clip")
+        own = ((d & 1) == 0) != want_target  # the answer is the edge's source u = e // 3
+        return jnp.where(own, jax.lax.div(e, jnp.int32(3)), t).astype(jnp.int32)
+
+    def _edge_target_table(self) -> Int:
+        """``(3n,)`` :meth:`all_edge_targets`, in memory (for :meth:`_end_by_table`)."""
+        (table,) = _materialize_loop((self.all_edge_targets(),))
+        return table
+
+    @_base.by_table
+    def _target_by_table(self, d: Int) -> Int:
+        return self._end_by_table(d, True)
+
+    @_base.by_table
+    def _origin_by_table(self, d: Int) -> Int:
+        return self._end_by_table(d, False)
 
     # ---- whole mesh: faces and degrees in O(1) per face / edge (Thm 7)
     def _slot_faces(self):
@@ -1755,6 +1790,11 @@ class CDS5nO1(CDS4n):
     # 12.2 (races in shuffled order). Origin and Face_left showed no clear gain; an operator
     # that costs a gather or two pays the extra loop and copy per chunk for nothing
     chunk_answers_apart = frozenset({"target"})
+    # Thm 6's Target is O(1) but two dependent row reads (6-22 ns per query); every edge's at once
+    # costs ~4 ns per edge, so a batch of half the dart ids (3n darts) or more takes the table:
+    # 0.60x the per-query route's time at 100K vertices, 0.78x at 2.5M; at a quarter, level.
+    # Transient: 52 bytes per vertex (the three colours' plans and targets, then the table)
+    table_batch_ratio = 1 / 2
 
     def _lf_red_p(self, u, row):
         s, ctl = self._toleft_r(row)

@@ -254,6 +254,7 @@ def packed_class(base):
     if base not in _CLASSES:
         ns = {"__annotations__": {f: jnp.ndarray for f in _FIELDS}, **{f: None for f in _FIELDS},
               "_base": base, "chunked_queries": base.chunked_queries, "__module__": __name__,
+              "table_queries": {},  # entries take mesh-local ids, not the class's darts
               "__doc__": packed_class.__doc__.replace("``base``", base.__name__)}
         cls = pytree_dataclass(type(f"Packed{base.__name__}", (_PackedMixin, base), ns))
         cls._view_cls = type(f"_View{base.__name__}", (_ViewMixin, base), {"__module__": __name__})

@@ -44,8 +44,13 @@ def _has_loop(fn, ids) -> bool:
 
 
 def _answers(s, ops, ids):
-    # jitted, as users run them; a fresh trace per chunk size (the size is read at trace time)
-    return {op: np.asarray(jax.jit(lambda s, d, op=op: getattr(s, op)(d))(s, ids)) for op in ops}
+    # jitted, as users run them; a fresh trace per chunk size (the size is read at trace time).
+    # The per-query routes: a batch of every dart would take the CDS family's whole-mesh table
+    # for Target/Origin (test_table_queries.py), which runs no chunks
+    def run(s, d, op):
+        with base.per_query_routes():
+            return getattr(s, op)(d)
+    return {op: np.asarray(jax.jit(run, static_argnums=2)(s, ids, op)) for op in ops}
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -135,7 +140,8 @@ def test_answers_written_apart_only_where_the_class_names_them(mesh, monkeypatch
     def loops_written(kind, apart):
         s = registry.build(kind, mesh)
         monkeypatch.setattr(base, "WRITE_CHUNK_ANSWERS_APART", apart)
-        return str(jax.make_jaxpr(lambda d: s.target(d))(s.all_darts())).count("name=materialize_loop")
+        with base.per_query_routes():  # every dart: the table route otherwise (no chunks)
+            return str(jax.make_jaxpr(lambda d: s.target(d))(s.all_darts())).count("name=materialize_loop")
 
     assert "target" in registry.build("cds5n-o1", mesh).chunk_answers_apart
     assert loops_written("cds5n-o1", True) == loops_written("cds5n-o1", False) + 1

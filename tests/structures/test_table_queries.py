@@ -1,0 +1,144 @@
+"""Batches as large as a fraction of the mesh: the CDS family answers Target and Origin from a
+whole-mesh table computed once per call (``MeshStructure.table_queries``); smaller batches run
+the paper's per-query operator (Thm 2's walk, Thm 6's two reads). Both routes give the same
+answers on every dart; :func:`jaxcds.verify.verify` checks both against the half-edge on every
+dart of every shared mesh (``test_protocol.py``), and catches either route when it is wrong."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from jaxcds.generators import random_planar_triangulation
+from jaxcds.structures import base, registry
+from jaxcds.verify import verify
+
+KINDS = ["cds6n", "cds5n-o1", pytest.param("cds5n", marks=pytest.mark.slow),
+         pytest.param("cds4n", marks=pytest.mark.slow)]
+OPS = ("target", "origin", "source")
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    return random_planar_triangulation(300, seed=5)
+
+
+def _answers(s, ids, per_query: bool):
+    # a fresh jit per call: the route is chosen at trace time
+    def run(s, d):
+        if per_query:
+            with base.per_query_routes():
+                return tuple(getattr(s, op)(d) for op in OPS)
+        return tuple(getattr(s, op)(d) for op in OPS)
+    return [np.asarray(x) for x in jax.jit(run)(s, ids)]
+
+
+@pytest.fixture
+def fresh_traces():
+    """The tests that patch a class re-trace: ``verify``'s jitted programs are cached per
+    structure type and shape, not per class attribute."""
+    jax.clear_caches()
+    yield
+    jax.clear_caches()
+
+
+class _Spy:
+    """Counts the calls of a class's table routes (at trace time)."""
+
+    def __init__(self, cls, monkeypatch):
+        self.calls = 0
+        for name in set(cls.table_queries.values()):
+            inner = getattr(cls, name)
+
+            def spied(s, d, inner=inner):
+                self.calls += 1
+                return inner(s, d)
+            monkeypatch.setattr(cls, name, spied)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_table_route_equals_per_query_route(kind, mesh):
+    s = registry.build(kind, mesh)
+    assert set(type(s).table_queries) == {"target", "origin"}
+    darts = s.all_darts()
+    for ids in (darts, np.resize(darts, (3, darts.size))):
+        by_table, per_query = _answers(s, ids, False), _answers(s, ids, True)
+        for op, a, b in zip(OPS, by_table, per_query):
+            assert a.shape == ids.shape
+            np.testing.assert_array_equal(a, b, err_msg=f"{kind}.{op}")
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_route_follows_the_batch_size(kind, mesh, monkeypatch):
+    """The table from ``ceil(table_batch_ratio * num_darts)`` ids up, not one id fewer, not
+    under ``per_query_routes``, not for ids passed by keyword."""
+    s = registry.build(kind, mesh)
+    cls = type(s)
+    spy = _Spy(cls, monkeypatch)
+    at = math.ceil(cls.table_batch_ratio * s.num_darts)
+    darts = jnp.asarray(np.resize(s.all_darts(), at))
+    jax.jit(lambda s, d: s.target(d))(s, darts)
+    assert spy.calls == 1
+    jax.jit(lambda s, d: s.origin(d))(s, darts[:-1])
+    assert spy.calls == 1
+    with base.per_query_routes():
+        jax.jit(lambda s, d: s.target(d))(s, darts)
+    s.target(d=darts)
+    assert spy.calls == 1
+    jax.jit(lambda s, d: s.source(d))(s, darts)  # source is origin
+    assert spy.calls == 2
+
+
+@pytest.mark.parametrize("ratio", [0.0, math.inf])
+def test_every_class_ratio_gives_the_half_edge_answers(ratio, monkeypatch, fresh_traces):
+    """The ratio set to always / never take the table: ``verify`` finds no mismatch either way."""
+    m = random_planar_triangulation(120, seed=2)
+    s = registry.build("cds6n", m)
+    monkeypatch.setattr(type(s), "table_batch_ratio", ratio)
+    rep = verify(s, m)
+    assert rep.mismatches == 0, str(rep)
+
+
+def test_verify_catches_a_wrong_route(monkeypatch, fresh_traces):
+    """A broken table route and a broken per-query route each show up in ``verify``."""
+    m = random_planar_triangulation(120, seed=2)
+    s = registry.build("cds5n-o1", m)
+    cls = type(s)
+    real_table = cls._edge_target_table
+    monkeypatch.setattr(cls, "_edge_target_table", lambda self: (real_table(self) + 1) % self.num_vertices)
+    rep = verify(s, m)
+    assert rep.by_operator.get("target (per-query route)", 0) > 0, str(rep)
+    monkeypatch.setattr(cls, "_edge_target_table", real_table)
+    jax.clear_caches()
+    real_end = cls._dart_end
+    monkeypatch.setattr(cls, "_dart_end", lambda self, d, want_target: real_end(self, d, want_target) + 1)
+    rep = verify(s, m)
+    assert rep.by_operator.get("target (per-query route)", 0) > 0, str(rep)
+    assert rep.by_operator.get("dart_exists", 0) == 0, str(rep)  # the table route stays right
+
+
+def test_packed_batches_take_no_table_route(monkeypatch):
+    """A packed union's entries take mesh-local ids: no whole-union table there."""
+    from jaxcds.batch import pack
+
+    meshes = [random_planar_triangulation(n, seed=k) for k, n in enumerate((60, 90))]
+    s = pack(meshes, "cds6n").structure
+    assert type(s).table_queries == {}
+    assert registry.build("cds6n", meshes[0]).table_queries
+
+
+@pytest.mark.slow
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(4, 2000), seed=st.integers(0, 2**31 - 1))
+def test_both_routes_on_random_triangulations(n, seed):
+    m = random_planar_triangulation(n, seed=seed)
+    for kind in ("cds6n", "cds5n", "cds4n", "cds5n-o1"):
+        s = registry.build(kind, m)
+        d = s.all_darts()
+        for op, a, b in zip(OPS, _answers(s, d, False), _answers(s, d, True)):
+            np.testing.assert_array_equal(a, b, err_msg=f"{kind}.{op} n={n} seed={seed}")
