@@ -28,6 +28,7 @@ from benchmarks.paired import paired_summary  # noqa: E402
 from jaxcds.algorithms import adjacent  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import registry  # noqa: E402
+from jaxcds.structures.base import per_query_routes  # noqa: E402
 
 
 def race(items, n_items: int, rounds: int) -> dict:
@@ -64,6 +65,13 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--target", type=float, default=2.0, help="ratio against the first structure's "
                     "same op that the paired verdict is against (issue 3: 2x the half-edge)")
+    ap.add_argument("--per-query", action="store_true", help="also race the per-query route of "
+                    "each op that the structure answers from a whole-mesh table for batches this "
+                    "large (MeshStructure.table_queries), named 'NAME OP/per-query', and pair the "
+                    "two routes")
+    ap.add_argument("--table-ratio", type=float, default=None, help="override each structure's "
+                    "table_batch_ratio while tracing (0: the table route for any batch size; "
+                    "the threshold sweeps of RESULTS 'stop 33')")
     a = ap.parse_args(argv)
     mesh = random_planar_triangulation(a.vertices, seed=1)
     rng = np.random.default_rng(a.seed)
@@ -75,7 +83,9 @@ def main(argv=None) -> int:
             if op == "adjacent":
                 items.append((f"{name} {op}", adjacent, (s,) + random_pairs(s, rng, a.queries)))
             elif callable(getattr(s, op, None)):
-                items.append((f"{name} {op}", (lambda op: lambda s, d: getattr(s, op)(d))(op), (s, d)))
+                items.append((f"{name} {op}", with_table_ratio(op, a.table_ratio), (s, d)))
+                if a.per_query and op in s.table_queries:
+                    items.append((f"{name} {op}/per-query", per_query(op), (s, d)))
             else:
                 ap.error(f"--ops {op}: {name} has no dart operator {op!r} (nor is it 'adjacent')")
     times = race_times(items, a.rounds)
@@ -84,9 +94,39 @@ def main(argv=None) -> int:
     first = a.structures[0]
     for k, v in times.items():
         name, op = k.split(" ", 1)
-        if name != first:
+        op = op.split("/")[0]
+        if name != first or k != f"{first} {op}":
             print(f"{k} / {first} {op}: {paired_summary(v, times[f'{first} {op}'], a.target)}")
+        if k.endswith("/per-query"):
+            print(f"{name} {op} / {k}: {paired_summary(times[f'{name} {op}'], v, 1.0)}")
     return 0
+
+
+def with_table_ratio(op: str, ratio=None):
+    """``op``, traced with the structure's class ``table_batch_ratio`` set to ``ratio`` (None:
+    as the class has it), so a threshold can be raced from either side."""
+    def run(s, d):
+        if ratio is None:
+            return getattr(s, op)(d)
+        cls = type(s)
+        old = cls.__dict__.get("table_batch_ratio")
+        cls.table_batch_ratio = ratio
+        try:
+            return getattr(s, op)(d)
+        finally:
+            if old is None:
+                del cls.table_batch_ratio
+            else:
+                cls.table_batch_ratio = old
+    return run
+
+
+def per_query(op: str):
+    """``op`` traced with the table routes off (:func:`jaxcds.structures.base.per_query_routes`)."""
+    def run(s, d):
+        with per_query_routes():
+            return getattr(s, op)(d)
+    return run
 
 
 def random_darts(s, rng, n: int):

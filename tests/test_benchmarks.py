@@ -183,6 +183,22 @@ def test_race_queries_times_every_route(capsys):
     assert "no dart operator 'no_such_op'" in capsys.readouterr().err
 
 
+def test_race_queries_races_both_routes(capsys):
+    """``--per-query`` adds each table operator's per-query route and pairs the two;
+    ``--table-ratio`` moves the threshold while tracing and leaves the class as it was."""
+    from benchmarks import race_queries
+    from jaxcds.structures.cds import CDS5nO1, CDS6n
+
+    before = (CDS5nO1.table_batch_ratio, CDS6n.table_batch_ratio, "table_batch_ratio" in vars(CDS6n))
+    assert race_queries.main(["--vertices", "300", "--queries", "100", "--rounds", "1", "--per-query",
+                              "--table-ratio", "0", "--structures", "halfedge", "cds6n", "cds5n-o1"]) == 0
+    out = capsys.readouterr().out
+    assert "cds6n target/per-query" in out and "cds5n-o1 target/per-query" in out
+    assert "cds5n-o1 target / cds5n-o1 target/per-query: paired" in out
+    assert "halfedge target/per-query" not in out  # the half-edge has no table route
+    assert (CDS5nO1.table_batch_ratio, CDS6n.table_batch_ratio, "table_batch_ratio" in vars(CDS6n)) == before
+
+
 def test_race_o1_first_read_routes_agree(capsys):
     """benchmarks/race_o1_first_read.py: the old row route and the column route answer alike
     (it exits otherwise) and every route is timed."""
