@@ -65,6 +65,7 @@ def _apply_all(s, e):
     out = {op: getattr(s, op)(e) for op in DART_OPERATORS}
     out["origin"] = s.origin(e)
     out["target"] = s.target(e)
+    out["face"] = s.face(e)
     out["face_left"] = s.face_left(e)
     out["face_right"] = s.face_right(e)
     out["is_border"] = s.is_border(e)
@@ -77,12 +78,14 @@ def _endpoints(s, e):
 
 
 @jax.jit
-def _endpoints_per_query(s, e):
-    """``(origin, target)`` by the per-query routes, where the structure would answer a batch
-    this large from a whole-mesh table (``MeshStructure.table_queries``): both routes are
-    checked on every dart."""
+def _both_routes(s, e):
+    """``({op: per-query answers}, {op: table answers})`` for every operator the structure
+    answers from a whole-mesh table for large batches (``MeshStructure.table_queries``), each
+    route forced whatever the batch size, so both are checked on every dart."""
     with per_query_routes():
-        return s.origin(e), s.target(e)
+        per_query = {op: getattr(s, op)(e) for op in s.table_queries}
+    table = {op: getattr(s, method)(e) for op, method in s.table_queries.items()}
+    return per_query, table
 
 
 @jax.jit
@@ -163,9 +166,10 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
         idx, found = he_lookup(_pair_keys(u, v, n))
         rep.add("dart_exists", ~found, len(e), f"dart {e[~found][:1]} = {u[~found][:1]}->{v[~found][:1]}")
         if getattr(s, "table_queries", None):
-            for op, got in zip(("origin", "target"), _endpoints_per_query(s, jnp.asarray(e))):
-                bad = np.asarray(got) != res[op]
-                rep.add(f"{op} (per-query route)", bad, len(e), f"dart {e[bad][:1]}")
+            for route, answers in zip(("per-query", "table"), _both_routes(s, jnp.asarray(e))):
+                for op, got in answers.items():
+                    bad = np.asarray(got) != res[op]
+                    rep.add(f"{op} ({route} route)", bad, len(e), f"dart {e[bad][:1]}")
         for op in DART_OPERATORS:
             r = res[op]
             ru, rv = _endpoints(s, jnp.asarray(r))

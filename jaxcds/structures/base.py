@@ -42,7 +42,7 @@ import contextlib
 import functools
 import os
 import threading
-from typing import ClassVar, Optional
+from typing import ClassVar, Optional, Union
 
 import jax
 import jax.numpy as jnp
@@ -193,7 +193,7 @@ def _chunked_query(method):
             return method(self, *ids, **kwargs)
         table_route = self.table_queries.get(name)
         if (table_route is not None and len(ids) == 1 and not getattr(_NO_TABLE, "depth", 0)
-                and jnp.size(ids[0]) >= self.table_batch_ratio * self.num_darts):
+                and jnp.size(ids[0]) >= self.table_ratio(name) * self.num_darts):
             return getattr(self, table_route)(ids[0])
         if jax.default_backend() != "cpu":
             return method(self, *ids)
@@ -258,14 +258,23 @@ class MeshStructure:
     #: Why: an operator of O(d) per query (Thm 2's Target walk) or of several dependent reads
     #: (Thm 6) costs more per query than one entry of the table costs to compute, so a batch
     #: larger than the mesh is answered faster by computing every answer once, then one gather
-    #: per query. The cost is memory: the table's temporaries are about the structure's own
-    #: size while the call runs (24 bytes per vertex for CDS6n / CDS5n / CDS4n, 52 for
-    #: CDS5n-O(1), against 2-3 for the per-query route); trace under :func:`per_query_routes`
-    #: to keep the per-query route (``benchmarks/RESULTS.md``, "stop 33: batched Target by a
-    #: table")
+    #: per query. The cost is memory while the call runs: the Target table's temporaries are
+    #: about the structure's own size (24 bytes per vertex for CDS6n / CDS5n / CDS4n, 52 for
+    #: CDS5n-O(1), against 2-3 for the per-query route), the face table's 132-156 (its four
+    #: Front/Back tables, the slots and every dart's face; 4-5 per query route); trace under
+    #: :func:`per_query_routes` to keep the per-query route (``benchmarks/RESULTS.md``, "stop
+    #: 33: batched Target by a table", "stop 35: batched Face_left by a table")
     table_queries: ClassVar[dict] = {}
-    #: the batch size, per dart of the id space, from which ``table_queries`` take the table
-    table_batch_ratio: ClassVar[float] = float("inf")
+    #: the batch size, per dart of the id space, from which ``table_queries`` take the table:
+    #: one ratio for all of them, or ``{operator: ratio}`` (see :meth:`table_ratio`)
+    table_batch_ratio: ClassVar[Union[float, dict]] = float("inf")
+
+    @classmethod
+    def table_ratio(cls, op: str) -> float:
+        """The batch size, per dart, from which operator ``op`` of ``table_queries`` takes its
+        table route (``inf``: never)."""
+        r = cls.table_batch_ratio
+        return float(r.get(op, float("inf"))) if isinstance(r, dict) else float(r)
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

@@ -800,9 +800,17 @@ class _CDS(MeshStructure):
     # Target, computed once per call by pointer jumping (~5 ns per edge) instead of Thm 2's O(d)
     # walk per query (120-230 ns); at 1/16 the table route took 0.30x the per-query route's time
     # at 2.5M vertices, 1/32 0.49x (base.MeshStructure.table_queries; RESULTS.md, "stop 33:
-    # batched Target by a table"). Transient: 24 bytes per vertex (the structure's own size)
-    table_queries = {"target": "_target_by_table", "origin": "_origin_by_table"}
-    table_batch_ratio = 1 / 16
+    # batched Target by a table"). Transient: 24 bytes per vertex (the structure's own size).
+    # Face / Face_left / Face_right likewise from every dart's face (dart_faces: the four
+    # Front/Back tables, then the slot rules, 5-7 ns per dart at 100K vertices) from a batch of
+    # 1/8 of the dart ids (CDS6n: 1/2): at 100K vertices the table took 0.35x the per-query
+    # route's time at 1/4 (cds5n), 1.09x at 1/10; at 2.5M 0.66-0.69x at 1/10 (RESULTS.md,
+    # "stop 35: batched Face_left by a table"). Transient: 132-156 bytes per vertex
+    table_queries = {"target": "_target_by_table", "origin": "_origin_by_table",
+                     "face": "_face_by_table", "face_left": "_face_by_table",
+                     "face_right": "_face_right_by_table"}
+    table_batch_ratio = {"target": 1 / 16, "origin": 1 / 16,
+                         "face": 1 / 8, "face_left": 1 / 8, "face_right": 1 / 8}
 
     # ---- exterior darts
     @property
@@ -849,17 +857,22 @@ class _CDS(MeshStructure):
     def left_back_edge(self, e: Int) -> Int:
         """``LeftBack(u_c)``: the dart ``(w, u)`` -- Thm 2, three cases."""
         e = _ids(e)
-        u, c = e // 3, e % 3
-        cn, cp = (c + 1) % 3, (c + 2) % 3
         # in memory before Case 3 reads through it (materialize_loop: fused, the second
         # LeftFront would re-evaluate the first in every one of its reads)
         lf, = _materialize_loop((self.left_front_edge(e),))
+        return self._left_back_from(e, lf, self.left_front_edge(lf >> 1))
+
+    def _left_back_from(self, e, lf, lf_of_lf):
+        """:meth:`left_back_edge` given ``lf = LeftFront(e)`` and ``lf_of_lf =
+        LeftFront(lf >> 1)`` (read per query, or from a whole-mesh table: :meth:`_edge_sides`)."""
+        u, c = e // 3, e % 3
+        cn, cp = (c + 1) % 3, (c + 2) % 3
         # Case 1: no incoming edge of colour prev(c) at u: LeftBack is u_next(c), toward w
         case1 = _dart(u, cn, 1)
         # Case 2: LeftFront has colour c (w -> v): LeftBack is w_prev(c), w = Source(LeftFront)
         case2 = _dart(_src(lf), cp, 0)
         # Case 3: LeftFront is v_next(c) (v -> w): LeftBack = LeftFront(LeftFront(e))
-        case3 = self.left_front_edge(lf >> 1)
+        case3 = lf_of_lf
         d = jnp.where(~self._inc(u, cp), case1, jnp.where((lf & 1) == 1, case2, case3))
         # _EXTERIOR: LeftBack((V_blue, V_red)) = (V_black, V_blue); LeftBack((V_black, V_blue)) = (V_red, V_black)
         d = jnp.where(e == self._e_br, self._d2, jnp.where(e == self._e_kb, self._d1, d))
@@ -868,19 +881,35 @@ class _CDS(MeshStructure):
     def right_back_edge(self, e: Int) -> Int:
         """``RightBack(u_c)``: the dart ``(u, z)`` -- Thm 2 by symmetry."""
         e = _ids(e)
+        rf, = _materialize_loop((self.right_front_edge(e),))  # as in left_back_edge
+        return self._right_back_from(e, rf, self.right_front_edge(rf >> 1))
+
+    def _right_back_from(self, e, rf, rf_of_rf):
+        """:meth:`right_back_edge` given ``rf = RightFront(e)`` and ``rf_of_rf =
+        RightFront(rf >> 1)``."""
         u, c = e // 3, e % 3
         cn, cp = (c + 1) % 3, (c + 2) % 3
-        rf, = _materialize_loop((self.right_front_edge(e),))  # as in left_back_edge
         # Case 1: no incoming edge of colour next(c) at u: RightBack is u_prev(c)
         case1 = _dart(u, cp, 0)
         # Case 2: RightFront has colour c (z -> v): RightBack is z_next(c) entering u, reversed
         case2 = _dart(_src(rf), cn, 1)
         # Case 3: RightFront is v_prev(c) (v -> z): RightBack = RightFront(RightFront(e))
-        case3 = self.right_front_edge(rf >> 1)
+        case3 = rf_of_rf
         d = jnp.where(~self._inc(u, cn), case1, jnp.where((rf & 1) == 0, case2, case3))
         # _EXTERIOR: RightBack((V_black, V_red)) = (V_black, V_blue)
         d = jnp.where(e == self._e_kr, self._d2, d)
         return d.astype(jnp.int32)
+
+    def _left_sides(self, e):
+        """``(LeftFront, LeftBack)`` of the edge ids ``e = arange(3n)``: the Front in memory,
+        the Back's Case 3 (a Front of a Front) read from it instead of computed again."""
+        lf, = _materialize_loop((self.left_front_edge(e),))
+        return lf, self._left_back_from(e, lf, lf.at[lf >> 1].get(mode="clip"))
+
+    def _right_sides(self, e):
+        """``(RightFront, RightBack)`` of the edge ids ``e = arange(3n)``, as :meth:`_left_sides`."""
+        rf, = _materialize_loop((self.right_front_edge(e),))
+        return rf, self._right_back_from(e, rf, rf.at[rf >> 1].get(mode="clip"))
 
     # ---- Target
     def _target_walk(self, e):
@@ -1318,6 +1347,45 @@ class _CDS(MeshStructure):
     def face_right(self, d: Int) -> Int:
         return self.face(_ids(d) ^ 1)
 
+    def dart_faces(self) -> Int:
+        """``(6n,)`` :meth:`face` of every dart id (``num_faces`` on unused ids), all at once:
+        every edge's LeftFront / LeftBack and RightFront / RightBack tables
+        (:meth:`_left_sides`, :meth:`_right_sides`), its left and right Thm 7 slot rules, then
+        the two interleaved into dart order ``2e + r``. No second Front per Back (as one
+        :meth:`face` per dart id computes) and no scatter (the default's three, from
+        :meth:`edge_of_face`): 100K vertices, CDS5n 36.7 ns per dart (scatters) / 28.7 (``face``
+        of every id) -> 5.0, CDS6n 15.1 / 10.9 -> 4.7. Transient: 132-156 bytes per vertex
+        (1M vertices; the right side computed after the left side's tables were dead took
+        111-123, but ran CDS6n 1.9x slower: its ids, read back from memory, were no longer
+        known to XLA as a sequence)."""
+        n = self.num_vertices
+        e = jnp.arange(3 * n, dtype=jnp.int32)
+        ok = self.edge_valid(e)
+        left = jnp.where(ok, self._compact(self._face_left_slot(e, *self._left_sides(e))),
+                         self.num_faces)
+        right = jnp.where(ok, self._compact(self._face_right_slot(e, *self._right_sides(e))),
+                          self.num_faces)
+        # in memory before the interleave: fused into it, the slot rules ran 2.4x slower
+        # (cds6n, 100K vertices: 9.9 -> 4.1 ms)
+        left, right = _materialize_loop((left, right))
+        return jnp.stack([left, right], axis=1).reshape(-1).astype(jnp.int32)
+
+    def _face_table(self) -> Int:
+        """:meth:`dart_faces`, in memory (for the ``face`` table route)."""
+        (table,) = _materialize_loop((self.dart_faces(),))
+        return table
+
+    @_base.by_table
+    def _face_by_table(self, d: Int) -> Int:
+        """Face_left of a batch of darts at least as large as the mesh: every dart's face once
+        (:meth:`dart_faces`), then one gather per dart (``MeshStructure.table_queries``). Ids
+        out of range read a clamped entry (garbage, as the per-query route gives them)."""
+        return self._face_table().at[_ids(d)].get(mode="clip")
+
+    @_base.by_table
+    def _face_right_by_table(self, d: Int) -> Int:
+        return self._face_table().at[_ids(d) ^ 1].get(mode="clip")
+
     def edge_of_face(self, f: Int) -> Int:
         """``Edge(f)`` (Thm 7): the edge matched with the face, as its ``r = 0`` dart."""
         s = self._expand(_ids(f))
@@ -1416,6 +1484,10 @@ class CDS6n(_CDS):
 
     name = "cds6n"
     _gathered_lf = False  # column slices of refs
+    # its Fronts are one row read each, so the per-query Face_left is cheap (13.7 ns at 100K
+    # vertices against 52 for CDS5n): the face table pays from half the dart ids
+    table_batch_ratio = {**_CDS.table_batch_ratio, "face": 1 / 2, "face_left": 1 / 2,
+                         "face_right": 1 / 2}
 
     def _inc(self, u, c):
         return _bit31(jnp.take_along_axis(self.refs[u], (2 * c)[..., None], axis=-1)[..., 0])
@@ -1794,7 +1866,7 @@ class CDS5nO1(CDS4n):
     # costs ~4 ns per edge, so a batch of half the dart ids (3n darts) or more takes the table:
     # 0.60x the per-query route's time at 100K vertices, 0.78x at 2.5M; at a quarter, level.
     # Transient: 52 bytes per vertex (the three colours' plans and targets, then the table)
-    table_batch_ratio = 1 / 2
+    table_batch_ratio = {**CDS4n.table_batch_ratio, "target": 1 / 2, "origin": 1 / 2}
 
     def _lf_red_p(self, u, row):
         s, ctl = self._toleft_r(row)

@@ -191,18 +191,26 @@ def test_ids_that_are_not_darts_terminate(structure):
 @pytest.mark.parametrize("structure", slow_params(
     STRUCTURES, set(STRUCTURES) - {"halfedge", "corner_table", "pemb", "cds6n"}))
 def test_dart_faces_is_face_of_every_dart(structure):
-    """The whole-mesh ``dart_faces`` (scatters by default, arithmetic where ``face`` is) equals
-    ``face`` on every dart, border darts included (``num_faces``)."""
+    """The whole-mesh ``dart_faces`` (scatters by default, arithmetic where ``face`` is, the
+    CDS's from its Front/Back tables) equals the per-query ``face`` on every dart, border darts
+    included (``num_faces``), and is ``num_faces`` on the unused ids."""
     import jax
     import jax.numpy as jnp
+
+    from jaxcds.structures.base import per_query_routes
 
     m = prepared("grid.off" if structure in BORDER_AWARE else "cube.off", structure)
     s = registry.build(structure, m)
     d = np.asarray(s.all_darts())
-    got, want = (np.asarray(x) for x in jax.jit(
-        lambda s, e: (s.dart_faces(), s.face(e)))(s, jnp.asarray(d)))
+
+    def both(s, e):
+        with per_query_routes():  # a batch of every dart would read the CDS's face table
+            return s.dart_faces(), s.face(e)
+    got, want = (np.asarray(x) for x in jax.jit(both)(s, jnp.asarray(d)))
     assert got.shape == (s.num_darts,)
     np.testing.assert_array_equal(got[d], want)
+    unused = np.setdiff1d(np.arange(s.num_darts), d)
+    assert (got[unused] == s.num_faces).all()
     assert (structure not in BORDER_AWARE) or (want == s.num_faces).any()  # borders were met
 
 

@@ -1,6 +1,7 @@
-"""Batches as large as a fraction of the mesh: the CDS family answers Target and Origin from a
-whole-mesh table computed once per call (``MeshStructure.table_queries``); smaller batches run
-the paper's per-query operator (Thm 2's walk, Thm 6's two reads). Both routes give the same
+"""Batches as large as a fraction of the mesh: the CDS family answers Target, Origin and
+Face_left / Face_right from a whole-mesh table computed once per call
+(``MeshStructure.table_queries``); smaller batches run the paper's per-query operator (Thm 2's
+walk, Thm 6's two reads, Thm 7's slot rules). Both routes give the same
 answers on every dart; :func:`jaxcds.verify.verify` checks both against the half-edge on every
 dart of every shared mesh (``test_protocol.py``), and catches either route when it is wrong."""
 
@@ -20,7 +21,7 @@ from jaxcds.verify import verify
 
 KINDS = ["cds6n", "cds5n-o1", pytest.param("cds5n", marks=pytest.mark.slow),
          pytest.param("cds4n", marks=pytest.mark.slow)]
-OPS = ("target", "origin", "source")
+OPS = ("target", "origin", "source", "face", "face_left", "face_right")
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +65,8 @@ class _Spy:
 @pytest.mark.parametrize("kind", KINDS)
 def test_table_route_equals_per_query_route(kind, mesh):
     s = registry.build(kind, mesh)
-    assert set(type(s).table_queries) == {"target", "origin"}
+    assert set(type(s).table_queries) == {"target", "origin", "face", "face_left", "face_right"}
+    assert all(type(s).table_ratio(op) <= 1 for op in type(s).table_queries)  # all darts: tables
     darts = s.all_darts()
     for ids in (darts, np.resize(darts, (3, darts.size))):
         by_table, per_query = _answers(s, ids, False), _answers(s, ids, True)
@@ -74,24 +76,39 @@ def test_table_route_equals_per_query_route(kind, mesh):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_the_route_follows_the_batch_size(kind, mesh, monkeypatch):
-    """The table from ``ceil(table_batch_ratio * num_darts)`` ids up, not one id fewer, not
-    under ``per_query_routes``, not for ids passed by keyword."""
+@pytest.mark.parametrize("op, alias", [("target", "source"), ("face_left", "face_right")])
+def test_the_route_follows_the_batch_size(kind, op, alias, mesh, monkeypatch):
+    """The table from ``ceil(table_ratio(op) * num_darts)`` ids up, not one id fewer, not
+    under ``per_query_routes``, not for ids passed by keyword (Target); ``alias`` (Source: Origin;
+    Face_right: the twin's face) likewise."""
     s = registry.build(kind, mesh)
     cls = type(s)
     spy = _Spy(cls, monkeypatch)
-    at = math.ceil(cls.table_batch_ratio * s.num_darts)
+    at = math.ceil(cls.table_ratio(op) * s.num_darts)
+    assert at == math.ceil(cls.table_ratio(alias if alias != "source" else "origin") * s.num_darts)
     darts = jnp.asarray(np.resize(s.all_darts(), at))
-    jax.jit(lambda s, d: s.target(d))(s, darts)
+    jax.jit(lambda s, d: getattr(s, op)(d))(s, darts)
     assert spy.calls == 1
-    jax.jit(lambda s, d: s.origin(d))(s, darts[:-1])
+    jax.jit(lambda s, d: getattr(s, op)(d))(s, darts[:-1])
     assert spy.calls == 1
     with base.per_query_routes():
-        jax.jit(lambda s, d: s.target(d))(s, darts)
-    s.target(d=darts)
+        jax.jit(lambda s, d: getattr(s, op)(d))(s, darts)
+    if op == "target":  # (Face_left by keyword calls Face with the ids positionally)
+        s.target(d=darts)
     assert spy.calls == 1
-    jax.jit(lambda s, d: s.source(d))(s, darts)  # source is origin
+    jax.jit(lambda s, d: getattr(s, alias)(d))(s, darts)
     assert spy.calls == 2
+
+
+def test_each_operator_has_its_own_threshold():
+    """CDS6n's Face_left table pays from half the darts (its per-query Fronts are single
+    reads), its Target table from 1/16; CDS5n-O(1)'s Target (Thm 6, O(1)) from half."""
+    from jaxcds.structures.cds import CDS5n, CDS5nO1, CDS6n
+
+    assert CDS6n.table_ratio("target") < CDS6n.table_ratio("face_left") <= 1
+    assert CDS5nO1.table_ratio("target") > CDS5n.table_ratio("target")
+    assert CDS5n.table_ratio("face_left") == CDS5nO1.table_ratio("face_left") < 1
+    assert CDS6n.table_ratio("next") == math.inf  # not a table operator
 
 
 @pytest.mark.parametrize("ratio", [0.0, math.inf])
@@ -120,6 +137,21 @@ def test_verify_catches_a_wrong_route(monkeypatch, fresh_traces):
     rep = verify(s, m)
     assert rep.by_operator.get("target (per-query route)", 0) > 0, str(rep)
     assert rep.by_operator.get("dart_exists", 0) == 0, str(rep)  # the table route stays right
+    monkeypatch.setattr(cls, "_dart_end", real_end)
+    # the face table, then the per-query Face_left
+    jax.clear_caches()
+    real_faces = cls.dart_faces
+    monkeypatch.setattr(cls, "dart_faces", lambda self: (real_faces(self) + 1) % self.num_faces)
+    rep = verify(s, m)
+    assert rep.by_operator.get("face_left (per-query route)", 0) > 0, str(rep)
+    assert rep.by_operator.get("face_right (per-query route)", 0) > 0, str(rep)
+    monkeypatch.setattr(cls, "dart_faces", real_faces)
+    jax.clear_caches()
+    real_slot = cls.face_slot
+    monkeypatch.setattr(cls, "face_slot", lambda self, d: real_slot(self, d ^ 1))
+    rep = verify(s, m)
+    assert rep.by_operator.get("face_left (per-query route)", 0) > 0, str(rep)
+    assert rep.by_operator.get("face_left", 0) == 0, str(rep)  # the table route stays right
 
 
 def test_packed_batches_take_no_table_route(monkeypatch):
