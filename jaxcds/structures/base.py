@@ -189,12 +189,14 @@ def _chunked_query(method):
     @functools.wraps(method)
     def run(self, *ids, **kwargs):
         chunk = QUERY_CHUNK
-        if kwargs or name not in self.chunked_queries or getattr(_ONE_PASS, "depth", 0):
+        if kwargs or getattr(_ONE_PASS, "depth", 0):
             return method(self, *ids, **kwargs)
         table_route = self.table_queries.get(name)
         if (table_route is not None and len(ids) == 1 and not getattr(_NO_TABLE, "depth", 0)
                 and jnp.size(ids[0]) >= self.table_ratio(name) * self.num_darts):
             return getattr(self, table_route)(ids[0])
+        if name not in self.chunked_queries:
+            return method(self, *ids)
         if jax.default_backend() != "cpu":
             return method(self, *ids)
         xs = [jnp.asarray(x) for x in ids]
@@ -252,18 +254,20 @@ class MeshStructure:
     #: those of them whose chunks write their answers apart before the in-place update
     #: (:data:`WRITE_CHUNK_ANSWERS_APART`), as measured per class
     chunk_answers_apart: ClassVar[frozenset] = frozenset()
-    #: operators (of ``chunked_queries``) that answer a batch of at least
-    #: ``table_batch_ratio * num_darts`` ids (one id array, any backend) from a whole-mesh table
+    #: operators (of :data:`CHUNKED_QUERIES`) that answer a batch of at least
+    #: ``table_ratio(op) * num_darts`` ids (one id array, any backend) from a whole-mesh table
     #: computed once per call: ``{operator: name of a method(ids) marked with by_table}``.
     #: Why: an operator of O(d) per query (Thm 2's Target walk) or of several dependent reads
-    #: (Thm 6) costs more per query than one entry of the table costs to compute, so a batch
-    #: larger than the mesh is answered faster by computing every answer once, then one gather
-    #: per query. The cost is memory while the call runs: the Target table's temporaries are
+    #: (Thm 6's Target, Thm 2's Backs, Thm 7's slot rules) costs more per query than one entry
+    #: of the table costs to compute, so a batch as large as a fraction of the mesh is answered
+    #: faster by computing every answer once, then one gather per query. The cost is memory
+    #: while the call runs (1M vertices, a 6M-dart batch): the Target table's temporaries are
     #: about the structure's own size (24 bytes per vertex for CDS6n / CDS5n / CDS4n, 52 for
-    #: CDS5n-O(1), against 2-3 for the per-query route), the face table's 132-156 (its four
-    #: Front/Back tables, the slots and every dart's face; 4-5 per query route); trace under
-    #: :func:`per_query_routes` to keep the per-query route (``benchmarks/RESULTS.md``, "stop
-    #: 33: batched Target by a table", "stop 35: batched Face_left by a table")
+    #: CDS5n-O(1)), the face table's 132-156, Next / Prev's 84-120, against 2-5 for the chunked
+    #: per-query routes (Target, Face_left) and 216-384 for the unchunked ones (Next, Prev: every
+    #: pass as large as the batch); trace under :func:`per_query_routes` to keep the per-query
+    #: route (``benchmarks/RESULTS.md``, "stop 33: batched Target by a table", "stop 35: batched
+    #: Face_left, Next and Prev by tables")
     table_queries: ClassVar[dict] = {}
     #: the batch size, per dart of the id space, from which ``table_queries`` take the table:
     #: one ratio for all of them, or ``{operator: ratio}`` (see :meth:`table_ratio`)

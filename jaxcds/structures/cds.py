@@ -805,12 +805,21 @@ class _CDS(MeshStructure):
     # Front/Back tables, then the slot rules, 5-7 ns per dart at 100K vertices) from a batch of
     # 1/8 of the dart ids (CDS6n: 1/2): at 100K vertices the table took 0.35x the per-query
     # route's time at 1/4 (cds5n), 1.09x at 1/10; at 2.5M 0.66-0.69x at 1/10 (RESULTS.md,
-    # "stop 35: batched Face_left by a table"). Transient: 132-156 bytes per vertex
+    # "stop 35: batched Face_left, Next and Prev by tables"). Transient: 132-156 bytes per vertex.
+    # Next / Prev (and the Front / Back aliases) from every dart's (_step_table) from 1/2 of the
+    # dart ids (Next) and 1/4 (Prev): at 100K vertices the table took 0.57x (cds5n Next) and
+    # 0.27x (Prev) the per-query route's time at 1/2, 1.10x / 0.42x at 1/4; at 2.5M 0.49-0.57x /
+    # 0.26-0.30x at 1/4 (RESULTS.md, "stop 35: batched Face_left, Next and Prev by tables")
     table_queries = {"target": "_target_by_table", "origin": "_origin_by_table",
                      "face": "_face_by_table", "face_left": "_face_by_table",
-                     "face_right": "_face_right_by_table"}
+                     "face_right": "_face_right_by_table",
+                     "next": "_next_by_table", "left_front": "_next_by_table",
+                     "prev": "_prev_by_table", "left_back": "_prev_by_table",
+                     "right_front": "_right_front_by_table", "right_back": "_right_back_by_table"}
     table_batch_ratio = {"target": 1 / 16, "origin": 1 / 16,
-                         "face": 1 / 8, "face_left": 1 / 8, "face_right": 1 / 8}
+                         "face": 1 / 8, "face_left": 1 / 8, "face_right": 1 / 8,
+                         "next": 1 / 2, "left_front": 1 / 2, "right_back": 1 / 2,
+                         "prev": 1 / 4, "left_back": 1 / 4, "right_front": 1 / 4}
 
     # ---- exterior darts
     @property
@@ -1247,6 +1256,38 @@ class _CDS(MeshStructure):
     def right_back(self, d: Int) -> Int:
         return self.next(_ids(d) ^ 1)
 
+    def _step_table(self, forward: bool) -> Int:
+        """``(6n,)`` :meth:`next` (``forward``) or :meth:`prev` of every dart id (garbage on
+        unused ids), in memory: the Front tables of every edge (:meth:`_left_sides`,
+        :meth:`_right_sides`; the Backs read the Fronts' tables), the two sides written to
+        memory, then interleaved into dart order ``2e + r`` (as :meth:`dart_faces`)."""
+        e = jnp.arange(3 * self.num_vertices, dtype=jnp.int32)
+        lf, lb = self._left_sides(e)
+        rf, rb = self._right_sides(e)
+        left, right = (lf, rb) if forward else (lb, rf)
+        left, right = _materialize_loop((left, right))
+        (table,) = _materialize_loop((jnp.stack([left, right], axis=1).reshape(-1),))
+        return table
+
+    @_base.by_table
+    def _next_by_table(self, d: Int) -> Int:
+        """Next (LeftFront) of a batch of darts as large as a fraction of the mesh: every dart's
+        once (:meth:`_step_table`), then one gather per dart (``MeshStructure.table_queries``).
+        Ids out of range read a clamped entry (garbage, as the per-query route gives them)."""
+        return self._step_table(True).at[_ids(d)].get(mode="clip")
+
+    @_base.by_table
+    def _prev_by_table(self, d: Int) -> Int:
+        return self._step_table(False).at[_ids(d)].get(mode="clip")
+
+    @_base.by_table
+    def _right_front_by_table(self, d: Int) -> Int:
+        return self._step_table(False).at[_ids(d) ^ 1].get(mode="clip")
+
+    @_base.by_table
+    def _right_back_by_table(self, d: Int) -> Int:
+        return self._step_table(True).at[_ids(d) ^ 1].get(mode="clip")
+
     def edge_of_vertex(self, v: Int) -> Int:
         """``Edge(u)``: ``u_red`` (Thm 2); ``V_red`` has no outgoing edge: ``(V_red, V_blue)``."""
         v = _ids(v)
@@ -1484,10 +1525,12 @@ class CDS6n(_CDS):
 
     name = "cds6n"
     _gathered_lf = False  # column slices of refs
-    # its Fronts are one row read each, so the per-query Face_left is cheap (13.7 ns at 100K
-    # vertices against 52 for CDS5n): the face table pays from half the dart ids
+    # its Fronts are one row read each, so the per-query Face_left and Prev are cheap (Face_left
+    # 13.7 ns at 100K vertices against 52 for CDS5n): their tables pay from half the dart ids
+    # (Prev at 100K: 1.22x the per-query route at 1/4, 0.67x at 1/2)
     table_batch_ratio = {**_CDS.table_batch_ratio, "face": 1 / 2, "face_left": 1 / 2,
-                         "face_right": 1 / 2}
+                         "face_right": 1 / 2, "prev": 1 / 2, "left_back": 1 / 2,
+                         "right_front": 1 / 2}
 
     def _inc(self, u, c):
         return _bit31(jnp.take_along_axis(self.refs[u], (2 * c)[..., None], axis=-1)[..., 0])

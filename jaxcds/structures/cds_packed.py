@@ -56,6 +56,7 @@ class _ViewMixin:
     offset and its four unused local Thm 7 slots. Never flattened (built inside traced code)."""
 
     chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
+    table_queries = {}  # likewise: a view's arrays are per query, not the union's tables
 
     def _compact(self, slot):
         # union slot (red u, black/blue N + u) -> local Thm 7 slot -> dense local face -> global

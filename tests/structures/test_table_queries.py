@@ -1,7 +1,7 @@
-"""Batches as large as a fraction of the mesh: the CDS family answers Target, Origin and
-Face_left / Face_right from a whole-mesh table computed once per call
+"""Batches as large as a fraction of the mesh: the CDS family answers Target, Origin,
+Face_left / Face_right and Next / Prev (the Fronts and Backs) from a whole-mesh table computed once per call
 (``MeshStructure.table_queries``); smaller batches run the paper's per-query operator (Thm 2's
-walk, Thm 6's two reads, Thm 7's slot rules). Both routes give the same
+walk, Thm 6's two reads, Thm 7's slot rules, Thm 2's Back cases). Both routes give the same
 answers on every dart; :func:`jaxcds.verify.verify` checks both against the half-edge on every
 dart of every shared mesh (``test_protocol.py``), and catches either route when it is wrong."""
 
@@ -21,7 +21,8 @@ from jaxcds.verify import verify
 
 KINDS = ["cds6n", "cds5n-o1", pytest.param("cds5n", marks=pytest.mark.slow),
          pytest.param("cds4n", marks=pytest.mark.slow)]
-OPS = ("target", "origin", "source", "face", "face_left", "face_right")
+OPS = ("target", "origin", "source", "face", "face_left", "face_right", "next", "prev",
+       "left_front", "left_back", "right_front", "right_back")
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +66,9 @@ class _Spy:
 @pytest.mark.parametrize("kind", KINDS)
 def test_table_route_equals_per_query_route(kind, mesh):
     s = registry.build(kind, mesh)
-    assert set(type(s).table_queries) == {"target", "origin", "face", "face_left", "face_right"}
+    assert set(type(s).table_queries) == {"target", "origin", "face", "face_left", "face_right",
+                                          "next", "prev", "left_front", "left_back",
+                                          "right_front", "right_back"}
     assert all(type(s).table_ratio(op) <= 1 for op in type(s).table_queries)  # all darts: tables
     darts = s.all_darts()
     for ids in (darts, np.resize(darts, (3, darts.size))):
@@ -76,7 +79,8 @@ def test_table_route_equals_per_query_route(kind, mesh):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-@pytest.mark.parametrize("op, alias", [("target", "source"), ("face_left", "face_right")])
+@pytest.mark.parametrize("op, alias", [("target", "source"), ("face_left", "face_right"),
+                                       ("next", "right_back"), ("prev", "right_front")])
 def test_the_route_follows_the_batch_size(kind, op, alias, mesh, monkeypatch):
     """The table from ``ceil(table_ratio(op) * num_darts)`` ids up, not one id fewer, not
     under ``per_query_routes``, not for ids passed by keyword (Target); ``alias`` (Source: Origin;
@@ -85,7 +89,7 @@ def test_the_route_follows_the_batch_size(kind, op, alias, mesh, monkeypatch):
     cls = type(s)
     spy = _Spy(cls, monkeypatch)
     at = math.ceil(cls.table_ratio(op) * s.num_darts)
-    assert at == math.ceil(cls.table_ratio(alias if alias != "source" else "origin") * s.num_darts)
+    assert at == math.ceil(cls.table_ratio({"source": "origin"}.get(alias, alias)) * s.num_darts)
     darts = jnp.asarray(np.resize(s.all_darts(), at))
     jax.jit(lambda s, d: getattr(s, op)(d))(s, darts)
     assert spy.calls == 1
@@ -108,7 +112,7 @@ def test_each_operator_has_its_own_threshold():
     assert CDS6n.table_ratio("target") < CDS6n.table_ratio("face_left") <= 1
     assert CDS5nO1.table_ratio("target") > CDS5n.table_ratio("target")
     assert CDS5n.table_ratio("face_left") == CDS5nO1.table_ratio("face_left") < 1
-    assert CDS6n.table_ratio("next") == math.inf  # not a table operator
+    assert CDS6n.table_ratio("twin") == math.inf  # not a table operator (one xor)
 
 
 @pytest.mark.parametrize("ratio", [0.0, math.inf])
@@ -121,37 +125,36 @@ def test_every_class_ratio_gives_the_half_edge_answers(ratio, monkeypatch, fresh
     assert rep.mismatches == 0, str(rep)
 
 
-def test_verify_catches_a_wrong_route(monkeypatch, fresh_traces):
+# (method to break, how, operators verify must flag, operators it must not): a broken table
+# shows up as a per-query route that disagrees with the table's answers; a broken per-query
+# route likewise, and the table route's answers stay right
+_BREAKS = {
+    "target table": ("_edge_target_table", lambda real: lambda self: (real(self) + 1) % self.num_vertices,
+                     ["target (per-query route)"], []),
+    "per-query target": ("_dart_end", lambda real: lambda self, d, t: real(self, d, t) + 1,
+                         ["target (per-query route)"], ["dart_exists"]),
+    "face table": ("dart_faces", lambda real: lambda self: (real(self) + 1) % self.num_faces,
+                   ["face_left (per-query route)", "face_right (per-query route)"], []),
+    "per-query face": ("face_slot", lambda real: lambda self, d: real(self, d ^ 1),
+                       ["face_left (per-query route)"], ["face_left"]),
+    "step tables": ("_step_table", lambda real: lambda self, forward: real(self, forward) ^ 1,
+                    [f"{op} (per-query route)" for op in ("next", "prev", "left_front", "right_back")],
+                    []),
+}
+
+
+@pytest.mark.parametrize("case", list(_BREAKS))
+def test_verify_catches_a_wrong_route(case, monkeypatch, fresh_traces):
     """A broken table route and a broken per-query route each show up in ``verify``."""
     m = random_planar_triangulation(120, seed=2)
     s = registry.build("cds5n-o1", m)
-    cls = type(s)
-    real_table = cls._edge_target_table
-    monkeypatch.setattr(cls, "_edge_target_table", lambda self: (real_table(self) + 1) % self.num_vertices)
+    method, breaker, flagged, clean = _BREAKS[case]
+    monkeypatch.setattr(type(s), method, breaker(getattr(type(s), method)))
     rep = verify(s, m)
-    assert rep.by_operator.get("target (per-query route)", 0) > 0, str(rep)
-    monkeypatch.setattr(cls, "_edge_target_table", real_table)
-    jax.clear_caches()
-    real_end = cls._dart_end
-    monkeypatch.setattr(cls, "_dart_end", lambda self, d, want_target: real_end(self, d, want_target) + 1)
-    rep = verify(s, m)
-    assert rep.by_operator.get("target (per-query route)", 0) > 0, str(rep)
-    assert rep.by_operator.get("dart_exists", 0) == 0, str(rep)  # the table route stays right
-    monkeypatch.setattr(cls, "_dart_end", real_end)
-    # the face table, then the per-query Face_left
-    jax.clear_caches()
-    real_faces = cls.dart_faces
-    monkeypatch.setattr(cls, "dart_faces", lambda self: (real_faces(self) + 1) % self.num_faces)
-    rep = verify(s, m)
-    assert rep.by_operator.get("face_left (per-query route)", 0) > 0, str(rep)
-    assert rep.by_operator.get("face_right (per-query route)", 0) > 0, str(rep)
-    monkeypatch.setattr(cls, "dart_faces", real_faces)
-    jax.clear_caches()
-    real_slot = cls.face_slot
-    monkeypatch.setattr(cls, "face_slot", lambda self, d: real_slot(self, d ^ 1))
-    rep = verify(s, m)
-    assert rep.by_operator.get("face_left (per-query route)", 0) > 0, str(rep)
-    assert rep.by_operator.get("face_left", 0) == 0, str(rep)  # the table route stays right
+    for op in flagged:
+        assert rep.by_operator.get(op, 0) > 0, (op, str(rep))
+    for op in clean:
+        assert rep.by_operator.get(op, 0) == 0, (op, str(rep))
 
 
 def test_packed_batches_take_no_table_route(monkeypatch):
