@@ -78,14 +78,19 @@ def _endpoints(s, e):
 
 
 @jax.jit
-def _both_routes(s, e):
-    """``({op: per-query answers}, {op: table answers})`` for every operator the structure
-    answers from a whole-mesh table for large batches (``MeshStructure.table_queries``), each
-    route forced whatever the batch size, so both are checked on every dart."""
-    with per_query_routes():
-        per_query = {op: getattr(s, op)(e) for op in s.table_queries}
-    table = {op: getattr(s, method)(e) for op, method in s.table_queries.items()}
-    return per_query, table
+def _other_routes(s, e):
+    """``{(op, route): answers}`` for every operator the structure answers from a whole-mesh
+    table for large batches (``MeshStructure.table_queries``): the route that
+    :func:`_apply_all` did *not* take for a batch this large (decided, as there, from its static
+    size), forced, so that both routes are checked on every dart."""
+    out = {}
+    for op, method in s.table_queries.items():
+        if jnp.size(e) >= type(s).table_ratio(op) * s.num_darts:
+            with per_query_routes():
+                out[(op, "per-query")] = getattr(s, op)(e)
+        else:
+            out[(op, "table")] = getattr(s, method)(e)
+    return out
 
 
 @jax.jit
@@ -166,10 +171,9 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
         idx, found = he_lookup(_pair_keys(u, v, n))
         rep.add("dart_exists", ~found, len(e), f"dart {e[~found][:1]} = {u[~found][:1]}->{v[~found][:1]}")
         if getattr(s, "table_queries", None):
-            for route, answers in zip(("per-query", "table"), _both_routes(s, jnp.asarray(e))):
-                for op, got in answers.items():
-                    bad = np.asarray(got) != res[op]
-                    rep.add(f"{op} ({route} route)", bad, len(e), f"dart {e[bad][:1]}")
+            for (op, route), got in _other_routes(s, jnp.asarray(e)).items():
+                bad = np.asarray(got) != res[op]
+                rep.add(f"{op} ({route} route)", bad, len(e), f"dart {e[bad][:1]}")
         for op in DART_OPERATORS:
             r = res[op]
             ru, rv = _endpoints(s, jnp.asarray(r))
