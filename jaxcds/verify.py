@@ -85,7 +85,7 @@ def _other_routes(s, e):
     size), forced, so that both routes are checked on every dart."""
     out = {}
     for op, method in s.table_queries.items():
-        if jnp.size(e) >= type(s).table_ratio(op) * s.num_darts:
+        if s.takes_table(op, jnp.size(e)):
             with per_query_routes():
                 out[(op, "per-query")] = getattr(s, op)(e)
         else:

@@ -123,21 +123,34 @@ CHUNKED_QUERIES = ("origin", "source", "target", "twin", "next", "prev", "face",
                    "corner_opposite", "corner_swing", "adjacent")
 
 
-_ONE_PASS = threading.local()
-_NO_TABLE = threading.local()
+class _TraceFlag(threading.local):
+    """A per-thread switch that nested ``with`` blocks turn on (a depth count, so an inner block
+    leaving does not turn it off for the outer one); read while tracing."""
+
+    depth = 0
+
+    @contextlib.contextmanager
+    def on(self):
+        self.depth += 1
+        try:
+            yield
+        finally:
+            self.depth -= 1
+
+    def __bool__(self):
+        return self.depth > 0
 
 
-@contextlib.contextmanager
+_ONE_PASS = _TraceFlag()
+_NO_TABLE = _TraceFlag()
+
+
 def per_query_routes():
     """Within this block, operators traced take no whole-mesh table route (``table_queries``):
     every batch runs the per-query route of the paper's operator. Used inside a table's own
     computation (which may ask the operators for a batch as large as the mesh), by tests that
     check both routes and by benchmarks that race them."""
-    _NO_TABLE.depth = getattr(_NO_TABLE, "depth", 0) + 1
-    try:
-        yield
-    finally:
-        _NO_TABLE.depth -= 1
+    return _NO_TABLE.on()
 
 
 def by_table(method):
@@ -152,16 +165,11 @@ def by_table(method):
     return run
 
 
-@contextlib.contextmanager
 def one_pass_queries():
     """Within this block, operators traced run every batch in one pass (no chunks): for batches
     sharded over devices (:func:`jaxcds.sharding.sharded_query`), where chunks along the sharded
     axis would make the partitioner gather the batch."""
-    _ONE_PASS.depth = getattr(_ONE_PASS, "depth", 0) + 1
-    try:
-        yield
-    finally:
-        _ONE_PASS.depth -= 1
+    return _ONE_PASS.on()
 
 
 def _chunked_query(method):
@@ -189,15 +197,11 @@ def _chunked_query(method):
     @functools.wraps(method)
     def run(self, *ids, **kwargs):
         chunk = QUERY_CHUNK
-        if kwargs or getattr(_ONE_PASS, "depth", 0):
+        if kwargs or _ONE_PASS:
             return method(self, *ids, **kwargs)
-        table_route = self.table_queries.get(name)
-        if (table_route is not None and len(ids) == 1 and not getattr(_NO_TABLE, "depth", 0)
-                and jnp.size(ids[0]) >= self.table_ratio(name) * self.num_darts):
-            return getattr(self, table_route)(ids[0])
-        if name not in self.chunked_queries:
-            return method(self, *ids)
-        if jax.default_backend() != "cpu":
+        if len(ids) == 1 and self.takes_table(name, jnp.size(ids[0])):
+            return getattr(self, self.table_queries[name])(ids[0])
+        if name not in self.chunked_queries or jax.default_backend() != "cpu":
             return method(self, *ids)
         xs = [jnp.asarray(x) for x in ids]
         shape, size = xs[0].shape, xs[0].size
@@ -279,6 +283,13 @@ class MeshStructure:
         table route (``inf``: never)."""
         r = cls.table_batch_ratio
         return float(r.get(op, float("inf"))) if isinstance(r, dict) else float(r)
+
+    def takes_table(self, op: str, batch_size: int) -> bool:
+        """Whether operator ``op``, traced here for ``batch_size`` ids, takes its table route:
+        it has one (``table_queries``), the batch reaches :meth:`table_ratio`, and the trace is
+        not inside :func:`per_query_routes`."""
+        return (op in self.table_queries and not _NO_TABLE
+                and batch_size >= self.table_ratio(op) * self.num_darts)
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
