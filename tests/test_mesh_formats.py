@@ -95,6 +95,28 @@ def test_obj_polygons_and_continued_face_lines_still_load(tmp_path):
     assert load_mesh(_write(tmp_path, "p.obj", text), weld=False).num_faces == 4
 
 
+_HEX_V = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv -1 1 0\nv -1 0 0\nv 0 0 1\nvt 0 0\nvn 0 0 1\n"
+
+
+@pytest.mark.parametrize("faces,plain", [
+    ("f 1/1 2 7\n", "f 1 2 7\n"),
+    ("f 1 2 7/1\n", "f 1 2 7\n"),
+    ("f 1//1 2/1/1 7//1\n", "f 1 2 7\n"),
+    ("f 1/1 2/1 7/1\nf 1 2 3 4 5 6\n", "f 1 2 7\nf 1 2 3 4 5 6\n"),
+    ("f 1//1 2//1 7//1\nf 1 2 3 4 5 6\n", "f 1 2 7\nf 1 2 3 4 5 6\n"),
+    ("f 1/1/1 2/1/1 7/1/1\nf 1 2 3 4 5 6 2 3 4\n", "f 1 2 7\nf 1 2 3 4 5 6 2 3 4\n"),
+], ids=["mixed-in-line", "mixed-at-end", "vn-and-vtvn", "vt-then-hexagon", "vn-then-hexagon",
+        "vtvn-then-nine"])
+def test_obj_corners_in_mixed_forms_read_as_their_vertex_indices(faces, plain, tmp_path):
+    """trimesh reads every face line of as many numbers in the first line's form: "f 1/1 2 7"
+    came out as the face (0, 0, 1) and a hexagon after "f 1/1 2/1 7/1" as a triangle of every
+    other corner, without a word."""
+    m = load_mesh(_write(tmp_path, "m.obj", _HEX_V + faces), weld=False)
+    ref = load_mesh(_write(tmp_path, "p.obj", _HEX_V + plain), weld=False)
+    np.testing.assert_array_equal(m.faces, ref.faces)
+    np.testing.assert_array_equal(m.vertices, ref.vertices)
+
+
 @pytest.mark.parametrize("text,kind,match", [
     ("v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", errors.UnreadableMeshError, "line 2: coordinate 'x' is not a number"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3.5\n", errors.InvalidIndexError, "line 4: face index '3.5' is not an integer"),
