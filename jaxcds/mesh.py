@@ -293,6 +293,10 @@ def _prepare_obj(text: str, path: str) -> str:
     after data removed, relative (negative) indices made absolute where vertices follow a
     face, and a face index 0 or a face line of fewer than three corners refused naming its
     line. Each step runs only where a cheap test finds its case."""
+    if "\r" in text and "\n" not in text:
+        # classic Mac OS line ends: trimesh splits on "\n" only and read the whole file as one
+        # line ("line 1: coordinate 'v' is not a number"); OFF already reads them
+        text = text.replace("\r", "\n")
     text = _blanks_as_spaces(text)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)

@@ -117,6 +117,17 @@ def test_obj_corners_in_mixed_forms_read_as_their_vertex_indices(faces, plain, t
     np.testing.assert_array_equal(m.vertices, ref.vertices)
 
 
+def test_obj_with_classic_mac_line_ends_reads_as_the_plain_file(tmp_path):
+    """Lines ended by a lone CR were one line to trimesh: "line 1: coordinate 'v' is not a
+    number" (OFF read them already)."""
+    m = load_mesh(_write(tmp_path, "cr.obj", _TET_OBJ.replace("\n", "\r")))
+    plain = load_mesh(_write(tmp_path, "plain.obj", _TET_OBJ))
+    np.testing.assert_array_equal(m.faces, plain.faces)
+    np.testing.assert_array_equal(m.vertices, plain.vertices)
+    with pytest.raises(errors.UnreadableMeshError, match="line 2: coordinate 'x'"):
+        load_mesh(_write(tmp_path, "bad.obj", _TET_OBJ.replace("v 1 0 0", "v 1 x 0").replace("\n", "\r")))
+
+
 @pytest.mark.parametrize("text,kind,match", [
     ("v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", errors.UnreadableMeshError, "line 2: coordinate 'x' is not a number"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3.5\n", errors.InvalidIndexError, "line 4: face index '3.5' is not an integer"),
