@@ -1344,8 +1344,9 @@ def _fast_check(mesh: TriMesh, components: bool, unreferenced_ok: bool = False) 
         return None
     # a NaN or inf anywhere makes the sum non-finite; an overflowing sum only sends finite
     # coordinates to the full check, which then finds nothing
-    if not np.isfinite(np.sum(mesh.vertices)):
-        return None
+    with np.errstate(over="ignore", invalid="ignore"):  # (numpy's RuntimeWarning reached stderr)
+        if not np.isfinite(np.sum(mesh.vertices)):
+            return None
     status, opp, vc, ne, ncomp = kernels.manifold_twins(np.ascontiguousarray(f),
                                                         mesh.num_vertices, components)
     if status == kernels.BAD_INDEX:  # load_mesh refuses these; a TriMesh built by hand may not

@@ -631,3 +631,16 @@ def test_a_file_of_vertices_only_is_an_empty_mesh_in_every_format(suffix, text, 
     p.write_text(text)
     with pytest.raises(errors.EmptyMeshError):
         load_mesh(p)
+
+
+def test_validating_coordinates_near_the_float64_limit_prints_no_warning():
+    """The fast check's sum of the coordinates overflows at 1e308 (the full checks then find the
+    mesh clean); numpy's RuntimeWarning reached stderr on `jaxcds info`, `build`, `polylla`."""
+    import warnings
+
+    v, f = octahedron()
+    big = TriMesh(vertices=v * 1e308, faces=f)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        validate(big)
+        assert topology(big)["defects"] == []
