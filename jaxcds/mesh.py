@@ -727,10 +727,36 @@ def _check_ply(raw: bytes, path: str) -> Optional[tuple[np.ndarray, np.ndarray]]
                 raise errors.UnreadableMeshError(
                     f"{path}: line {no}: cannot read the property line {line.strip()[:80]!r} "
                     "('property TYPE NAME' or 'property list COUNT_TYPE TYPE NAME')")
-    if "ascii" in fmt:
+    _check_ply_elements(elements, path)
+    if "ascii" in fmt:  # (rows past the declared counts are named first)
         _check_ply_ascii(raw[start:], elements, raw.count(b"\n", 0, start) + 1, path)
+    for e in elements:
+        if e.name == "face" and e.count == 0 and not any(
+                x.name == "tristrips" and x.count for x in elements):
+            raise errors.EmptyMeshError(f"{path}: line {e.line}: the PLY header declares 0 faces")
+    if "ascii" in fmt:
         return None
     return _check_ply_binary(raw, start, elements, ">" if "big" in fmt else "<", path)
+
+
+def _check_ply_elements(elements: list, path: str) -> None:
+    """The properties a triangle mesh needs, named by header line: trimesh's messages were
+    Python's ("'z'" for a vertex without z, "cannot access local variable 'faces'" for a face
+    element without a list; a binary PLY of 0 faces, refused in :func:`_check_ply`, gave
+    "mismatch in size of old and new data-descriptor")."""
+    for e in elements:
+        names = [name for name, _ in e.props]
+        if e.name == "vertex":
+            missing = [c for c in "xyz" if c not in names]
+            if missing:
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {e.line}: the vertex element has no {', '.join(missing)} "
+                    "property (a vertex needs x, y and z)")
+        elif e.name == "face" and e.count:
+            if not any(isinstance(t, tuple) for _, t in e.props):
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {e.line}: the face element has no list property (its "
+                    "corners, 'property list uchar int vertex_indices')")
 
 
 def _ply_declared(elements: list) -> str:

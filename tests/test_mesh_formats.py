@@ -307,6 +307,21 @@ def test_binary_ply_corrupted_corner_count_is_named(count, match, tmp_path):
         load_mesh(_write(tmp_path, "bad.ply", bad))
 
 
+@pytest.mark.parametrize("data,kind,match", [
+    (_binary_ply(_TET_V, []), errors.EmptyMeshError, "line 7: the PLY header declares 0 faces"),
+    (_ascii_ply("", nv=4, nf=0), errors.EmptyMeshError, "line 7: the PLY header declares 0 faces"),
+    (_ascii_ply("5\n", nv=4, nf=1).replace("property list uchar int vertex_indices", "property int foo"),
+     errors.UnreadableMeshError, "line 7: the face element has no list property"),
+    (_ascii_ply("3 0 1 2\n", nv=3, nf=1).replace("property float z\n", "").replace(" 0\n", "\n", 3),
+     errors.UnreadableMeshError, "line 3: the vertex element has no z property"),
+], ids=["binary-0-faces", "ascii-0-faces", "face-without-list", "vertex-without-z"])
+def test_ply_header_without_the_elements_of_a_mesh_is_named(data, kind, match, tmp_path):
+    """trimesh's messages were Python's: "mismatch in size of old and new data-descriptor",
+    "cannot access local variable 'faces'", "'z'"."""
+    with pytest.raises(kind, match=match):
+        load_mesh(_write(tmp_path, "e.ply", data))
+
+
 def test_binary_ply_of_mixed_polygons_loads_as_its_ascii_twin(tmp_path):
     V = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 2, 0)]
     F = [(0, 1, 2, 3), (1, 4, 2)]
