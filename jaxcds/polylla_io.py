@@ -120,12 +120,13 @@ def _table(rows, n, ncols, path, what, dtype):
     """``n`` data rows of at least ``ncols`` columns after the header row, as an array (more
     rows than the header announces are refused too: one of the two is wrong)."""
     body = rows[1:1 + n]
+    many = "vertices" if what == "vertex" else what + "s"  # (the messages said "vertexs")
     if len(body) < n:
         raise errors.PolyllaError(
-            f"{path}: header announces {n} {what}s but only {len(body)} are present")
+            f"{path}: header announces {n} {many} but only {len(body)} are present")
     if len(rows) > 1 + n:
         raise errors.PolyllaError(
-            f"{path}: header announces {n} {what}s but {len(rows) - 1} rows follow it")
+            f"{path}: header announces {n} {many} but {len(rows) - 1} rows follow it")
     short = [i for i, r in enumerate(body) if len(r) < ncols]
     if short:
         raise errors.PolyllaError(
