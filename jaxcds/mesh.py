@@ -753,10 +753,18 @@ def _check_ply_elements(elements: list, path: str) -> None:
                     f"{path}: line {e.line}: the vertex element has no {', '.join(missing)} "
                     "property (a vertex needs x, y and z)")
         elif e.name == "face" and e.count:
-            if not any(isinstance(t, tuple) for _, t in e.props):
+            lists = [(name, t) for name, t in e.props if isinstance(t, tuple)]
+            if not lists:
                 raise errors.UnreadableMeshError(
                     f"{path}: line {e.line}: the face element has no list property (its "
                     "corners, 'property list uchar int vertex_indices')")
+            corners = [x for x in lists if x[0] in ("vertex_indices", "vertex_index")] or lists
+            if corners[0][1][1][0] == "f":
+                # float corners were cast to int: an index 2.7 read as vertex 2, without a word
+                raise errors.UnreadableMeshError(
+                    f"{path}: line {e.line}: the face list {corners[0][0]!r} holds floating-point "
+                    "items; vertex indices must be an integer type ('property list uchar int "
+                    "vertex_indices')")
 
 
 def _ply_declared(elements: list) -> str:

@@ -314,7 +314,10 @@ def test_binary_ply_corrupted_corner_count_is_named(count, match, tmp_path):
      errors.UnreadableMeshError, "line 7: the face element has no list property"),
     (_ascii_ply("3 0 1 2\n", nv=3, nf=1).replace("property float z\n", "").replace(" 0\n", "\n", 3),
      errors.UnreadableMeshError, "line 3: the vertex element has no z property"),
-], ids=["binary-0-faces", "ascii-0-faces", "face-without-list", "vertex-without-z"])
+    # float corners were truncated without a word (an index 2.7 read as vertex 2)
+    (_ascii_ply("3 0 1 2.7\n", nv=4, nf=1).replace("list uchar int vertex_indices", "list uchar float vertex_indices"),
+     errors.UnreadableMeshError, "line 7: the face list 'vertex_indices' holds floating-point items"),
+], ids=["binary-0-faces", "ascii-0-faces", "face-without-list", "vertex-without-z", "float-corners"])
 def test_ply_header_without_the_elements_of_a_mesh_is_named(data, kind, match, tmp_path):
     """trimesh's messages were Python's: "mismatch in size of old and new data-descriptor",
     "cannot access local variable 'faces'", "'z'"."""
