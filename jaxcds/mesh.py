@@ -865,10 +865,17 @@ def _check_ply_ascii_rows(data: bytes, buf: np.ndarray, ends: np.ndarray, want: 
                 at = np.repeat(first + p + 1 - np.concatenate([[0], np.cumsum(c)[:-1]]), c)
                 at += np.arange(total)
                 frac = np.flatnonzero(vals[at] != np.floor(vals[at]))
+                kind = np.iinfo(e.props[p][1][1])
+                wide = np.flatnonzero((vals[at] < kind.min) | (vals[at] > kind.max))
                 if frac.size:
                     t = int(at[frac[0]])
                     bad = int(np.searchsorted(row_tok, t, side="right")) - 1 - row0
                     why = f"has the vertex index {token(t)!r}, not an integer"
+                elif wide.size:
+                    t = int(at[wide[0]])
+                    bad = int(np.searchsorted(row_tok, t, side="right")) - 1 - row0
+                    why = (f"has the vertex index {token(t)!r}, outside the range of its "
+                           f"list's type ({kind.dtype.name})")
         if bad is not None:
             raise errors.UnreadableMeshError(
                 f"{path}: line {first_line + row0 + bad}: {noun} {bad} {why}")
@@ -931,6 +938,11 @@ def _ply_ascii_plain(buf, ws, tok_start, per_row, row_tok, ends, elements) -> bo
             lo = int(ends[row0 - 1]) + 1 if row0 else 0
             hi = int(ends[row0 + e.count - 1]) if row0 + e.count - 1 < ends.size else buf.size
             if _NOT_INTEGER_BYTES[buf[lo:hi]].any():
+                return False
+            # an index of 10 digits or more may not fit the list's type (trimesh's cast wrapped
+            # 99999999999 to vertex -2147483648, with a numpy warning): the full check names it
+            blanks = np.flatnonzero(ws[lo:hi])
+            if np.diff(blanks, prepend=-1, append=hi - lo).max(initial=0) > 10:
                 return False
             first = tok_start[row_tok[rows]]
             one_digit = ws[np.minimum(first + 1, buf.size - 1)] | (first + 1 >= buf.size)

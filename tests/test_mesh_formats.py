@@ -186,6 +186,10 @@ def _ascii_ply(faces: str, nv=5, nf=3, comments=0) -> str:
     ("3 0 2 1 4 4", "line 15: face 0 declares 3 corners but lists 5"),
     ("2 0 2 1", "line 15: face 0 declares 2 corners"),
     ("3 0 x 1", "line 15: face 0 value 'x' is not a number"),
+    # past int32: trimesh's cast named vertex -2147483648, no line, and printed a numpy warning
+    ("3 0 2 99999999999", r"line 15: face 0 has the vertex index '99999999999', outside the range "
+                          r"of its list's type \(int32\)"),
+    ("3 0 2 4294967298", "line 15: face 0 has the vertex index '4294967298', outside the range"),
 ])
 def test_ascii_ply_face_lines_that_disagree_with_their_count_are_named(first, match, tmp_path):
     p = _write(tmp_path, "f.ply", _ascii_ply(first + "\n3 0 1 3\n3 1 2 3\n"))
