@@ -178,6 +178,15 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
         # before, a 2-D line among 3-D ones had flattened them all
         _diagnose_obj(text, path)
     if faces.size == 0 and len(raw) > 0 and vertices.size == 0:
+        if suffix == ".stl" and not raw.lstrip()[:5].lower() == b"solid":
+            # a binary STL cut inside its first triangle: trimesh read no triangle at all
+            count = int(np.frombuffer(raw[80:84], dtype="<u4")[0]) if len(raw) >= 84 else None
+            if count == 0:
+                raise errors.EmptyMeshError(f"{path}: the binary STL header declares 0 triangles")
+            raise errors.UnreadableMeshError(
+                f"{path}: a binary STL of {len(raw)} bytes holds no whole triangle (truncated?): "
+                + (f"its header declares {count} triangles, {84 + 50 * count} bytes"
+                   if count is not None else "shorter than the 84-byte header"))
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")

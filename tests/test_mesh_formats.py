@@ -483,3 +483,19 @@ def test_a_clean_ascii_ply_is_cleared_by_the_fast_check(tmp_path, monkeypatch):
     assert seen == [True]
     np.testing.assert_allclose(m.vertices[0], [-0.5, 1e-5, 2.0], rtol=1e-6)
     np.testing.assert_array_equal(m.faces, [[0, 1, 2], [0, 2, 3]])
+
+
+_STL_ONE = b"x" * 80 + struct.pack("<I", 1) + struct.pack("<12fH", 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0)
+
+
+@pytest.mark.parametrize("data,kind,match", [
+    (_STL_ONE[:50], errors.UnreadableMeshError, "50 bytes holds no whole triangle.*84-byte header"),
+    (_STL_ONE[:90], errors.UnreadableMeshError, "90 bytes holds no whole triangle.*declares 1 triangles, 134 bytes"),
+    (_STL_ONE[:80] + struct.pack("<I", 0), errors.EmptyMeshError, "header declares 0 triangles"),
+], ids=["in-header", "in-first-triangle", "zero-triangles"])
+def test_binary_stl_without_a_whole_triangle_names_its_sizes(data, kind, match, tmp_path):
+    """Robustness sweep (stop 37): a binary STL cut inside its first triangle said "no faces
+    could be read (a point cloud, or an empty or unparsable file)", without its sizes."""
+    with pytest.raises(kind, match=match):
+        load_mesh(_write(tmp_path, "cut.stl", data))
+    assert load_mesh(_write(tmp_path, "one.stl", _STL_ONE), weld=False).num_faces == 1
