@@ -261,7 +261,9 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
     per = _count(erows[0], 1, ele, "nodes per triangle", default=3)
     if per not in (3, 6):
         raise errors.PolyllaError(f"{ele}: {per} nodes per triangle in the header (expected 3 or 6)")
-    et = _table(erows, nt, 4, ele, "triangle", np.int64)
+    # a row holds all ``per`` nodes (second-order triangles: 3 corners, then 3 midpoints); a
+    # header of 6 over rows of 3 was taken as it came
+    et = _table(erows, nt, 1 + per, ele, "triangle", np.int64)
     faces = et[:, 1:4] - base
     tri = _make(points, faces, os.path.basename(stem))
     if neigh is not None:

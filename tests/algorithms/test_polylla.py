@@ -826,6 +826,8 @@ _NODE4 = "4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n"
     (_NODE4, "1 3 0\n0 0 1 2\n1 0 2 3\n", "announces 1 triangles but 2 rows follow"),
     # the plural of vertex (it read "vertexs")
     ("5 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n", "1 3 0\n0 0 1 2\n", "announces 5 vertices but only 4"),
+    # a header of 6 nodes per triangle (second order) over rows of 3 was accepted
+    (_NODE4, "2 6 0\n0 0 1 2\n1 0 2 3\n", "triangle 0 has 4 fields, expected at least 7"),
 ])
 def test_triangle_files_with_huge_indices_float_ids_or_extra_rows(tmp_path, node, ele, match):
     (tmp_path / "a.node").write_text(node)
