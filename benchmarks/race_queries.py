@@ -139,9 +139,12 @@ def random_pairs(s, rng, n: int):
     """``(u, v)``: ``n`` vertex pairs of ``s``, the even ones the two ends of a random dart (an
     edge), the odd ones ``u`` with a vertex drawn uniformly (mostly not adjacent), int32."""
     e = random_darts(s, rng, n)
-    u = jax.jit(s.origin)(e)
+    # the structure as an argument: a bound method (``jax.jit(s.origin)``) closes over its
+    # tables, which XLA then constant-folds (minutes of compilation at 2.5M vertices)
+    ends = jax.jit(lambda s, e: (s.origin(e), s.target(e)))
+    u, t = ends(s, e)
     other = jnp.asarray(rng.integers(0, s.num_vertices, n), jnp.int32)
-    v = jnp.where(jnp.arange(n) % 2 == 0, jax.jit(s.target)(e), other)
+    v = jnp.where(jnp.arange(n) % 2 == 0, t, other)
     return u, v
 
 

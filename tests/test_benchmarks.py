@@ -388,3 +388,17 @@ def test_paired_ratios_interval_and_verdict():
             paired.paired_ratios(a, bb)
     with pytest.raises(ValueError, match="level"):
         paired.median_interval([1.0], level=1.0)
+
+
+def test_race_queries_pairs_are_edges_on_even_positions():
+    """``random_pairs`` (the Adjacent queries): the even pairs are the two ends of a dart, found
+    with the structure passed to one jitted program (a bound method closed over its tables,
+    which XLA constant-folded for minutes at 2.5M vertices)."""
+    from benchmarks import race_queries
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures import registry
+
+    s = registry.build("cds5n-o1", random_planar_triangulation(200, seed=3))
+    u, v = race_queries.random_pairs(s, np.random.default_rng(0), 64)
+    hit = np.asarray(s.adjacent(u, v))  # (checked against the half-edge in tests/structures)
+    assert u.dtype == v.dtype == np.int32 and hit[::2].all() and not hit[1::2].all()
