@@ -61,7 +61,7 @@ from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure, integer_array
 
 __all__ = ["PackedBatch", "pack", "concatenate", "shift_ids", "shift_darts", "OPERATOR_KINDS",
-           "pack_positions"]
+           "pack_positions", "chunk_plan", "NORMALS_CHUNK_VERTICES"]
 
 #: operator -> (kind of its argument, kind of its result); kinds: dart, vertex, face, bool
 OPERATOR_KINDS = {
@@ -111,6 +111,9 @@ class PackedBatch(MeshStructure):
     num_vertices: int = static_field()
     num_faces: int = static_field()
     num_primary_darts: int = static_field()
+    #: the chunk plan of :meth:`normal_sums` (``None``: one pass over the whole union)
+    chunk_starts: Any = None
+    chunk_caps: tuple = static_field(default=())
 
     name = "packed"
 
@@ -145,6 +148,24 @@ class PackedBatch(MeshStructure):
     @property
     def num_extra_darts(self) -> int:
         return self.num_darts - self.num_primary_darts
+
+    # ------------------------------------------------------------------ chunked normals
+    def normal_sums(self, positions):
+        """``(num_vertices, 3)`` area-weighted face normals summed at the corners, computed
+        chunk by chunk (a ``fori_loop`` over groups of whole meshes of about
+        :data:`NORMALS_CHUNK_VERTICES` vertices), or ``None`` when the batch has no chunk plan
+        (one chunk, or a structure without row blocks): then the whole-union route runs.
+
+        Why: over a whole union of millions of vertices every temporary of the sums (the
+        ``(F, 3, 3)`` corner positions, the face normals, the accumulator) is a fresh buffer
+        of tens of bytes per vertex, paged in on every call and read back from memory; a
+        chunk's temporaries fit in cache. The face rows are still derived once over the whole
+        union (the structure's own route); only their sums are chunked. Measured in
+        ``benchmarks/RESULTS.md`` ("stop 39"). Meshes never share a vertex, so a chunk's sums
+        are final. Differentiable (the loop has a static trip count)."""
+        if self.chunk_starts is None or not _chunkable(self.structure):
+            return None  # a sharded union (jaxcds.sharding) takes the partitioned whole route
+        return _chunked_sums(self, positions)
 
     # ------------------------------------------------------------------ mesh of each id
     def vertex_mesh(self) -> Int:
@@ -568,6 +589,119 @@ def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBat
     return _assemble(s, [m.num_vertices for m in ms], nf, 3 * nf, np.zeros(len(ms), np.int64))
 
 
+#: vertices per chunk of the chunked normal sums (:meth:`PackedBatch.normal_sums`): a chunk's
+#: rows, positions, face normals and sums (about 200 bytes per vertex) stay in a 32 MiB L3.
+#: 10,000 random meshes (27M vertices), Zen 3 host of stop 39, ns per vertex (medians of 7,
+#: runs spread about 10%): cds6n 64K 92, 128K 82, 256K 105, 512K 85, whole union 178; lr 32K
+#: 100, 64K 82, 128K 91, 256K 105, whole 213; the plain face list 87-95 (``/tmp`` probes,
+#: RESULTS.md "stop 39"). Rows interleaved inside a chunk (as the whole-union route does)
+#: cost more than they saved: cds6n 98 -> 129.
+NORMALS_CHUNK_VERTICES = 1 << 17
+
+
+def _row_blocks(s):
+    """The union structure's face rows as blocks in mesh order, ``[(rows, valid or None)]``."""
+    hook = getattr(s, "normal_row_blocks", None)
+    if hook is not None:
+        return hook()
+    fv, valid = s.face_vertices_padded()  # HalfEdge / CornerTable: faces in union order
+    return [(fv, valid)]
+
+
+def _chunkable(s) -> bool:
+    """Whether ``s``'s rows come in the blocks :func:`_row_counts` planned for."""
+    from jaxcds.structures import CornerTable, HalfEdge
+    return hasattr(type(s), "normal_row_blocks") or type(s) in (HalfEdge, CornerTable)
+
+
+def _row_counts(s, nf):
+    """Host-side rows per mesh of each block of :func:`_row_blocks` (None: no chunking)."""
+    if not _chunkable(s):
+        return None
+    hook = getattr(s, "normal_row_counts", None)
+    return hook() if hook is not None else [np.asarray(nf, np.int64)]
+
+
+def chunk_plan(vertex_counts, row_counts, chunk: Optional[int] = None):
+    """Group consecutive meshes into chunks of at most ``chunk`` vertices (a larger mesh is a
+    chunk of its own). Returns ``(starts (K + 1, 1 + len(row_counts)) int32, caps)``: the first
+    vertex and the first row of each block of every chunk, then the totals; ``caps`` the
+    largest chunk's vertices and rows per block (static shapes of the loop body). ``None``
+    when there would be a single chunk."""
+    chunk = NORMALS_CHUNK_VERTICES if chunk is None else chunk
+    nv = np.asarray(vertex_counts, np.int64)
+    cols = [nv] + [np.asarray(c, np.int64) for c in row_counts]
+    cut, acc = [0], 0
+    for i, n in enumerate(nv.tolist()):
+        if acc and acc + n > chunk:
+            cut.append(i)
+            acc = 0
+        acc += n
+    cut.append(len(nv))
+    if len(cut) <= 2:
+        return None
+    offs = [np.concatenate([[0], np.cumsum(c)]) for c in cols]
+    starts = np.stack([o[cut] for o in offs], axis=1)
+    sizes = np.diff(starts, axis=0)
+    if starts[-1].max() >= 2**31:
+        return None
+    return starts.astype(np.int32), tuple(int(x) for x in sizes.max(axis=0))
+
+
+def _window(x, start, size: int, total: int):
+    """``x[w : w + size]`` with ``w = min(start, total - size)`` (a slice that stays inside,
+    no padded copy of ``x``) and the shift ``start - w`` of ``start`` inside it."""
+    w = jnp.minimum(start, total - size)
+    return jax.lax.dynamic_slice_in_dim(x, w, size), w
+
+
+def _chunk_rows(k, starts, caps, w, blocks):
+    """``[(rows local to the vertex window at w, ok)]`` of chunk ``k``: windows of the union's
+    row blocks (:func:`_row_blocks`), each row kept where it belongs to the chunk's meshes."""
+    out = []
+    for j, (rows, valid) in enumerate(blocks):
+        r0, r1, cap = starts[k, j + 1], starts[k + 1, j + 1], caps[j + 1]
+        if cap == 0:
+            continue
+        total = rows.shape[0]
+        r, rw = _window(rows, r0, cap, total)
+        i = jnp.arange(cap) + rw
+        ok = (i >= r0) & (i < r1)
+        if valid is not None:
+            ok = ok & _window(valid, r0, cap, total)[0]
+        out.append((r - w, ok))
+    return out
+
+
+def _chunked_sums(b: "PackedBatch", positions):
+    from jaxcds.algorithms.normals import face_normals
+    s = b.structure
+    blocks = _row_blocks(s)
+    dummy = s.dummy_vertex_mask()
+    starts, caps = b.chunk_starts, b.chunk_caps
+    n, vcap = b.num_vertices, caps[0]
+    num_chunks = starts.shape[0] - 1  # static: the plan's shape
+
+    def body(k, out):
+        a, a1 = starts[k, 0], starts[k + 1, 0]
+        p, w = _window(positions, a, vcap, n)
+        mine = (jnp.arange(vcap) + w >= a) & (jnp.arange(vcap) + w < a1)
+        dm = None if dummy is None else _window(dummy, a, vcap, n)[0]
+        acc = jnp.zeros((vcap, 3), positions.dtype)
+        for r, ok in _chunk_rows(k, starts, caps, w, blocks):
+            loc = jnp.where(ok[:, None], r, 0)
+            if dm is not None:  # the fans that closed holes (see normals.surface_faces_padded)
+                ok = ok & ~(dm[loc[:, 0]] | dm[loc[:, 1]] | dm[loc[:, 2]])
+            fn = jnp.where(ok[:, None], face_normals(p, loc), 0.0)
+            for c in range(3):
+                acc = acc.at[loc[:, c]].add(fn)
+        old = jax.lax.dynamic_slice_in_dim(out, w, vcap)
+        return jax.lax.dynamic_update_slice_in_dim(out, jnp.where(mine[:, None], acc, old), w, 0)
+
+    out = jnp.zeros((n, 3), positions.dtype)
+    return jax.lax.fori_loop(0, num_chunks, body, out)
+
+
 def _assemble(s, nv, nf, nd, nx) -> PackedBatch:
     nv, nf, nd, nx = (np.asarray(a, np.int64) for a in (nv, nf, nd, nx))
 
@@ -580,11 +714,15 @@ def _assemble(s, nv, nf, nd, nx) -> PackedBatch:
         raise errors.StructureError(
             f"packed batch: counts (V={nv.sum()}, F={nf.sum()}, darts={nd.sum() + nx.sum()}) do not "
             f"match the union structure (V={s.num_vertices}, F={s.num_faces}, darts={s.num_darts})")
+    counts = _row_counts(s, nf)
+    plan = None if counts is None else chunk_plan(nv, counts)
     return PackedBatch(structure=s, n_vertex=i32(nv), n_face=i32(nf), n_dart=i32(nd),
                        n_extra_dart=i32(nx), vertex_offsets=off(nv), face_offsets=off(nf),
                        dart_offsets=off(nd), extra_dart_offsets=off(nx), num_meshes=int(nv.size),
                        num_vertices=int(nv.sum()), num_faces=int(nf.sum()),
-                       num_primary_darts=int(nd.sum()))
+                       num_primary_darts=int(nd.sum()),
+                       chunk_starts=None if plan is None else jnp.asarray(plan[0]),
+                       chunk_caps=() if plan is None else plan[1])
 
 
 def concatenate(parts: Sequence[MeshStructure]) -> PackedBatch:

@@ -563,3 +563,64 @@ def test_pack_and_pack_positions_take_lists_only_and_real_positions():
         B.pack_positions(b, [tet.vertices, np.full((6, 3), "a")])
     with pytest.raises(errors.ArgumentError, match="pack_positions: give a list of meshes"):
         B.pack_positions(b, None)
+
+
+# ---------------------------------------------------------------------- chunked normal sums
+def test_chunk_plan_groups_whole_meshes():
+    """Consecutive whole meshes up to the chunk size; a larger mesh alone; starts of every
+    column (vertices, then each row block) and the largest chunk per column."""
+    starts, caps = B.chunk_plan([5, 3, 10, 2], [[10, 6, 20, 4], [1, 0, 2, 1]], chunk=8)
+    np.testing.assert_array_equal(starts, [[0, 0, 0], [8, 16, 1], [18, 36, 3], [20, 40, 4]])
+    assert caps == (10, 20, 2)
+    assert B.chunk_plan([5, 3], [[10, 6]], chunk=8) is None  # one chunk: the whole-union route
+
+
+@pytest.mark.parametrize("name", ["halfedge", "cds4n", "lr",
+                                  *[pytest.param(n, marks=pytest.mark.slow)
+                                    for n in ("corner-table", "cds6n", "cds5n", "cds5n-o1", "lr-bits")]])
+def test_chunked_normals_equal_whole_union_and_per_mesh(name, monkeypatch):
+    """With chunks of a few meshes (the plan of a 10,000-mesh batch, at test size): normals and
+    their gradient equal the whole-union route's and each mesh's own structure's; borders (LR,
+    half-edge) and the CDS's hole-closing fans included, chunks of one mesh larger than the
+    chunk size too."""
+    from jaxcds.mesh import validate_and_close
+
+    monkeypatch.setattr(B, "NORMALS_CHUNK_VERTICES", 60)
+    holed = name != "corner-table"  # the corner table takes closed meshes only
+    ms = [random_planar_triangulation(n, seed=s) for s, n in enumerate((20, 35, 12, 90, 8, 41))]
+    if holed:
+        ms[1:1] = [load_shared("grid.off"), load_shared("2triangles.off")]
+    b = B.pack(ms, name)
+    assert b.chunk_starts is not None and b.chunk_starts.shape[0] >= 5
+    whole = B.PackedBatch(**{**{f: getattr(b, f) for f in b.__dataclass_fields__},
+                             "chunk_starts": None, "chunk_caps": ()})
+    pos = B.pack_positions(b, ms)
+    got = np.asarray(vertex_normals(b, pos))
+    np.testing.assert_allclose(got, np.asarray(vertex_normals(whole, pos)), atol=1e-5)
+    parts = [registry.build(name, m) for m in ms]
+    want = []
+    for p, m in zip(parts, ms):
+        v = m.vertices if p.num_vertices == m.num_vertices else validate_and_close(m).vertices
+        v = v if p.vertex_order is None else v[np.asarray(p.vertex_order)]
+        want.append(np.asarray(vertex_normals(p, jnp.asarray(v, jnp.float32))))
+    np.testing.assert_allclose(got, np.concatenate(want), atol=1e-5)
+    w = jnp.asarray(np.random.default_rng(2).normal(size=pos.shape), jnp.float32)
+    grad = jax.jit(jax.grad(lambda s, p: jnp.sum(vertex_normals(s, p) * w), argnums=1))
+    g, g0 = np.asarray(grad(b, pos)), np.asarray(grad(whole, pos))
+    np.testing.assert_allclose(g, g0, rtol=1e-4, atol=1e-3 * np.abs(g0).max())
+    assert np.any(g != 0)
+
+
+def test_sharded_packed_batch_with_a_chunk_plan(monkeypatch):
+    """A sharded union has other row blocks than the plan's: its normals take the partitioned
+    whole route and equal the unsharded (chunked) ones."""
+    from jaxcds import sharding as S
+
+    monkeypatch.setattr(B, "NORMALS_CHUNK_VERTICES", 40)
+    ms = [random_planar_triangulation(n, seed=s) for s, n in enumerate((30, 25, 44))]
+    b = B.pack(ms, "cds5n")
+    assert b.chunk_starts is not None
+    pos = B.pack_positions(b, ms)
+    sb = S.shard_structure(b, S.device_mesh())
+    np.testing.assert_allclose(np.asarray(S.sharded_vertex_normals(sb, pos)),
+                               np.asarray(vertex_normals(b, pos)), atol=1e-5)

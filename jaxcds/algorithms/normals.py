@@ -177,6 +177,11 @@ def _check_positions(s, positions):
 
 
 def _scatter_sums(s, positions):
+    chunked = getattr(s, "normal_sums", None)  # packed batches: sums chunk by chunk
+    if chunked is not None:
+        sums = chunked(positions)
+        if sums is not None:
+            return sums
     # any order and padding rows will do for a sum: structures with slotted faces skip compaction
     fv, valid = surface_faces_padded(s)
     fn = face_normals(positions, fv)

@@ -190,6 +190,22 @@ class _PackedMixin:
         b = slot_blocks(self.num_vertices)  # as the single CDS, by the union's size
         return interleave_rows(faces, b), interleave_rows(valid, b)
 
+    def normal_row_blocks(self):
+        """The union's Thm 7 slots as two blocks of rows in vertex order, for the chunked sums
+        of :mod:`jaxcds.batch` (``[(red slots (N, 3), valid), (black/blue slots (N, 3),
+        valid)]``): mesh ``i``'s rows are rows ``o_i .. o_i + n_i - 1`` of each block, and every
+        vertex of a row lies in the row's mesh (a face and its ``F_blue`` owner share a
+        component). Not interleaved: the chunks reorder their own rows."""
+        n = self.num_vertices
+        valid = self._slot_valid()
+        full = type(self)._base._slot_faces(self._whole_view())
+        return [(full[:n], valid[:n]), (full[n:], valid[n:])]
+
+    def normal_row_counts(self):
+        """Host-side rows per mesh of each :meth:`normal_row_blocks` block: ``n_i`` twice."""
+        nv = np.asarray(self.mesh_vertex_counts, np.int64)
+        return [nv, nv]
+
     def vertex_degrees(self):
         return type(self)._base.vertex_degrees(self._whole_view())
 

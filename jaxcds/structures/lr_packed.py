@@ -310,6 +310,20 @@ class _PackedMixin:
         rows, ok = _pair_blocks(rows, m), _pair_blocks(ok, m)
         return interleave_windows(rows), interleave_windows(ok)
 
+    def normal_row_blocks(self):
+        """:meth:`_packed_rows` as three blocks in mesh order (left ring slots, right ring slots,
+        T0 rows), for the chunked sums of :mod:`jaxcds.batch`: mesh ``i``'s rows are its
+        ``m_r`` ring vertices' (twice) and its ``n0`` T0 triangles, every id in the mesh."""
+        rows, ok, _ = self._packed_rows()
+        m = self.num_ring
+        return [(rows[:m], ok[:m]), (rows[m:2 * m], ok[m:2 * m]), (rows[2 * m:], ok[2 * m:])]
+
+    def normal_row_counts(self):
+        """Host-side rows per mesh of each :meth:`normal_row_blocks` block: ``m_r``, ``m_r``,
+        ``n0``."""
+        sizes = np.asarray(self.mesh_sizes, np.int64)
+        return [sizes[:, 2], sizes[:, 2], sizes[:, 3]]
+
     def face_vertices(self):
         """``(F, 3)`` in the union's face order (mesh by mesh, each in its dense face order): the
         rows of :meth:`face_vertices_padded` scattered to ``face_offsets[mesh]`` + their local
