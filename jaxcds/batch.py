@@ -41,6 +41,10 @@ So a mesh's dart range is split into a *primary* block ``[0, P_i)`` (a structure
 dart, to ``sum(P) + extra_dart_offsets[i] + (d - P_i)``. For a closed mesh the extra block is
 empty and a dart id is simply ``dart_offsets[i] + d``.
 
+Normals of a batch of several chunks are summed chunk by chunk (:meth:`PackedBatch.normal_sums`:
+a loop over groups of whole meshes whose temporaries stay in cache; the plan, :func:`chunk_plan`,
+is made here on the host), the rows still derived once by the union structure.
+
 Absent ids ("one past the end") map to one past the end: a border dart's face ``n_face[i]`` in
 mesh ``i`` is ``num_faces`` in the batch, and back.
 """
