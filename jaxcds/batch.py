@@ -653,8 +653,8 @@ def chunk_plan(vertex_counts, row_counts, chunk: Optional[int] = None):
 
 
 def _window(x, start, size: int, total: int):
-    """``x[w : w + size]`` with ``w = min(start, total - size)`` (a slice that stays inside,
-    no padded copy of ``x``) and the shift ``start - w`` of ``start`` inside it."""
+    """``(x[w : w + size], w)`` with ``w = min(start, total - size)``: a slice that stays
+    inside ``x`` (no padded copy), starting at ``start`` or before it near the end."""
     w = jnp.minimum(start, total - size)
     return jax.lax.dynamic_slice_in_dim(x, w, size), w
 
@@ -678,7 +678,7 @@ def _chunk_rows(k, starts, caps, w, blocks):
 
 
 def _chunked_sums(b: "PackedBatch", positions):
-    from jaxcds.algorithms.normals import face_normals
+    from jaxcds.algorithms.normals import corner_sums, face_normals, faces_with_dummy_corner
     s = b.structure
     blocks = _row_blocks(s)
     dummy = s.dummy_vertex_mask()
@@ -695,10 +695,9 @@ def _chunked_sums(b: "PackedBatch", positions):
         for r, ok in _chunk_rows(k, starts, caps, w, blocks):
             loc = jnp.where(ok[:, None], r, 0)
             if dm is not None:  # the fans that closed holes (see normals.surface_faces_padded)
-                ok = ok & ~(dm[loc[:, 0]] | dm[loc[:, 1]] | dm[loc[:, 2]])
+                ok = ok & ~faces_with_dummy_corner(dm, loc)
             fn = jnp.where(ok[:, None], face_normals(p, loc), 0.0)
-            for c in range(3):
-                acc = acc.at[loc[:, c]].add(fn)
+            acc = corner_sums(fn, loc, vcap, acc)
         old = jax.lax.dynamic_slice_in_dim(out, w, vcap)
         return jax.lax.dynamic_update_slice_in_dim(out, jnp.where(mine[:, None], acc, old), w, 0)
 

@@ -14,6 +14,7 @@ import pytest
 
 from jaxcds import batch as B
 from jaxcds import errors
+from jaxcds._dataclass import replace
 from jaxcds.algorithms import adjacent, face_list_vertex_normals, vertex_degrees, vertex_normals
 from jaxcds.generators import icosphere, random_planar_triangulation
 from jaxcds.mesh import close_boundaries, load_mesh
@@ -592,8 +593,7 @@ def test_chunked_normals_equal_whole_union_and_per_mesh(name, monkeypatch):
         ms[1:1] = [load_shared("grid.off"), load_shared("2triangles.off")]
     b = B.pack(ms, name)
     assert b.chunk_starts is not None and b.chunk_starts.shape[0] >= 5
-    whole = B.PackedBatch(**{**{f: getattr(b, f) for f in b.__dataclass_fields__},
-                             "chunk_starts": None, "chunk_caps": ()})
+    whole = replace(b, chunk_starts=None, chunk_caps=())
     pos = B.pack_positions(b, ms)
     got = np.asarray(vertex_normals(b, pos))
     np.testing.assert_allclose(got, np.asarray(vertex_normals(whole, pos)), atol=1e-5)

@@ -79,8 +79,9 @@ def face_normals(positions, faces):
     return jnp.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
 
 
-def corner_sums(face_values, faces, num_vertices: int):
-    """``(num_vertices, k)``: every face's value added at its three corners.
+def corner_sums(face_values, faces, num_vertices: int, acc=None):
+    """``(num_vertices, k)``: every face's value added at its three corners (to ``acc`` when
+    given: the chunked sums of a packed batch add several row blocks into one accumulator).
 
     One scatter-add per corner column rather than one ``segment_sum`` over the values repeated
     three times: the repeat costs an extra ``(3F, k)`` buffer (168 against 72 bytes of scratch
@@ -90,7 +91,8 @@ def corner_sums(face_values, faces, num_vertices: int):
     when passed in. Measured in ``benchmarks/bench_cds_normals.py`` / ``bench_lr_normals.py``
     (column ``normals`` against ``dense`` / ``generic``, the ``segment_sum`` routes); the face-list baseline below sums the same way (same speed or
     faster for it too: armadillo 33 -> 27 ns/vertex, 200K and 1M equal)."""
-    acc = jnp.zeros((num_vertices,) + face_values.shape[1:], face_values.dtype)
+    if acc is None:
+        acc = jnp.zeros((num_vertices,) + face_values.shape[1:], face_values.dtype)
     for k in range(3):
         acc = acc.at[faces[:, k]].add(face_values)
     return acc
