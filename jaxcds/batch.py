@@ -28,9 +28,14 @@ Building (:func:`pack`):
     shifted: arrays are concatenated as they are and each operator runs on the mesh-local ids of
     each element, answers mapped back to global ids.
 
-  pemb is refused (:data:`REFUSED`): one pemb encodes one spanning tree whose root has no
-  parenthesis pair. A class without ``concatenate`` is refused with
-  :class:`UnsupportedTopologyError`. :func:`shift_ids` / :func:`shift_darts` are the helpers
+  - *Concatenated walks* (pemb; :mod:`jaxcds.structures.pemb_packed`): the bit vectors ``A``
+    and the balanced sequences ``B``, ``B*`` of the meshes are concatenated; balanced blocks keep
+    every ``match`` and ``enclose`` inside their mesh, a dart is its position in ``A``, and only
+    each mesh's roots (tree root, root face: no parenthesis pair) and the wrap of its walk are
+    read from per-mesh tables.
+
+  A class without ``concatenate`` is refused with :class:`UnsupportedTopologyError`
+  (:data:`REFUSED` names structures refused with a reason; none at present). :func:`shift_ids` / :func:`shift_darts` are the helpers
   for id-valued fields of a shifted layout.
 
 Dart blocks. Most structures number the darts of a mesh contiguously, but the HalfEdge puts its
@@ -496,7 +501,7 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
 
     HalfEdge and CornerTable are built once on the union faces; other structures are built per
     mesh through the registry and joined with their class's ``concatenate`` classmethod (CDS
-    family, LR, lr-bits; pemb is refused, see :data:`REFUSED`). Structures that renumber vertices
+    family, LR, lr-bits, pemb). Structures that renumber vertices
     get the union ``vertex_order`` (each mesh's order shifted by its vertex offset):
     :func:`pack_positions` applies it.
 
@@ -750,15 +755,10 @@ def concatenate(parts: Sequence[MeshStructure]) -> PackedBatch:
                      [p.num_darts - q for p, q in zip(parts, pd)])
 
 
-#: structures that cannot be packed, and why (``pack`` / ``concatenate`` refuse them by name)
-REFUSED = {
-    "pemb": "pemb (Ferres et al.) encodes ONE connected plane graph: the balanced parentheses of one "
-            "spanning tree and of its dual, each root without a pair (vertex 0, face 0, the walk's "
-            "start), with rank/select samples and the rmM tree over the whole sequences; B meshes "
-            "would need B roots inside those sequences, which its operators do not know (first/last "
-            "of the root, the root face are special cases), so the joined bit vectors are not a "
-            "pemb. Pack the meshes as 'halfedge' (same protocol) or build one pemb per mesh",
-}
+#: structures that cannot be packed, and why (``pack`` / ``concatenate`` refuse them by name).
+#: Empty since pemb packs (stop 40: :mod:`jaxcds.structures.pemb_packed`); kept for a structure
+#: whose ids cannot be joined, so that the refusal says why.
+REFUSED: dict = {}
 
 
 def _check_hook(cls) -> None:

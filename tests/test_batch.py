@@ -319,8 +319,9 @@ def test_registry_structures_pack(name):
 
 # ---------------------------------------------------------------------------------- compact kinds
 # CDS family: ids shifted (30-bit vertex fields, service bits kept), roots per mesh;
-# LR / lr-bits: ids kept local, every operator evaluated on each element's mesh.
-PACKABLE = [*CDS_FAMILY, "lr", "lr-bits"]
+# LR / lr-bits: ids kept local, every operator evaluated on each element's mesh;
+# pemb: bit vectors and parentheses concatenated, roots and walk ends per mesh.
+PACKABLE = [*CDS_FAMILY, "lr", "lr-bits", "pemb"]
 QUICK_OPS = ("target", "twin", "next", "prev", "face_left", "face_right", "ccw_vertex_edge",
              "corner_opposite", "edge_of_vertex", "edge_of_face", "dart_valid")
 
@@ -452,9 +453,72 @@ def test_cds_concatenate_shifts_vertex_fields_and_keeps_service_bits():
         CDS4n.concatenate([parts[0], registry.build("cds5n", ms[0])])
 
 
-def test_pemb_is_refused_with_the_reason():
-    with pytest.raises(errors.UnsupportedTopologyError, match="pemb.*root"):
-        B.pack(compact_meshes()[:2], "pemb")
+def _pemb_probe(s, d, v, f):
+    return (s.origin(d), s.next(d), s.face(d), s.edge_of_vertex(v), s.edge_of_face(f), s.last(v))
+
+
+def test_pemb_batch_quick():
+    """pemb batch, quick: meshes with and without border loops, one program of the main
+    operators on every global id (every root, walk end and border loop), searched and with
+    the per-phase tables, == each mesh's own pemb (its tables) mapped through the offsets."""
+    ms = [load_shared("2triangles.off"), random_planar_triangulation(12, seed=2),
+          load_shared("grid.off"), load_mesh(*octahedron())]
+    b = B.pack(ms, "pemb")
+    parts = [registry.build("pemb", m) for m in ms]
+    u = b.structure
+    ar = lambda n: jnp.arange(n, dtype=jnp.int32)  # noqa: E731
+    probe = jax.jit(_pemb_probe)
+    want = [probe(p.with_tables(), ar(p.num_darts), ar(p.num_vertices), ar(p.num_faces)) for p in parts]
+    do, vo, fo = (np.asarray(x) for x in (b.dart_offsets, b.vertex_offsets, b.face_offsets))
+    kinds = (vo, do, fo, do, do, do)
+    for s in (u, u.with_tables()):
+        got = probe(s, ar(u.num_darts), ar(u.num_vertices), ar(u.num_faces))
+        for k, off in enumerate(kinds):
+            w = np.concatenate([np.where((k == 2) & (np.asarray(wi[k]) == p.num_faces), u.num_faces,
+                                         np.asarray(wi[k]) + off[i])
+                                for i, (wi, p) in enumerate(zip(want, parts))])
+            np.testing.assert_array_equal(np.asarray(got[k]), w, err_msg=f"{type(s).__name__} output {k}")
+    with pytest.raises(errors.UnsupportedTopologyError, match="packed batch cannot be packed again"):
+        type(u).concatenate([u, u])
+
+
+@pytest.mark.slow
+def test_pemb_batch_every_operator_with_borders():
+    """pemb (concatenated walks, jaxcds.structures.pemb_packed): meshes with and without border
+    loops, every protocol operator on every local id, with and without the per-phase tables
+    (their roots per mesh), and faces == the per-mesh pembs' shifted."""
+    from jaxcds.structures.pemb_packed import PackedPEMB, PackedPEMBTables
+
+    ms = [load_shared("grid.off"), random_planar_triangulation(12, seed=2),
+          load_shared("2triangles.off"), load_mesh(*octahedron())]
+    b = B.pack(ms, "pemb")
+    parts = [registry.build("pemb", m) for m in ms]
+    assert isinstance(b.structure, PackedPEMB) and not b.structure.root_border
+    _check_ops(b, parts, tuple(B.OPERATOR_KINDS))
+    tb = replace(b, structure=b.structure.with_tables())
+    assert isinstance(tb.structure, PackedPEMBTables)
+    _check_ops(tb, parts, ("origin", "target", "twin", "next", "face", "edge_of_face"))
+    vo = np.asarray(b.vertex_offsets)
+    np.testing.assert_array_equal(np.asarray(b.face_vertices()), np.concatenate(
+        [np.asarray(p.face_vertices()) + o for p, o in zip(parts, vo)]))
+    u = b.structure  # first/last/degree of every vertex (the roots: per mesh)
+    v = jnp.arange(u.num_vertices, dtype=jnp.int32)
+    do = np.asarray(b.dart_offsets)
+    for op in ("first", "last"):
+        np.testing.assert_array_equal(np.asarray(getattr(u, op)(v)), np.concatenate(
+            [np.asarray(getattr(p, op)(jnp.arange(p.num_vertices))) + o for p, o in zip(parts, do)]))
+    with pytest.raises(errors.UnsupportedTopologyError, match="packed batch cannot be packed again"):
+        type(u).concatenate([u, u])
+
+
+def test_pemb_batch_of_bordered_meshes_reads_borders_by_excess():
+    """When every mesh's only border loop is its root face (the walk starts on it), the union
+    keeps pemb's ``is_border`` by excess (``root_border``), answered per mesh."""
+    ms = [load_shared("grid.off"), load_shared("2triangles.off"), load_shared("grid.off")]
+    b = B.pack(ms, "pemb")
+    parts = [registry.build("pemb", m) for m in ms]
+    assert b.structure.root_border and all(p.root_border for p in parts)
+    _check_ops(b, parts, ("is_border",))
 
 
 @pytest.mark.parametrize("name", ["cds5n", "cds4n", "lr"])
@@ -578,7 +642,7 @@ def test_chunk_plan_groups_whole_meshes():
 
 @pytest.mark.parametrize("name", ["halfedge", "cds4n", "lr",
                                   *[pytest.param(n, marks=pytest.mark.slow)
-                                    for n in ("corner-table", "cds6n", "cds5n", "cds5n-o1", "lr-bits")]])
+                                    for n in ("corner-table", "cds6n", "cds5n", "cds5n-o1", "lr-bits", "pemb")]])
 def test_chunked_normals_equal_whole_union_and_per_mesh(name, monkeypatch):
     """With chunks of a few meshes (the plan of a 10,000-mesh batch, at test size): normals and
     their gradient equal the whole-union route's and each mesh's own structure's; borders (LR,

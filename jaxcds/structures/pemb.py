@@ -338,6 +338,14 @@ class PEMB(MeshStructure):
                    num_vertices=int(n), num_faces=int(num_faces), num_edges=m2 // 2,
                    num_tree_parens=int(b.size), root_border=holes.tolist() == [0])
 
+    @classmethod
+    def concatenate(cls, parts) -> "PEMB":
+        """Join pembs, one per mesh, into one packed union (:mod:`jaxcds.batch`'s hook; see
+        :mod:`jaxcds.structures.pemb_packed`)."""
+        from jaxcds.structures.pemb_packed import concatenate_pemb
+
+        return concatenate_pemb(cls, parts)
+
     # -------------------------------------------------------------- memory
     @property
     def bits(self) -> int:
@@ -517,10 +525,11 @@ class PEMB(MeshStructure):
             # '(' in B*, and g - 1 is the rank of that '(' among B*'s (one scatter; the root
             # face, entered by no crossing, as first_dual says)
             q = jnp.arange(self.num_tree_parens, P.size, dtype=jnp.int32)
-            g = P.rank_open(q) - self.num_tree_parens // 2 + 1
-            fe = jnp.zeros(((P.size - self.num_tree_parens) // 2 + 1,), jnp.int32)
+            g = self._dual_open_face(P, q)
+            fe = jnp.zeros((self._num_pemb_faces,), jnp.int32)
             fe = fe.at[jnp.where(P.is_open(q), g, fe.shape[0])].set(pos_of[q], mode="drop")
-            fe = fe.at[0].set(PEMB.first_dual(self, jnp.int32(0)))
+            roots, root_pos = self._root_faces()
+            fe = fe.at[roots].set(root_pos)
         if origin:
             # vb[q], the innermost node open before q, without enclose searches: after a '(' it
             # is that node; after a ')' it is the same as before the matching '(' (the closed
@@ -529,7 +538,8 @@ class PEMB(MeshStructure):
             ntp = self.num_tree_parens
             q = jnp.arange(ntp + 1, dtype=jnp.int32)
             prev_open = P.is_open(jnp.maximum(q - 1, 0)) & (q > 0)
-            val = jnp.where(prev_open, P.rank_open(jnp.maximum(q - 1, 0)) + 1, 0).astype(jnp.int32)
+            val = jnp.where(prev_open, self._tree_open_vertex(P, jnp.maximum(q - 1, 0)),
+                            self._VB_ROOT).astype(jnp.int32)
             ptr = jnp.where((q > 0) & ~prev_open, M[jnp.clip(q - 1, 0, max(ntp - 1, 0))], q)
 
             def more(p):
@@ -537,9 +547,34 @@ class PEMB(MeshStructure):
 
             ptr = jax.lax.while_loop(more, lambda p: p[p], ptr.astype(jnp.int32))
             vb = val[ptr]
-        kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(PEMB)}
+        base, tables_cls = self._table_classes()
+        kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(base)}
         kw.update(A=A, P=P)
-        return PEMBTables(**kw, tw=tw, vb=vb, fe=fe)
+        return tables_cls(**kw, tw=tw, vb=vb, fe=fe)
+
+    # hooks of with_tables that a packed union of pembs (pemb_packed) answers per mesh
+    _VB_ROOT = 0  # vb's value for a prefix at depth 0 in B (the root; packed: -1, see vertex)
+
+    def _table_classes(self):
+        """``(this structure's class, its class with tables)``."""
+        return PEMB, PEMBTables
+
+    @property
+    def _num_pemb_faces(self) -> int:
+        """Faces of the plane graph, border loops included: ``f = |B*| / 2 + 1``."""
+        return (self.P.size - self.num_tree_parens) // 2 + 1
+
+    def _dual_open_face(self, P, q):
+        """pemb face (dual preorder) opened by the ``(`` at ``q`` of ``B*`` (inside ``B B*``)."""
+        return P.rank_open(q) - self.num_tree_parens // 2 + 1
+
+    def _tree_open_vertex(self, P, q):
+        """Vertex (preorder) opened by the ``(`` at ``q`` of ``B``."""
+        return P.rank_open(q) + 1
+
+    def _root_faces(self):
+        """``(root face ids, first_dual of each)``: the faces no crossing enters."""
+        return jnp.zeros((1,), jnp.int32), PEMB.first_dual(self, jnp.zeros((1,), jnp.int32))
 
     # -------------------------------------------------------------- face renumbering
     def _to_mesh_face(self, g: Int) -> Int:
@@ -627,25 +662,10 @@ class PEMB(MeshStructure):
         return MeshStructure.face_vertices(self.with_tables())
 
 
-@pytree_dataclass
-class PEMBTables(PEMB):
-    """A :class:`PEMB` carrying per-phase navigation tables (:meth:`PEMB.with_tables`): the same
-    structure and protocol, with ``mate`` and ``vertex`` read from arrays instead of searched.
-
-    Fields (besides :class:`PEMB`'s; ``None`` = not tabulated, searched as in :class:`PEMB`):
-      tw: ``(2m,)`` int32, ``mate`` of every position (``twin`` of every dart).
-      vb: ``(2(n-1) + 1,)`` int32, for every prefix length ``r`` of ``B``, the vertex whose
-        parenthesis is the innermost open one after ``r`` symbols (``vertex(i) = vb[rank1(A, i)]``).
-      fe: ``(f,)`` int32, ``first_dual`` of every pemb face (``edge_of_face`` without selects).
-
-    Meant to live inside one jitted phase of an algorithm that asks the same operators of every
-    dart (Polylla): built there, dropped with the phase's other temporaries. ``tw`` is 32 bits per
-    dart (64 per edge, against the 5.25 of the structure), ``vb`` 64 bits per vertex; both are
-    transient and not counted in :attr:`~PEMB.bits`."""
-
-    tw: Optional[jnp.ndarray] = None
-    vb: Optional[jnp.ndarray] = None
-    fe: Optional[jnp.ndarray] = None
+class TableOperators:
+    """The operators of a pemb with per-phase tables (:class:`PEMBTables`, and the packed
+    union's :class:`~jaxcds.structures.pemb_packed.PackedPEMBTables`): ``mate``, ``vertex`` and
+    ``first_dual`` read from ``tw``, ``vb``, ``fe`` when set, searched otherwise."""
 
     @property
     def tables(self) -> dict:
@@ -676,11 +696,37 @@ class PEMBTables(PEMB):
     def vertex(self, i: Int) -> Int:
         if self.vb is None:
             return super().vertex(i)
-        return self.vb[self.A.rank1(jnp.asarray(i, jnp.int32))]
+        i = jnp.asarray(i, jnp.int32)
+        return self._vb_answer(self.vb[self.A.rank1(i)], i)
+
+    def _vb_answer(self, v, i):
+        """``vertex(i)`` from ``v = vb[rank1(A, i)]`` (a packed union resolves its roots here)."""
+        return v
 
     def __repr__(self) -> str:
         return (super().__repr__()[:-1] + f", tables={'tw' if self.tw is not None else ''}"
                 f"{'+vb' if self.vb is not None else ''})")
+
+
+@pytree_dataclass
+class PEMBTables(TableOperators, PEMB):
+    """A :class:`PEMB` carrying per-phase navigation tables (:meth:`PEMB.with_tables`): the same
+    structure and protocol, with ``mate`` and ``vertex`` read from arrays instead of searched.
+
+    Fields (besides :class:`PEMB`'s; ``None`` = not tabulated, searched as in :class:`PEMB`):
+      tw: ``(2m,)`` int32, ``mate`` of every position (``twin`` of every dart).
+      vb: ``(2(n-1) + 1,)`` int32, for every prefix length ``r`` of ``B``, the vertex whose
+        parenthesis is the innermost open one after ``r`` symbols (``vertex(i) = vb[rank1(A, i)]``).
+      fe: ``(f,)`` int32, ``first_dual`` of every pemb face (``edge_of_face`` without selects).
+
+    Meant to live inside one jitted phase of an algorithm that asks the same operators of every
+    dart (Polylla): built there, dropped with the phase's other temporaries. ``tw`` is 32 bits per
+    dart (64 per edge, against the 5.25 of the structure), ``vb`` 64 bits per vertex; both are
+    transient and not counted in :attr:`~PEMB.bits`."""
+
+    tw: Optional[jnp.ndarray] = None
+    vb: Optional[jnp.ndarray] = None
+    fe: Optional[jnp.ndarray] = None
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,262 @@
+"""Packed batches of pemb structures (the ``concatenate`` hook of :mod:`jaxcds.batch`).
+
+Paper: Ferres, Fuentes-Sepúlveda, Gagie, He, Navarro, *Fast and Compact Planar Embeddings*
+(WADS 2017, CGTA 2020), Sec. 3; the half-edge facade of Salinas-Fernández et al. (IMR 2023).
+
+Why the union of pembs is (almost) a pemb
+-----------------------------------------
+A pemb is the walk around a spanning tree: ``A`` (``2m`` bits, 1 = tree half-edge) and the
+balanced sequence ``B B*`` (tree, then dual tree), read with rank/select on ``A`` and ``match`` /
+``enclose`` on ``B B*``. For ``B`` meshes take
+
+    ``A = A_1 A_2 ... A_B``    and    ``P = B_1 B_2 ... B_B  B*_1 B*_2 ... B*_B``.
+
+Every ``B_i`` and ``B*_i`` is balanced, so a ``match`` or an ``enclose`` that starts inside one of
+them ends inside it (or finds no enclosing pair: depth 0, the excess of the whole prefix before a
+balanced block is 0), and ``rank1(A, i)`` of a half-edge of mesh ``i`` is exactly the offset of
+its parenthesis in ``B_1 ... B_B`` (the ones of the earlier meshes are their ``B``'s symbols),
+``rank0(A, i)`` that in ``B*_1 ... B*_B``. So ``mate`` (twin) runs on the union unchanged, and
+the global dart id is the position in ``A``: mesh ``i``'s local dart ``d`` is
+``dart_offsets[i] + d`` (jraph's packed layout).
+
+What is per mesh (each case found by the mesh of the query's dart, vertex or face: one binary
+search over the ``B`` offsets):
+
+* the *roots*: each mesh's tree root (local vertex 0) and root face (local pemb face 0) have no
+  parenthesis pair, so they are ``vertex_offsets[i]`` / ``pface_offsets[i]``; every other node
+  opened by a ``(`` of ``B`` has preorder ``rank_open(q) + 1`` in its mesh, i.e. the global id
+  ``rank_open(q) + 1 + i`` (the ``i`` earlier roots are the only vertices without a ``(``); faces
+  the same with ``B*``;
+* the cyclic ``next``/``prev`` around a vertex wrap at the ends of the mesh's own walk
+  (``dart_offsets[i]`` and ``dart_offsets[i + 1] - 1``), not of the union's;
+* ``first_dual`` of a root face (the ``)`` matching the first ``(`` of that mesh's ``B*``), one
+  entry per mesh computed when the batch is built.
+
+Border loops are pemb faces read as "no face" (:class:`~jaxcds.structures.pemb.PEMB`): their
+global ids sorted make the union's ``holes``, and the dense face renumbering of a single pemb
+(``g`` minus the border loops before it) then gives mesh ``i``'s face ``f`` the global id
+``face_offsets[i] + f`` unchanged. The union keeps pemb's memory: ``4m`` bits plus support, and
+``5`` int32 per *mesh* of batch metadata.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Optional, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxcds import errors
+from jaxcds._dataclass import pytree_dataclass
+from jaxcds.structures.base import Int, parts_of_one_class
+from jaxcds.structures.pemb import PEMB, TableOperators
+from jaxcds.structures.succinct import BalancedParens, BitVector
+
+__all__ = ["PackedPEMB", "PackedPEMBTables", "concatenate_pemb"]
+
+
+def _owner(offsets, x):
+    """Mesh whose range starting at ``offsets`` holds ``x`` (``offsets`` nondecreasing): the last
+    ``i`` with ``offsets[i] <= x``; ids out of range read as the first or the last mesh."""
+    m = jnp.searchsorted(offsets, x, side="right") - 1
+    return jnp.clip(m, 0, offsets.shape[0] - 1).astype(jnp.int32)
+
+
+@pytree_dataclass
+class PackedPEMB(PEMB):
+    """``B`` pembs as one (module docstring): ``A`` and ``B B*`` of the meshes concatenated, the
+    protocol on global ids (a dart is its position in ``A``).
+
+    Fields (besides :class:`~jaxcds.structures.pemb.PEMB`'s, which hold the union; ``(B,)``
+    int32 each):
+      mesh_dart_offsets, mesh_vertex_offsets, mesh_face_offsets: first global dart, vertex,
+        face (triangle) of each mesh.
+      mesh_pface_offsets: first global pemb face (triangles and border loops) of each mesh.
+      mesh_root_dual: ``first_dual`` of each mesh's root face, a global dart.
+    """
+
+    mesh_dart_offsets: Optional[jnp.ndarray] = None
+    mesh_vertex_offsets: Optional[jnp.ndarray] = None
+    mesh_face_offsets: Optional[jnp.ndarray] = None
+    mesh_pface_offsets: Optional[jnp.ndarray] = None
+    mesh_root_dual: Optional[jnp.ndarray] = None
+
+    packed = True
+
+    # ------------------------------------------------------------------ mesh of an id
+    def _dart_mesh(self, i):
+        return _owner(self.mesh_dart_offsets, i)
+
+    def _dart_end(self, m):
+        """One past mesh ``m``'s last dart."""
+        nxt = self.mesh_dart_offsets[jnp.minimum(m + 1, self.mesh_dart_offsets.shape[0] - 1)]
+        return jnp.where(m + 1 < self.mesh_dart_offsets.shape[0], nxt, self.num_darts)
+
+    # ------------------------------------------------------------------ pemb queries, per mesh
+    def vertex(self, i: Int) -> Int:
+        """As :meth:`PEMB.vertex`; depth 0 in ``B`` is the root of the dart's own mesh, and a
+        node opened by a ``(`` counts the ``m`` roots of the earlier meshes too."""
+        i = jnp.asarray(i, jnp.int32)
+        m = self._dart_mesh(i)
+        q = self.P.enclose(self.A.rank1(i))
+        return jnp.where(q >= self.P.size, self.mesh_vertex_offsets[m],
+                         self.P.rank_open(q) + 1 + m).astype(jnp.int32)
+
+    def _vertex_paren(self, v):
+        """``(mesh, root?, the ( of v in B)`` of global vertices ``v``."""
+        v = jnp.asarray(v, jnp.int32)
+        m = _owner(self.mesh_vertex_offsets, v)
+        root = v == self.mesh_vertex_offsets[m]
+        return m, root, self.P.select_open(jnp.maximum(v - 1 - m, 0))
+
+    def first(self, v: Int) -> Int:
+        """As :meth:`PEMB.first`: after the ``(`` of ``v``; a root: its mesh's first dart."""
+        m, root, q = self._vertex_paren(v)
+        return jnp.where(root, self.mesh_dart_offsets[m], self.A.select1(q) + 1).astype(jnp.int32)
+
+    def last(self, v: Int) -> Int:
+        """As :meth:`PEMB.last`; a root: ``prev_p`` of its mesh's first dart."""
+        m, root, q = self._vertex_paren(v)
+        root_last = self.prev_p(self.mesh_dart_offsets[m])
+        return jnp.where(root, root_last, self.A.select1(self.P.find_close(q))).astype(jnp.int32)
+
+    def next_p(self, i: Int) -> Int:
+        """As :meth:`PEMB.next_p`, cyclic within the dart's mesh (its walk)."""
+        i = jnp.asarray(i, jnp.int32)
+        m = self._dart_mesh(i)
+        tree = self.A.access(i) == 1
+        nxt = jnp.where(tree, self.mate(i, where=tree) + 1, i + 1)
+        return jnp.where(nxt >= self._dart_end(m), self.mesh_dart_offsets[m], nxt).astype(jnp.int32)
+
+    def prev_p(self, i: Int) -> Int:
+        """As :meth:`PEMB.prev_p`, cyclic within the dart's mesh."""
+        i = jnp.asarray(i, jnp.int32)
+        m = self._dart_mesh(i)
+        j = jnp.where(i == self.mesh_dart_offsets[m], self._dart_end(m) - 1, i - 1)
+        tree = self.A.access(j) == 1
+        return jnp.where(tree, self.mate(j, where=tree), j).astype(jnp.int32)
+
+    def get_face(self, i: Int) -> Int:
+        """As :meth:`PEMB.get_face`: depth 0 in ``B*`` is the root face of the dart's mesh."""
+        i = jnp.asarray(i, jnp.int32)
+        m = self._dart_mesh(i)
+        tree = self.A.access(i) == 1
+        x = jnp.where(tree, self.mate(i, where=tree), i)
+        q = self.P.enclose(self.num_tree_parens + self.A.rank0(x + 1))
+        return jnp.where(q >= self.P.size, self.mesh_pface_offsets[m],
+                         self._dual_open_face(self.P, q, m)).astype(jnp.int32)
+
+    def first_dual(self, g: Int) -> Int:
+        """As :meth:`PEMB.first_dual`; a root face: its mesh's entry of ``mesh_root_dual``."""
+        g = jnp.asarray(g, jnp.int32)
+        m = _owner(self.mesh_pface_offsets, g)
+        ntp = self.num_tree_parens
+        q = self.P.select_open(ntp // 2 + jnp.maximum(g - 1 - m, 0))
+        pos = self.A.select0(q - ntp)
+        return jnp.where(g == self.mesh_pface_offsets[m], self.mesh_root_dual[m], pos).astype(jnp.int32)
+
+    # ------------------------------------------------------------------ with_tables hooks
+    _VB_ROOT = -1  # a depth-0 prefix of B: the root of the DART's mesh (resolved in vertex)
+
+    def _table_classes(self):
+        return PackedPEMB, PackedPEMBTables
+
+    @property
+    def _num_pemb_faces(self) -> int:
+        # each mesh's B* pairs plus its root face
+        return (self.P.size - self.num_tree_parens) // 2 + int(self.mesh_pface_offsets.shape[0])
+
+    def _dual_open_face(self, P, q, m=None):
+        if m is None:  # q is a '(' of B*: its mesh from B*'s opens before it
+            m = self._dual_paren_mesh(P, q)
+        return P.rank_open(q) - self.num_tree_parens // 2 + 1 + m
+
+    def _dual_paren_mesh(self, P, q):
+        # the '(' of B* before q, against each mesh's first: the faces of mesh i are
+        # pface_offsets[i] + 0 .. f_i - 1, opens of B* before its block pface_offsets[i] - i
+        opens = P.rank_open(q) - self.num_tree_parens // 2
+        return _owner(self.mesh_pface_offsets - jnp.arange(self.mesh_pface_offsets.shape[0],
+                                                           dtype=jnp.int32), opens)
+
+    def _tree_open_vertex(self, P, q):
+        opens = P.rank_open(q)  # the '(' of B before q; mesh i's start at vertex_offsets[i] - i
+        m = _owner(self.mesh_vertex_offsets - jnp.arange(self.mesh_vertex_offsets.shape[0],
+                                                         dtype=jnp.int32), opens)
+        return opens + 1 + m
+
+    def _root_faces(self):
+        return self.mesh_pface_offsets, self.mesh_root_dual
+
+    # ------------------------------------------------------------------ batch hooks
+    def normal_row_blocks(self):
+        """The faces, mesh by mesh (one block), for the chunked sums of :mod:`jaxcds.batch`."""
+        return [(self.face_vertices(), None)]
+
+    def normal_row_counts(self):
+        off = np.asarray(self.mesh_face_offsets, np.int64)
+        return [np.diff(np.concatenate([off, [self.num_faces]]))]
+
+    def __repr__(self) -> str:
+        return (f"PackedPEMB(meshes={int(self.mesh_dart_offsets.shape[0])}, "
+                + super().__repr__()[len("PEMB("):])
+
+
+@pytree_dataclass
+class PackedPEMBTables(TableOperators, PackedPEMB):
+    """:class:`PackedPEMB` with per-phase tables (as :class:`~jaxcds.structures.pemb.PEMBTables`);
+    ``vb`` holds ``-1`` for a depth-0 prefix of ``B``, read as the root of the dart's mesh."""
+
+    tw: Optional[jnp.ndarray] = None
+    vb: Optional[jnp.ndarray] = None
+    fe: Optional[jnp.ndarray] = None
+
+    def _vb_answer(self, v, i):
+        return jnp.where(v < 0, self.mesh_vertex_offsets[self._dart_mesh(i)], v)
+
+
+def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:
+    """Join pembs, one per mesh, into one :class:`PackedPEMB` (module docstring).
+
+    Raises:
+      UnsupportedTopologyError: a part of another class, or ids over int32.
+    """
+    if cls is not PEMB:  # a packed union's roots are per mesh: joining unions loses them
+        raise errors.UnsupportedTopologyError(
+            f"{cls.__name__}.concatenate: pack the single pembs (a packed batch cannot be packed again)")
+    parts = parts_of_one_class(PEMB, parts)
+    nd = np.array([p.num_darts for p in parts], np.int64)
+    nv = np.array([p.num_vertices for p in parts], np.int64)
+    nf = np.array([p.num_faces for p in parts], np.int64)
+    ntp = np.array([p.num_tree_parens for p in parts], np.int64)
+    npf = np.array([p._num_pemb_faces for p in parts], np.int64)
+    if max(int(nd.sum()), int(nv.sum()), int(npf.sum())) >= 2**31 - 1:
+        raise errors.UnsupportedTopologyError(
+            f"{cls.__name__}.concatenate: {int(nd.sum())} darts, ids over int32; pack fewer meshes "
+            "per batch")
+    excl = lambda c: np.concatenate([[0], np.cumsum(c)[:-1]])  # noqa: E731
+    doff, voff, foff, pfoff = excl(nd), excl(nv), excl(nf), excl(npf)
+    a = np.concatenate([p.A.to_numpy() for p in parts])
+    pb = [p.P.bits.to_numpy() for p in parts]
+    seq = np.concatenate([b[:t] for b, t in zip(pb, ntp)] + [b[t:] for b, t in zip(pb, ntp)])
+    P = BalancedParens.from_bits(seq, check=False)  # balanced blocks: balanced
+    holes = np.concatenate([np.asarray(p.holes, np.int64) + o for p, o in zip(parts, pfoff)])
+    order = np.concatenate([np.asarray(p.order, np.int64) + o for p, o in zip(parts, voff)])
+    i32 = lambda x: jnp.asarray(np.asarray(x).astype(np.int32))  # noqa: E731
+    s = PackedPEMB(
+        A=BitVector.from_bits(a), P=P, holes=i32(holes), order=i32(order),
+        num_vertices=int(nv.sum()), num_faces=int(nf.sum()), num_edges=int(nd.sum()) // 2,
+        num_tree_parens=int(ntp.sum()), root_border=all(p.root_border for p in parts),
+        mesh_dart_offsets=i32(doff), mesh_vertex_offsets=i32(voff), mesh_face_offsets=i32(foff),
+        mesh_pface_offsets=i32(pfoff), mesh_root_dual=i32(np.zeros(len(parts))))
+    # first_dual of each root face: the ')' matching the first '(' of the mesh's B* (PEMB.first_dual),
+    # or the mesh's last dart when it has no dual parenthesis; one vectorised search on the union
+    has_dual = npf > 1
+    first_dual_open = int(ntp.sum()) + 2 * excl(npf - 1)
+    root_dual = doff + nd - 1
+    if has_dual.any():
+        q = i32(np.where(has_dual, first_dual_open, int(ntp.sum())))
+        k = np.asarray(jax.jit(lambda s, q: s.A.select0(s.P.match(q) - s.num_tree_parens))(s, q))
+        root_dual = np.where(has_dual, k, root_dual)
+    return dataclasses.replace(s, mesh_root_dual=i32(root_dual))
