@@ -525,7 +525,7 @@ class PEMB(MeshStructure):
             # '(' in B*, and g - 1 is the rank of that '(' among B*'s (one scatter; the root
             # face, entered by no crossing, as first_dual says)
             q = jnp.arange(self.num_tree_parens, P.size, dtype=jnp.int32)
-            g = self._dual_open_face(P, q)
+            g = self._faces_opened_at(P, q)
             fe = jnp.zeros((self._num_pemb_faces,), jnp.int32)
             fe = fe.at[jnp.where(P.is_open(q), g, fe.shape[0])].set(pos_of[q], mode="drop")
             roots, root_pos = self._root_faces()
@@ -537,10 +537,11 @@ class PEMB(MeshStructure):
             # earlier siblings only, so pointer doubling ends in log2(most children) rounds.
             ntp = self.num_tree_parens
             q = jnp.arange(ntp + 1, dtype=jnp.int32)
-            prev_open = P.is_open(jnp.maximum(q - 1, 0)) & (q > 0)
-            val = jnp.where(prev_open, self._tree_open_vertex(P, jnp.maximum(q - 1, 0)),
+            start = self._tree_block_starts(q)  # depth 0 by construction: the chains end there
+            prev_open = P.is_open(jnp.maximum(q - 1, 0)) & ~start
+            val = jnp.where(prev_open, self._vertices_opened_before(P, q),
                             self._VB_ROOT).astype(jnp.int32)
-            ptr = jnp.where((q > 0) & ~prev_open, M[jnp.clip(q - 1, 0, max(ntp - 1, 0))], q)
+            ptr = jnp.where(~start & ~prev_open, M[jnp.clip(q - 1, 0, max(ntp - 1, 0))], q)
 
             def more(p):
                 return jnp.any(p[p] != p)
@@ -564,13 +565,19 @@ class PEMB(MeshStructure):
         """Faces of the plane graph, border loops included: ``f = |B*| / 2 + 1``."""
         return (self.P.size - self.num_tree_parens) // 2 + 1
 
-    def _dual_open_face(self, P, q):
-        """pemb face (dual preorder) opened by the ``(`` at ``q`` of ``B*`` (inside ``B B*``)."""
+    def _faces_opened_at(self, P, q):
+        """pemb face (dual preorder) opened by the ``(`` at each position ``q`` of ``B*``
+        (``q = ntp, ..., |P| - 1``, all of them; garbage at a ``)``)."""
         return P.rank_open(q) - self.num_tree_parens // 2 + 1
 
-    def _tree_open_vertex(self, P, q):
-        """Vertex (preorder) opened by the ``(`` at ``q`` of ``B``."""
-        return P.rank_open(q) + 1
+    def _tree_block_starts(self, q):
+        """Prefix lengths ``q`` (``0 .. ntp``) that start a tree's parentheses: ``q = 0``."""
+        return q == 0
+
+    def _vertices_opened_before(self, P, q):
+        """Vertex (preorder) opened by the ``(`` at ``q - 1`` of ``B``, for every prefix length
+        ``q = 0, ..., ntp`` (garbage where ``q = 0`` or ``q - 1`` is a ``)``)."""
+        return P.rank_open(jnp.maximum(q - 1, 0)) + 1
 
     def _root_faces(self):
         """``(root face ids, first_dual of each)``: the faces no crossing enters."""

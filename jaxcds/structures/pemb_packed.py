@@ -49,8 +49,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._dataclass import pytree_dataclass
+from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.base import Int, parts_of_one_class
+from jaxcds.structures.lr_packed import _chunk_plan, _segment_ids
 from jaxcds.structures.pemb import PEMB, TableOperators
 from jaxcds.structures.succinct import BalancedParens, BitVector
 
@@ -82,6 +83,8 @@ class PackedPEMB(PEMB):
     mesh_face_offsets: Optional[jnp.ndarray] = None
     mesh_pface_offsets: Optional[jnp.ndarray] = None
     mesh_root_dual: Optional[jnp.ndarray] = None
+    #: chunk plans of the segment searches (lr_packed._chunk_plan) over B, B* and the faces
+    plans: tuple = static_field(default=((1, 0), (1, 0), (1, 0)))
 
     packed = True
 
@@ -146,7 +149,7 @@ class PackedPEMB(PEMB):
         x = jnp.where(tree, self.mate(i, where=tree), i)
         q = self.P.enclose(self.num_tree_parens + self.A.rank0(x + 1))
         return jnp.where(q >= self.P.size, self.mesh_pface_offsets[m],
-                         self._dual_open_face(self.P, q, m)).astype(jnp.int32)
+                         self.P.rank_open(q) - self.num_tree_parens // 2 + 1 + m).astype(jnp.int32)
 
     def first_dual(self, g: Int) -> Int:
         """As :meth:`PEMB.first_dual`; a root face: its mesh's entry of ``mesh_root_dual``."""
@@ -168,26 +171,53 @@ class PackedPEMB(PEMB):
         # each mesh's B* pairs plus its root face
         return (self.P.size - self.num_tree_parens) // 2 + int(self.mesh_pface_offsets.shape[0])
 
-    def _dual_open_face(self, P, q, m=None):
-        if m is None:  # q is a '(' of B*: its mesh from B*'s opens before it
-            m = self._dual_paren_mesh(P, q)
+    def _faces_opened_at(self, P, q):
+        # q: every position of B*, in order: the mesh of each by the chunked segment search
+        # (jnp.searchsorted per element cost 150 ns per vertex at 100 meshes)
+        m = _segment_ids(2 * (self.mesh_pface_offsets - self._mesh_index()), q.shape[0], self.plans[1])
         return P.rank_open(q) - self.num_tree_parens // 2 + 1 + m
 
-    def _dual_paren_mesh(self, P, q):
-        # the '(' of B* before q, against each mesh's first: the faces of mesh i are
-        # pface_offsets[i] + 0 .. f_i - 1, opens of B* before its block pface_offsets[i] - i
-        opens = P.rank_open(q) - self.num_tree_parens // 2
-        return _owner(self.mesh_pface_offsets - jnp.arange(self.mesh_pface_offsets.shape[0],
-                                                           dtype=jnp.int32), opens)
+    def _vertices_opened_before(self, P, q):
+        # q: every prefix length 0 .. ntp of B; q - 1 (a '(' of B) lies in mesh m, whose B starts
+        # after the 2 (n_j - 1) parentheses of the earlier meshes
+        ntp = self.num_tree_parens
+        m = _segment_ids(2 * (self.mesh_vertex_offsets - self._mesh_index()), ntp, self.plans[0])
+        m = jnp.concatenate([jnp.zeros((1,), jnp.int32), m])
+        return P.rank_open(jnp.maximum(q - 1, 0)) + 1 + m
 
-    def _tree_open_vertex(self, P, q):
-        opens = P.rank_open(q)  # the '(' of B before q; mesh i's start at vertex_offsets[i] - i
-        m = _owner(self.mesh_vertex_offsets - jnp.arange(self.mesh_vertex_offsets.shape[0],
-                                                         dtype=jnp.int32), opens)
-        return opens + 1 + m
+    def _tree_block_starts(self, q):
+        # each mesh's B starts a chain of its own (else the pointer doubling of vb ran through the
+        # top-level subtrees of every earlier mesh: more rounds)
+        starts = 2 * (self.mesh_vertex_offsets - self._mesh_index())
+        return jnp.zeros(q.shape, bool).at[starts].set(True, mode="drop")
+
+    def _mesh_index(self):
+        return jnp.arange(self.mesh_vertex_offsets.shape[0], dtype=jnp.int32)
 
     def _root_faces(self):
         return self.mesh_pface_offsets, self.mesh_root_dual
+
+    # ------------------------------------------------------------------ whole-mesh work
+    def face_vertices(self) -> Int:
+        """``(num_faces, 3)``, mesh by mesh: as :meth:`PEMB.face_vertices` (per-call tables),
+        but the mesh of each face is known (faces come in mesh order), so the walk's wrap and
+        the roots are read per face instead of a search over the mesh offsets per dart."""
+        t = self.with_tables()
+        f = jnp.arange(self.num_faces, dtype=jnp.int32)
+        m = _segment_ids(self.mesh_face_offsets, self.num_faces, self.plans[2])
+        lo, hi = self.mesh_dart_offsets[m], self._dart_end(m)
+
+        def nxt(e):  # next(e) = prev_p(mate(e)) within the mesh's walk
+            x = t.tw[e]
+            j = jnp.where(x == lo, hi - 1, x - 1)
+            return jnp.where(t.A.access(j) == 1, t.tw[j], j)
+
+        e0 = t.first_dual(self._from_mesh_face(f))
+        e1 = nxt(e0)
+        e2 = nxt(e1)
+        root = self.mesh_vertex_offsets[m]
+        org = [jnp.where(v < 0, root, v) for v in (t.vb[t.A.rank1(e)] for e in (e0, e1, e2))]
+        return jnp.stack(org, axis=-1).astype(jnp.int32)
 
     # ------------------------------------------------------------------ batch hooks
     def normal_row_blocks(self):
@@ -249,7 +279,8 @@ def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:
         num_vertices=int(nv.sum()), num_faces=int(nf.sum()), num_edges=int(nd.sum()) // 2,
         num_tree_parens=int(ntp.sum()), root_border=all(p.root_border for p in parts),
         mesh_dart_offsets=i32(doff), mesh_vertex_offsets=i32(voff), mesh_face_offsets=i32(foff),
-        mesh_pface_offsets=i32(pfoff), mesh_root_dual=i32(np.zeros(len(parts))))
+        mesh_pface_offsets=i32(pfoff), mesh_root_dual=i32(np.zeros(len(parts))),
+        plans=(_chunk_plan(ntp), _chunk_plan(2 * (npf - 1)), _chunk_plan(nf)))
     # first_dual of each root face: the ')' matching the first '(' of the mesh's B* (PEMB.first_dual),
     # or the mesh's last dart when it has no dual parenthesis; one vectorised search on the union
     has_dual = npf > 1
