@@ -11,6 +11,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from jaxcds import batch as B
 from jaxcds import errors
@@ -480,6 +482,44 @@ def test_pemb_batch_quick():
             np.testing.assert_array_equal(np.asarray(got[k]), w, err_msg=f"{type(s).__name__} output {k}")
     with pytest.raises(errors.UnsupportedTopologyError, match="packed batch cannot be packed again"):
         type(u).concatenate([u, u])
+
+
+@pytest.mark.slow
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sizes=st.lists(st.integers(4, 80), min_size=2, max_size=4),
+       opened=st.lists(st.booleans(), min_size=4, max_size=4), seed=st.integers(0, 2**31 - 1))
+def test_pemb_batch_on_random_triangulations(sizes, opened, seed):
+    """Hypothesis: 2 to 4 random planar triangulations of 4 to 80 vertices, some opened (two
+    faces apart removed: two border loops, the walk starts on one, the other is a hole of the
+    union's face renumbering), packed as pemb: the main
+    operators on every global id (per-phase tables route, the searching route's equal is the
+    quick test's) == each mesh's own pemb mapped through the offsets."""
+    from jaxcds.mesh import TriMesh
+
+    ms = []
+    for i, n in enumerate(sizes):
+        m = random_planar_triangulation(n, seed=(seed + i) % 2**31)
+        far = ~np.isin(m.faces, m.faces[0]).any(axis=1)  # faces sharing no vertex with face 0
+        if opened[i] and far.any():  # two holes (an annulus): every vertex still in a triangle
+            keep = np.ones(m.num_faces, bool)
+            keep[[0, int(np.argmax(far))]] = False
+            m = TriMesh(vertices=m.vertices, faces=m.faces[keep], source="opened")
+        ms.append(m)
+    b = B.pack(ms, "pemb")
+    parts = [registry.build("pemb", m) for m in ms]
+    ar = lambda n: jnp.arange(n, dtype=jnp.int32)  # noqa: E731
+    probe = jax.jit(_pemb_probe)
+    u = b.structure
+    got = probe(u.with_tables(), ar(u.num_darts), ar(u.num_vertices), ar(u.num_faces))
+    want = [probe(p.with_tables(), ar(p.num_darts), ar(p.num_vertices), ar(p.num_faces)) for p in parts]
+    offs = [np.asarray(x) for x in (b.vertex_offsets, b.dart_offsets, b.face_offsets)]
+    for k, off in enumerate((offs[0], offs[1], offs[2], offs[1], offs[1], offs[1])):
+        w = np.concatenate([np.where((k == 2) & (np.asarray(wi[k]) == p.num_faces), u.num_faces,
+                                     np.asarray(wi[k]) + off[i])
+                            for i, (wi, p) in enumerate(zip(want, parts))])
+        np.testing.assert_array_equal(np.asarray(got[k]), w, err_msg=f"output {k}")
+    np.testing.assert_array_equal(np.asarray(u.face_vertices()), np.concatenate(
+        [np.asarray(p.face_vertices()) + o for p, o in zip(parts, offs[0])]))
 
 
 @pytest.mark.slow
