@@ -110,7 +110,7 @@ def test_local_global_round_trip_and_owner():
     assert int(b.mesh_of("vertex", b.num_vertices)) == b.num_meshes
 
 
-@pytest.mark.parametrize("name", ["halfedge", "cds5n", "lr"])
+@pytest.mark.parametrize("name", ["halfedge", "cds5n", "lr", pytest.param("pemb", marks=pytest.mark.slow)])
 def test_ids_out_of_range_answer_absent(name):
     """A negative local id, or a mesh index outside the batch, used to be answered from another
     mesh (JAX wraps negative indices and clamps large ones): now they read as the sentinel."""
