@@ -393,40 +393,48 @@ class PEMB(MeshStructure):
     def vertex(self, i: Int) -> Int:
         """The vertex (preorder id) the half-edge at position ``i`` leaves: the innermost tree node
         open before its ``rank1(A, i)``-th parenthesis of ``B`` (root 0 if none)."""
-        r = self.A.rank1(jnp.asarray(i, jnp.int32))
-        q = self.P.enclose(r)
-        return jnp.where(q >= self.P.size, 0, self.P.rank_open(q) + 1).astype(jnp.int32)
+        i = jnp.asarray(i, jnp.int32)
+        m = self._dart_mesh(i)
+        q = self.P.enclose(self.A.rank1(i))
+        return jnp.where(q >= self.P.size, self._root_vertex(m),
+                         self.P.rank_open(q) + 1 + m).astype(jnp.int32)
+
+    def _vertex_paren(self, v):
+        """``(mesh, root?, the ( of v in B)`` of vertices ``v``."""
+        v = jnp.asarray(v, jnp.int32)
+        m = self._vertex_mesh(v)
+        return m, v == self._root_vertex(m), self.P.select_open(jnp.maximum(v - 1 - m, 0))
 
     def first(self, v: Int) -> Int:
         """First position of vertex ``v`` (the one after its ``(``; 0 for the root)."""
-        v = jnp.asarray(v, jnp.int32)
-        q = self.P.select_open(jnp.maximum(v - 1, 0))
-        return jnp.where(v == 0, 0, self.A.select1(q) + 1).astype(jnp.int32)
+        m, root, q = self._vertex_paren(v)
+        return jnp.where(root, self._walk_start(m), self.A.select1(q) + 1).astype(jnp.int32)
 
     def last(self, v: Int) -> Int:
         """Last position of vertex ``v`` (its ``)`` back to the parent). For the root: ``2m - 1``
         if that is a non-tree half-edge (the root's own), else the walk ended coming back up
         from the root's last child and the root's last half-edge is the one going down to it,
         ``mate(2m - 1)`` (that is ``prev_p(0)``)."""
-        v = jnp.asarray(v, jnp.int32)
-        q = self.P.select_open(jnp.maximum(v - 1, 0))
-        root = self.prev_p(jnp.zeros(jnp.shape(v), jnp.int32))
-        return jnp.where(v == 0, root, self.A.select1(self.P.find_close(q))).astype(jnp.int32)
+        m, root, q = self._vertex_paren(v)
+        root_last = self.prev_p(jnp.zeros(jnp.shape(v), jnp.int32) + self._walk_start(m))
+        return jnp.where(root, root_last, self.A.select1(self.P.find_close(q))).astype(jnp.int32)
 
     def next_p(self, i: Int) -> Int:
         """pemb ``next``: the next half-edge ccw around ``vertex(i)`` (cyclic)."""
         i = jnp.asarray(i, jnp.int32)
+        m = self._dart_mesh(i)
         # a tree half-edge is followed by the walk of a subtree (down) or ends the vertex (up):
         # both continue after the mate; a non-tree one by the next position
         tree = self.A.access(i) == 1
         nxt = jnp.where(tree, self.mate(i, where=tree) + 1, i + 1)
-        return jnp.where(nxt >= self.num_darts, 0, nxt).astype(jnp.int32)
+        return jnp.where(nxt >= self._walk_end(m), self._walk_start(m), nxt).astype(jnp.int32)
 
     def prev_p(self, i: Int) -> Int:
         """pemb ``prev``: the previous half-edge around ``vertex(i)`` (cw, cyclic). Fixes the
         reference code's border bug: ``prev(first(v)) = last(v)`` for every ``v``."""
         i = jnp.asarray(i, jnp.int32)
-        j = jnp.where(i == 0, self.num_darts - 1, i - 1)
+        m = self._dart_mesh(i)
+        j = jnp.where(i == self._walk_start(m), self._walk_end(m) - 1, i - 1)
         tree = self.A.access(j) == 1
         return jnp.where(tree, self.mate(j, where=tree), j).astype(jnp.int32)
 
@@ -456,12 +464,13 @@ class PEMB(MeshStructure):
         tree edge on the edge's right side, so the left face of a tree half-edge is the face the
         walk is in when it passes the other half, at ``mate(i)``."""
         i = jnp.asarray(i, jnp.int32)
+        m = self._dart_mesh(i)
         tree = self.A.access(i) == 1
         x = jnp.where(tree, self.mate(i, where=tree), i)
         j = self.num_tree_parens + self.A.rank0(x + 1)  # prefix of B*, inside B B*
         q = self.P.enclose(j)
-        return jnp.where(q >= self.P.size, 0,
-                         self.P.rank_open(q) - self.num_tree_parens // 2 + 1).astype(jnp.int32)
+        return jnp.where(q >= self.P.size, self._root_face(m),
+                         self.P.rank_open(q) - self.num_tree_parens // 2 + 1 + m).astype(jnp.int32)
 
     def first_dual(self, g: Int) -> Int:
         """First position (in walk order) with pemb face ``g`` on its left: the crossing that
@@ -472,14 +481,45 @@ class PEMB(MeshStructure):
         non-tree half-edge, as the ccw DFS tree's does; after a BFS tree's last subtree it ends
         on a tree half-edge.)"""
         g = jnp.asarray(g, jnp.int32)
+        m = self._pface_mesh(g)
         ntp = self.num_tree_parens
-        q = self.P.select_open(ntp // 2 + jnp.maximum(g - 1, 0))
+        q = self.P.select_open(ntp // 2 + jnp.maximum(g - 1 - m, 0))
         pos = self.A.select0(q - ntp)
+        return jnp.where(g == self._root_face(m), self._root_dual(m), pos).astype(jnp.int32)
+
+    # -------------------------------------------------------------- the mesh of an id
+    # One pemb is one mesh: these are constants here. A packed union of pembs (pemb_packed)
+    # answers them per mesh; every other id is the same formula plus the mesh index m (each
+    # earlier mesh's root vertex and root face have no parenthesis).
+    def _dart_mesh(self, i):
+        return 0
+
+    def _vertex_mesh(self, v):
+        return 0
+
+    def _pface_mesh(self, g):
+        return 0
+
+    def _walk_start(self, m):
+        """First position of mesh ``m``'s walk (the cyclic ``next_p`` / ``prev_p`` wrap there)."""
+        return 0
+
+    def _walk_end(self, m):
+        """One past the last position of mesh ``m``'s walk."""
+        return self.num_darts
+
+    def _root_vertex(self, m):
+        return 0
+
+    def _root_face(self, m):
+        return 0
+
+    def _root_dual(self, m):
+        """``first_dual`` of mesh ``m``'s root face."""
+        ntp = self.num_tree_parens
         if self.P.size > ntp:  # one scalar search (not one per lane: all lanes ask the same)
-            root = self.A.select0(self.P.match(jnp.int32(ntp)) - ntp)
-        else:  # no dual parentheses (no face but the root)
-            root = jnp.int32(self.num_darts - 1)
-        return jnp.where(g == 0, root, pos).astype(jnp.int32)
+            return self.A.select0(self.P.match(jnp.int32(ntp)) - ntp)
+        return jnp.int32(self.num_darts - 1)  # no dual parentheses (no face but the root)
 
     # -------------------------------------------------------------- per-phase tables
     def with_tables(self, *, twin: bool = True, origin: bool = True,
@@ -707,8 +747,9 @@ class TableOperators:
         return self._vb_answer(self.vb[self.A.rank1(i)], i)
 
     def _vb_answer(self, v, i):
-        """``vertex(i)`` from ``v = vb[rank1(A, i)]`` (a packed union resolves its roots here)."""
-        return v
+        """``vertex(i)`` from ``v = vb[rank1(A, i)]``: a negative entry (a packed union's depth-0
+        prefix, :attr:`_VB_ROOT`) is the root of the dart's mesh."""
+        return jnp.where(v < 0, self._root_vertex(self._dart_mesh(i)), v)
 
     def __repr__(self) -> str:
         return (super().__repr__()[:-1] + f", tables={'tw' if self.tw is not None else ''}"

@@ -20,7 +20,9 @@ the global dart id is the position in ``A``: mesh ``i``'s local dart ``d`` is
 ``dart_offsets[i] + d`` (jraph's packed layout).
 
 What is per mesh (each case found by the mesh of the query's dart, vertex or face: one binary
-search over the ``B`` offsets):
+search over the ``B`` offsets). :class:`~jaxcds.structures.pemb.PEMB`'s own queries read these
+through hooks (``_dart_mesh``, ``_walk_start``, ``_root_vertex``...), constants for one pemb;
+:class:`PackedPEMB` only answers the hooks:
 
 * the *roots*: each mesh's tree root (local vertex 0) and root face (local pemb face 0) have no
   parenthesis pair, so they are ``vertex_offsets[i]`` / ``pface_offsets[i]``; every other node
@@ -88,77 +90,32 @@ class PackedPEMB(PEMB):
 
     packed = True
 
-    # ------------------------------------------------------------------ mesh of an id
+    # ------------------------------------------------------------------ the mesh of an id
+    # (PEMB's hooks: every pemb query reads its roots, walk ends and shift from these)
     def _dart_mesh(self, i):
         return _owner(self.mesh_dart_offsets, i)
 
-    def _dart_end(self, m):
-        """One past mesh ``m``'s last dart."""
+    def _vertex_mesh(self, v):
+        return _owner(self.mesh_vertex_offsets, v)
+
+    def _pface_mesh(self, g):
+        return _owner(self.mesh_pface_offsets, g)
+
+    def _walk_start(self, m):
+        return self.mesh_dart_offsets[m]
+
+    def _walk_end(self, m):
         nxt = self.mesh_dart_offsets[jnp.minimum(m + 1, self.mesh_dart_offsets.shape[0] - 1)]
         return jnp.where(m + 1 < self.mesh_dart_offsets.shape[0], nxt, self.num_darts)
 
-    # ------------------------------------------------------------------ pemb queries, per mesh
-    def vertex(self, i: Int) -> Int:
-        """As :meth:`PEMB.vertex`; depth 0 in ``B`` is the root of the dart's own mesh, and a
-        node opened by a ``(`` counts the ``m`` roots of the earlier meshes too."""
-        i = jnp.asarray(i, jnp.int32)
-        m = self._dart_mesh(i)
-        q = self.P.enclose(self.A.rank1(i))
-        return jnp.where(q >= self.P.size, self.mesh_vertex_offsets[m],
-                         self.P.rank_open(q) + 1 + m).astype(jnp.int32)
+    def _root_vertex(self, m):
+        return self.mesh_vertex_offsets[m]
 
-    def _vertex_paren(self, v):
-        """``(mesh, root?, the ( of v in B)`` of global vertices ``v``."""
-        v = jnp.asarray(v, jnp.int32)
-        m = _owner(self.mesh_vertex_offsets, v)
-        root = v == self.mesh_vertex_offsets[m]
-        return m, root, self.P.select_open(jnp.maximum(v - 1 - m, 0))
+    def _root_face(self, m):
+        return self.mesh_pface_offsets[m]
 
-    def first(self, v: Int) -> Int:
-        """As :meth:`PEMB.first`: after the ``(`` of ``v``; a root: its mesh's first dart."""
-        m, root, q = self._vertex_paren(v)
-        return jnp.where(root, self.mesh_dart_offsets[m], self.A.select1(q) + 1).astype(jnp.int32)
-
-    def last(self, v: Int) -> Int:
-        """As :meth:`PEMB.last`; a root: ``prev_p`` of its mesh's first dart."""
-        m, root, q = self._vertex_paren(v)
-        root_last = self.prev_p(self.mesh_dart_offsets[m])
-        return jnp.where(root, root_last, self.A.select1(self.P.find_close(q))).astype(jnp.int32)
-
-    def next_p(self, i: Int) -> Int:
-        """As :meth:`PEMB.next_p`, cyclic within the dart's mesh (its walk)."""
-        i = jnp.asarray(i, jnp.int32)
-        m = self._dart_mesh(i)
-        tree = self.A.access(i) == 1
-        nxt = jnp.where(tree, self.mate(i, where=tree) + 1, i + 1)
-        return jnp.where(nxt >= self._dart_end(m), self.mesh_dart_offsets[m], nxt).astype(jnp.int32)
-
-    def prev_p(self, i: Int) -> Int:
-        """As :meth:`PEMB.prev_p`, cyclic within the dart's mesh."""
-        i = jnp.asarray(i, jnp.int32)
-        m = self._dart_mesh(i)
-        j = jnp.where(i == self.mesh_dart_offsets[m], self._dart_end(m) - 1, i - 1)
-        tree = self.A.access(j) == 1
-        return jnp.where(tree, self.mate(j, where=tree), j).astype(jnp.int32)
-
-    def get_face(self, i: Int) -> Int:
-        """As :meth:`PEMB.get_face`: depth 0 in ``B*`` is the root face of the dart's mesh."""
-        i = jnp.asarray(i, jnp.int32)
-        m = self._dart_mesh(i)
-        tree = self.A.access(i) == 1
-        x = jnp.where(tree, self.mate(i, where=tree), i)
-        q = self.P.enclose(self.num_tree_parens + self.A.rank0(x + 1))
-        return jnp.where(q >= self.P.size, self.mesh_pface_offsets[m],
-                         self.P.rank_open(q) - self.num_tree_parens // 2 + 1 + m).astype(jnp.int32)
-
-    def first_dual(self, g: Int) -> Int:
-        """As :meth:`PEMB.first_dual`; a root face: its mesh's entry of ``mesh_root_dual``."""
-        g = jnp.asarray(g, jnp.int32)
-        m = _owner(self.mesh_pface_offsets, g)
-        ntp = self.num_tree_parens
-        q = self.P.select_open(ntp // 2 + jnp.maximum(g - 1 - m, 0))
-        pos = self.A.select0(q - ntp)
-        return jnp.where(g == self.mesh_pface_offsets[m], self.mesh_root_dual[m], pos).astype(jnp.int32)
+    def _root_dual(self, m):
+        return self.mesh_root_dual[m]
 
     # ------------------------------------------------------------------ with_tables hooks
     _VB_ROOT = -1  # a depth-0 prefix of B: the root of the DART's mesh (resolved in vertex)
@@ -181,15 +138,19 @@ class PackedPEMB(PEMB):
         # q: every prefix length 0 .. ntp of B; q - 1 (a '(' of B) lies in mesh m, whose B starts
         # after the 2 (n_j - 1) parentheses of the earlier meshes
         ntp = self.num_tree_parens
-        m = _segment_ids(2 * (self.mesh_vertex_offsets - self._mesh_index()), ntp, self.plans[0])
+        m = _segment_ids(self._tree_starts(), ntp, self.plans[0])
         m = jnp.concatenate([jnp.zeros((1,), jnp.int32), m])
         return P.rank_open(jnp.maximum(q - 1, 0)) + 1 + m
 
     def _tree_block_starts(self, q):
         # each mesh's B starts a chain of its own (else the pointer doubling of vb ran through the
         # top-level subtrees of every earlier mesh: more rounds)
-        starts = 2 * (self.mesh_vertex_offsets - self._mesh_index())
-        return jnp.zeros(q.shape, bool).at[starts].set(True, mode="drop")
+        return jnp.zeros(q.shape, bool).at[self._tree_starts()].set(True, mode="drop")
+
+    def _tree_starts(self):
+        """Where each mesh's ``B`` starts in ``P``: after the ``2 (n_j - 1)`` parentheses of the
+        earlier meshes."""
+        return 2 * (self.mesh_vertex_offsets - self._mesh_index())
 
     def _mesh_index(self):
         return jnp.arange(self.mesh_vertex_offsets.shape[0], dtype=jnp.int32)
@@ -205,7 +166,7 @@ class PackedPEMB(PEMB):
         t = self.with_tables()
         f = jnp.arange(self.num_faces, dtype=jnp.int32)
         m = _segment_ids(self.mesh_face_offsets, self.num_faces, self.plans[2])
-        lo, hi = self.mesh_dart_offsets[m], self._dart_end(m)
+        lo, hi = self._walk_start(m), self._walk_end(m)
 
         def nxt(e):  # next(e) = prev_p(mate(e)) within the mesh's walk
             x = t.tw[e]
@@ -215,7 +176,7 @@ class PackedPEMB(PEMB):
         e0 = t.first_dual(self._from_mesh_face(f))
         e1 = nxt(e0)
         e2 = nxt(e1)
-        root = self.mesh_vertex_offsets[m]
+        root = self._root_vertex(m)
         org = [jnp.where(v < 0, root, v) for v in (t.vb[t.A.rank1(e)] for e in (e0, e1, e2))]
         return jnp.stack(org, axis=-1).astype(jnp.int32)
 
@@ -241,9 +202,6 @@ class PackedPEMBTables(TableOperators, PackedPEMB):
     tw: Optional[jnp.ndarray] = None
     vb: Optional[jnp.ndarray] = None
     fe: Optional[jnp.ndarray] = None
-
-    def _vb_answer(self, v, i):
-        return jnp.where(v < 0, self.mesh_vertex_offsets[self._dart_mesh(i)], v)
 
 
 def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:
