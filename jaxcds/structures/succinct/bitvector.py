@@ -23,6 +23,7 @@ from typing import Optional
 
 import jax
 import jax.numpy as jnp
+import numba
 import numpy as np
 
 from jaxcds import errors
@@ -128,6 +129,29 @@ def compacted(slow, miss, fast, args, chunk: Optional[int] = None):
     return out
 
 
+@numba.njit(cache=True)
+def _select_samples(b, sample, block_bits):
+    """Blocks of the ``(j * sample)``-th one and of the ``(j * sample)``-th zero of ``b``, in one
+    pass (the positions of every one and zero, as int64 arrays, took 1.3 GB at 165M bits)."""
+    n1 = 0
+    for j in range(b.size):
+        n1 += b[j]
+    n0 = b.size - n1
+    ones = np.empty((n1 + sample - 1) // sample, np.int64)
+    zeros = np.empty((n0 + sample - 1) // sample, np.int64)
+    c1 = c0 = 0
+    for j in range(b.size):
+        if b[j]:
+            if c1 % sample == 0:
+                ones[c1 // sample] = j // block_bits
+            c1 += 1
+        else:
+            if c0 % sample == 0:
+                zeros[c0 // sample] = j // block_bits
+            c0 += 1
+    return ones, zeros
+
+
 def pack_bits(bits) -> np.ndarray:
     """Host: a 0/1 sequence -> ``uint32`` words (bit ``i`` = bit ``i % 32`` of word ``i // 32``),
     padded with zero words to whole blocks plus one spare block (so gathers of a block that
@@ -177,12 +201,10 @@ class BitVector:
         block_rank = np.concatenate([[0], np.cumsum(counts)])[: nblocks].astype(np.int32)
         # select samples: block of the (j * SELECT_SAMPLE)-th one / zero, then the spare block;
         # a select searches only between two consecutive samples (select_steps halvings)
-        ones_pos = np.flatnonzero(b)
-        zeros_pos = np.flatnonzero(~b)
         steps = 1
         samples = []
-        for pos in (ones_pos, zeros_pos):
-            s = np.concatenate([pos[::SELECT_SAMPLE] // BLOCK_BITS, [nblocks - 1]]).astype(np.int32)
+        for s in _select_samples(b, SELECT_SAMPLE, BLOCK_BITS):  # ones, zeros
+            s = np.concatenate([s, [nblocks - 1]]).astype(np.int32)
             samples.append(s)
             steps = max(steps, int(np.ceil(np.log2(int(np.max(np.diff(s), initial=0)) + 2))))
         return cls(words=jnp.asarray(words), block_rank=jnp.asarray(block_rank),
