@@ -608,8 +608,15 @@ def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBat
 NORMALS_CHUNK_VERTICES = 1 << 17
 
 
-def _row_blocks(s):
-    """The union structure's face rows as blocks in mesh order, ``[(rows, valid or None)]``."""
+def _row_blocks(s, num_chunks: int = 1):
+    """The union structure's face rows as blocks in mesh order, ``[(rows, valid or None)]``; or,
+    for a structure that derives them chunk by chunk (``normal_row_chunks(num_chunks)``: the
+    packed pemb, whose whole-union tables are the large temporaries), its
+    ``rows_of_chunk(lo, hi, caps)`` (the hook answers None to keep the whole-union rows)."""
+    chunks = getattr(s, "normal_row_chunks", None)
+    rows_of_chunk = None if chunks is None else chunks(num_chunks)
+    if rows_of_chunk is not None:
+        return rows_of_chunk
     hook = getattr(s, "normal_row_blocks", None)
     if hook is not None:
         return hook()
@@ -667,6 +674,8 @@ def _window(x, start, size: int, total: int):
 def _chunk_rows(k, starts, caps, w, blocks):
     """``[(rows local to the vertex window at w, ok)]`` of chunk ``k``: windows of the union's
     row blocks (:func:`_row_blocks`), each row kept where it belongs to the chunk's meshes."""
+    if callable(blocks):  # rows derived for this chunk alone
+        return [(r - w, ok) for r, ok in blocks(starts[k], starts[k + 1], caps)]
     out = []
     for j, (rows, valid) in enumerate(blocks):
         r0, r1, cap = starts[k, j + 1], starts[k + 1, j + 1], caps[j + 1]
@@ -685,11 +694,11 @@ def _chunk_rows(k, starts, caps, w, blocks):
 def _chunked_sums(b: "PackedBatch", positions):
     from jaxcds.algorithms.normals import corner_sums, face_normals, faces_with_dummy_corner
     s = b.structure
-    blocks = _row_blocks(s)
-    dummy = s.dummy_vertex_mask()
     starts, caps = b.chunk_starts, b.chunk_caps
     n, vcap = b.num_vertices, caps[0]
     num_chunks = starts.shape[0] - 1  # static: the plan's shape
+    blocks = _row_blocks(s, num_chunks)
+    dummy = s.dummy_vertex_mask()
 
     def body(k, out):
         a, a1 = starts[k, 0], starts[k + 1, 0]

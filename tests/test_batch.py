@@ -19,7 +19,7 @@ from jaxcds import errors
 from jaxcds._dataclass import replace
 from jaxcds.algorithms import adjacent, face_list_vertex_normals, vertex_degrees, vertex_normals
 from jaxcds.generators import icosphere, random_planar_triangulation
-from jaxcds.mesh import close_boundaries, load_mesh
+from jaxcds.mesh import TriMesh, close_boundaries, load_mesh
 from jaxcds.structures import CornerTable, HalfEdge, registry
 from jaxcds.verify import verify
 
@@ -494,8 +494,6 @@ def test_pemb_batch_on_random_triangulations(sizes, opened, seed):
     union's face renumbering), packed as pemb: the main
     operators on every global id (per-phase tables route, the searching route's equal is the
     quick test's) == each mesh's own pemb mapped through the offsets."""
-    from jaxcds.mesh import TriMesh
-
     ms = []
     for i, n in enumerate(sizes):
         m = random_planar_triangulation(n, seed=(seed + i) % 2**31)
@@ -680,23 +678,37 @@ def test_chunk_plan_groups_whole_meshes():
     assert B.chunk_plan([5, 3], [[10, 6]], chunk=8) is None  # one chunk: the whole-union route
 
 
-@pytest.mark.parametrize("name", ["halfedge", "cds4n", "lr",
+@pytest.mark.parametrize("name", ["halfedge", "cds4n", "lr", "pemb",  # pemb: rows derived per chunk
                                   *[pytest.param(n, marks=pytest.mark.slow)
-                                    for n in ("corner-table", "cds6n", "cds5n", "cds5n-o1", "lr-bits", "pemb")]])
+                                    for n in ("corner-table", "cds6n", "cds5n", "cds5n-o1", "lr-bits")]])
 def test_chunked_normals_equal_whole_union_and_per_mesh(name, monkeypatch):
     """With chunks of a few meshes (the plan of a 10,000-mesh batch, at test size): normals and
     their gradient equal the whole-union route's and each mesh's own structure's; borders (LR,
-    half-edge) and the CDS's hole-closing fans included, chunks of one mesh larger than the
-    chunk size too."""
+    half-edge, pemb) and the CDS's hole-closing fans included, chunks of one mesh larger than
+    the chunk size too, and (pemb) the rows derived chunk by chunk, the last chunk's windows
+    starting before its meshes (static window sizes)."""
     from jaxcds.mesh import validate_and_close
 
+    from jaxcds.structures import pemb_packed
+
     monkeypatch.setattr(B, "NORMALS_CHUNK_VERTICES", 60)
+    monkeypatch.setattr(pemb_packed, "CHUNKED_ROWS_FROM", 2)  # pemb: each chunk's rows apart
     holed = name != "corner-table"  # the corner table takes closed meshes only
     ms = [random_planar_triangulation(n, seed=s) for s, n in enumerate((20, 35, 12, 90, 8, 41))]
     if holed:
         ms[1:1] = [load_shared("grid.off"), load_shared("2triangles.off")]
+    if name == "pemb":  # an annulus: a border loop that is not the root face (the holes table)
+        m = random_planar_triangulation(30, seed=9)
+        far = ~np.isin(m.faces, m.faces[0]).any(axis=1)
+        keep = np.ones(m.num_faces, bool)
+        keep[[0, int(np.argmax(far))]] = False
+        ms.append(TriMesh(vertices=m.vertices, faces=m.faces[keep], source="annulus"))
     b = B.pack(ms, name)
     assert b.chunk_starts is not None and b.chunk_starts.shape[0] >= 5
+    if name == "pemb":
+        assert b.structure.holes.shape[0] >= 1
+    if name == "pemb":
+        assert callable(B._row_blocks(b.structure, b.chunk_starts.shape[0] - 1))
     whole = replace(b, chunk_starts=None, chunk_caps=())
     pos = B.pack_positions(b, ms)
     got = np.asarray(vertex_normals(b, pos))
