@@ -70,6 +70,7 @@ from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
 from jaxcds.structures.succinct import BalancedParens, BitVector
+from jaxcds.structures.succinct.bp import unbalanced_at
 
 __all__ = ["PEMB", "encode_rotation_system", "rotation_system_from_faces", "from_mesh"]
 
@@ -322,9 +323,8 @@ class PEMB(MeshStructure):
         n = b.size // 2 + 1
         f_total = bs.size // 2 + 1
         for name, seq in (("B", b), ("B*", bs)):
-            exc = np.cumsum(2 * seq.astype(np.int64) - 1)
-            if seq.size and (exc.min() < 0 or exc[-1] != 0):
-                k = int(np.argmax(exc < 0)) if exc.min() < 0 else seq.size
+            k = unbalanced_at(seq)
+            if k is not None:
                 raise errors.EncodingError(f"pemb: {name} is unbalanced at offset {k}")
         holes = np.zeros(0, np.int32) if holes is None else np.sort(np.asarray(holes, np.int32))
         if num_faces is None:

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxcds import errors
 from jaxcds.structures.pemb import PEMB
 
 from pemb_helpers import delaunay_faces, stack_match
@@ -101,3 +102,15 @@ def test_queries_against_walk_oracles(tree, name, faces, nv):
     np.testing.assert_array_equal(prv[first], last)
     np.testing.assert_array_equal(prv[nxt], np.arange(s.num_darts))
     np.testing.assert_array_equal(gf, np.arange(nf))
+
+
+def test_from_bits_names_the_unbalanced_sequence_and_offset():
+    """B and B* are checked apart (B B* can be balanced while neither is): the sequence and the
+    offset of its first ')' that closes nothing, or its length when '(' are left open."""
+    a = np.array([1, 1, 0, 0], np.uint8)
+    with pytest.raises(errors.EncodingError, match=r"pemb: B is unbalanced at offset 0"):
+        PEMB.from_bits(a, np.array([0, 1], np.uint8), np.array([1, 0], np.uint8))
+    with pytest.raises(errors.EncodingError, match=r"pemb: B\* is unbalanced at offset 2"):
+        PEMB.from_bits(a, np.array([1, 0], np.uint8), np.array([1, 1], np.uint8))
+    with pytest.raises(errors.EncodingError, match=r"pemb: B is unbalanced at offset 2"):
+        PEMB.from_bits(a, np.array([1, 1], np.uint8), np.array([0, 0], np.uint8))

@@ -50,7 +50,7 @@ from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.succinct.bitvector import (BLOCK_BITS, BLOCK_WORDS, COMPACT_CHUNK, UNROLL_FROM,
                                                   BitVector, _low_mask, compacted, popcount)
 
-__all__ = ["BalancedParens", "excess_oracle", "CHUNK_MIN", "COMPACT_CHUNK"]
+__all__ = ["BalancedParens", "excess_oracle", "unbalanced_at", "CHUNK_MIN", "COMPACT_CHUNK"]
 
 _INF = np.int32(1 << 30)
 UNROLL = 1
@@ -95,6 +95,17 @@ def _block_minima(b, nb, block_bits):
                 first_negative = j
         level[k] = m
     return level, first_negative, e
+
+
+def unbalanced_at(bits) -> Optional[int]:
+    """Host: ``None`` if the 0/1 sequence ``bits`` (1 = ``(``) is balanced, else the offset of
+    its first ``)`` that closes nothing, or its length when ``(`` are left open (one numba pass,
+    no array per symbol)."""
+    b = np.asarray(bits).astype(np.uint8).ravel()
+    _, first_negative, final = _block_minima(b, -(-b.size // BLOCK_BITS), BLOCK_BITS)
+    if first_negative >= 0:
+        return int(first_negative)
+    return None if final == 0 else int(b.size)
 
 
 @pytree_dataclass
