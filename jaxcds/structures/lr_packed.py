@@ -28,7 +28,7 @@ a dummy vertex, a border face -- to the global one). Global ids are jraph's pack
 from __future__ import annotations
 
 import dataclasses
-from typing import Sequence
+from typing import Optional, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -106,15 +106,27 @@ def _segment_ids(starts, total: int, plan):
     chunk`` searches over ``B``), then per element the chunk's first segment plus at most
     ``span`` comparisons with the next starts (``plan = (chunk, span)`` from :func:`_chunk_plan`
     at pack time; ``None``: the repeat)."""
-    b = starts.shape[0]
     if plan is None:
+        b = starts.shape[0]
         counts = jnp.diff(jnp.concatenate([starts, jnp.full((1,), total, starts.dtype)]))
         return jnp.repeat(jnp.arange(b, dtype=jnp.int32), counts, total_repeat_length=total)
+    return _window_segment_ids(starts, 0, total, plan)
+
+
+def _window_segment_ids(starts, w, size: int, plan, total: Optional[int] = None):
+    """:func:`_segment_ids` of the elements ``w .. w + size - 1`` only (``w`` may be traced: a
+    chunk's window of a packed pemb): one search per ``plan`` chunk the window touches, then
+    the plan's ``span`` comparisons per element. Elements at or past ``total`` (when given)
+    read as the last one's."""
+    b = starts.shape[0]
     chunk, span = plan
-    nc = -(-total // chunk)
-    first = (jnp.searchsorted(starts, jnp.arange(nc, dtype=jnp.int32) * chunk, side="right") - 1).astype(jnp.int32)
-    g = jnp.arange(total, dtype=jnp.int32)
-    c = first[g // chunk]
+    g = w + jnp.arange(size, dtype=jnp.int32)
+    if total is not None:
+        g = jnp.minimum(g, total - 1)
+    c0 = w // chunk
+    nc = -(-size // chunk) + 1  # the chunks a window of `size` elements can touch
+    first = jnp.searchsorted(starts, (c0 + jnp.arange(nc, dtype=jnp.int32)) * chunk, side="right")
+    c = (first - 1).astype(jnp.int32)[jnp.clip(g // chunk - c0, 0, nc - 1)]
     m = c
     for i in range(1, span + 1):
         m = m + ((c + i < b) & (g >= starts[jnp.minimum(c + i, b - 1)])).astype(jnp.int32)

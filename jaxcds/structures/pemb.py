@@ -75,6 +75,12 @@ from jaxcds.structures.succinct.bp import unbalanced_at
 __all__ = ["PEMB", "encode_rotation_system", "rotation_system_from_faces", "from_mesh"]
 
 
+def chain_ends(ptr):
+    """Pointer doubling: where each chain of ``ptr`` (``(k,)`` int32, every chain ending at an
+    entry that points to itself) ends. ``log2`` (longest chain) rounds of one gather."""
+    return jax.lax.while_loop(lambda p: jnp.any(p[p] != p), lambda p: p[p], ptr)
+
+
 # ---------------------------------------------------------------------------------- encoder
 @numba.njit(cache=True)
 def _walk(opp, ccw, vert, start, num_vertices, in_tree, use_tree):
@@ -333,7 +339,7 @@ class PEMB(MeshStructure):
             raise errors.EncodingError(
                 f"pemb: {f_total} faces in B* but {num_faces} triangles + {holes.size} border loops")
         order = np.arange(n, dtype=np.int32) if order is None else np.asarray(order, np.int32)
-        P = BalancedParens.from_bits(np.concatenate([b, bs]))
+        P = BalancedParens.from_bits(np.concatenate([b, bs]), check=False)  # both checked above
         return cls(A=BitVector.from_bits(a), P=P, holes=jnp.asarray(holes), order=jnp.asarray(order),
                    num_vertices=int(n), num_faces=int(num_faces), num_edges=m2 // 2,
                    num_tree_parens=int(b.size), root_border=holes.tolist() == [0])
@@ -542,14 +548,7 @@ class PEMB(MeshStructure):
         ``tables``: the :attr:`PEMBTables.tables` of an earlier call on this structure (a later
         phase of the same run reuses them: nothing is computed)."""
         tables = dict(tables or {})
-        A, P = self.A, self.P
-        A = A if A.word_rank is not None else dataclasses.replace(A, word_rank=tables.get("ra"))
-        if A.word_rank is None:
-            A = A.with_word_rank()
-        if P.bits.word_rank is None:
-            rp = tables.get("rp")
-            P = dataclasses.replace(P, bits=(P.bits.with_word_rank() if rp is None else
-                                             dataclasses.replace(P.bits, word_rank=rp)))
+        A, P = self._word_ranked(tables.get("ra"), tables.get("rp"))
         tw, vb, fe = tables.get("tw"), tables.get("vb"), tables.get("fe")
         twin, origin = twin and tw is None, origin and vb is None
         M = P.match_all() if twin or origin else None  # the match of every parenthesis
@@ -582,16 +581,22 @@ class PEMB(MeshStructure):
             val = jnp.where(prev_open, self._vertices_opened_before(P, q),
                             self._VB_ROOT).astype(jnp.int32)
             ptr = jnp.where(~start & ~prev_open, M[jnp.clip(q - 1, 0, max(ntp - 1, 0))], q)
-
-            def more(p):
-                return jnp.any(p[p] != p)
-
-            ptr = jax.lax.while_loop(more, lambda p: p[p], ptr.astype(jnp.int32))
-            vb = val[ptr]
+            vb = val[chain_ends(ptr.astype(jnp.int32))]
         base, tables_cls = self._table_classes()
         kw = {f.name: getattr(self, f.name) for f in dataclasses.fields(base)}
         kw.update(A=A, P=P)
         return tables_cls(**kw, tw=tw, vb=vb, fe=fe)
+
+    def _word_ranked(self, ra=None, rp=None):
+        """``(A, P)`` with per-word rank counters (:meth:`BitVector.with_word_rank`; ``ra`` /
+        ``rp``, those of an earlier call, are reused; counters already held are kept)."""
+        A, P = self.A, self.P
+        if A.word_rank is None:
+            A = A.with_word_rank() if ra is None else dataclasses.replace(A, word_rank=ra)
+        if P.bits.word_rank is None:
+            bits = P.bits.with_word_rank() if rp is None else dataclasses.replace(P.bits, word_rank=rp)
+            P = dataclasses.replace(P, bits=bits)
+        return A, P
 
     # hooks of with_tables that a packed union of pembs (pemb_packed) answers per mesh
     _VB_ROOT = 0  # vb's value for a prefix at depth 0 in B (the root; packed: -1, see vertex)

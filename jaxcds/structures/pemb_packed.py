@@ -53,10 +53,9 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.base import Int, parts_of_one_class
-from jaxcds.structures.lr_packed import _chunk_plan, _segment_ids
-from jaxcds.structures.pemb import PEMB, TableOperators
+from jaxcds.structures.lr_packed import _chunk_plan, _segment_ids, _window_segment_ids
+from jaxcds.structures.pemb import PEMB, TableOperators, chain_ends
 from jaxcds.structures.succinct import BalancedParens, BitVector
-from jaxcds.structures.succinct.bitvector import compacted
 
 __all__ = ["PackedPEMB", "PackedPEMBTables", "concatenate_pemb"]
 
@@ -141,7 +140,7 @@ class PackedPEMB(PEMB):
     def _faces_opened_at(self, P, q):
         # q: every position of B*, in order: the mesh of each by the chunked segment search
         # (a jnp.searchsorted per element cost about 120-150 ns per vertex at 100 meshes)
-        m = _segment_ids(2 * (self.mesh_pface_offsets - self._mesh_index()), q.shape[0], self.plans[1])
+        m = _segment_ids(self._dual_starts(), q.shape[0], self.plans[1])
         return P.rank_open(q) - self.num_tree_parens // 2 + 1 + m
 
     def _vertices_opened_before(self, P, q):
@@ -162,6 +161,11 @@ class PackedPEMB(PEMB):
         earlier meshes."""
         return 2 * (self.mesh_vertex_offsets - self._mesh_index())
 
+    def _dual_starts(self):
+        """Where each mesh's ``B*`` starts in the ``B*`` part of ``P``: after the
+        ``2 (f_j - 1)`` parentheses of the earlier meshes (``f_j`` pemb faces)."""
+        return 2 * (self.mesh_pface_offsets - self._mesh_index())
+
     def _mesh_index(self):
         return jnp.arange(self.mesh_vertex_offsets.shape[0], dtype=jnp.int32)
 
@@ -176,18 +180,25 @@ class PackedPEMB(PEMB):
         t = self.with_tables()
         f = jnp.arange(self.num_faces, dtype=jnp.int32)
         m = _segment_ids(self.mesh_face_offsets, self.num_faces, self.plans[2])
+        return t._faces_walked(f, m, lambda e: t.tw[e], t.first_dual, lambda r: t.vb[r])
+
+    def _faces_walked(self, f, m, twin, first_dual, vb):
+        """``(len(f), 3)`` vertices of faces ``f`` (of meshes ``m``), ccw: each face's first
+        dart, two ``next`` (``prev_p(mate(e))`` within the mesh's walk), three origins, read
+        through tables: ``twin(dart)``, ``first_dual(pemb face)``, ``vb(prefix of B)``."""
+        A = self.A
         lo, hi = self._walk_start(m), self._walk_end(m)
 
-        def nxt(e):  # next(e) = prev_p(mate(e)) within the mesh's walk
-            x = t.tw[e]
+        def nxt(e):
+            x = twin(e)
             j = jnp.where(x == lo, hi - 1, x - 1)
-            return jnp.where(t.A.access(j) == 1, t.tw[j], j)
+            return jnp.where(A.access(j) == 1, twin(j), j)
 
-        e0 = t.first_dual(self._from_mesh_face(f))
+        e0 = first_dual(self._from_mesh_face(f))
         e1 = nxt(e0)
         e2 = nxt(e1)
         root = self._root_vertex(m)
-        org = [jnp.where(v < 0, root, v) for v in (t.vb[t.A.rank1(e)] for e in (e0, e1, e2))]
+        org = [jnp.where(v < 0, root, v) for v in (vb(A.rank1(e)) for e in (e0, e1, e2))]
         return jnp.stack(org, axis=-1).astype(jnp.int32)
 
     # ------------------------------------------------------------------ batch hooks
@@ -223,8 +234,7 @@ class PackedPEMB(PEMB):
         built once, before the loop."""
         if num_chunks < CHUNKED_ROWS_FROM:
             return None
-        A, P = self.A.with_word_rank(), self.P
-        P = dataclasses.replace(P, bits=P.bits.with_word_rank())
+        A, P = self._word_ranked()
         s = dataclasses.replace(self, A=A, P=P)
         return lambda lo, hi, caps: s._rows_of_chunk(lo, hi, caps)
 
@@ -254,20 +264,13 @@ class PackedPEMB(PEMB):
         vb = self._chunk_vertex_table(w, match)
         f = w.face + jnp.arange(fcap, dtype=jnp.int32)
         m = _window_segment_ids(self.mesh_face_offsets, w.face, fcap, self.plans[2])
-        walk_lo, walk_hi = self._walk_start(m), self._walk_end(m)
 
-        def nxt(e):  # next(e) = prev_p(mate(e)) within the mesh's walk (as face_vertices)
-            x = tw[e - w.dart]
-            j = jnp.where(x == walk_lo, walk_hi - 1, x - 1)
-            return jnp.where(A.access(j) == 1, tw[j - w.dart], j)
+        def first_dual(g):  # roots have no '(' in B*: read apart, as with_tables' fe does
+            return jnp.where(g == self._root_face(m), self._root_dual(m), fe[g - w.pface])
 
-        g = self._from_mesh_face(f)
-        e0 = jnp.where(g == self._root_face(m), self._root_dual(m), fe[g - w.pface])
-        e1 = nxt(e0)
-        e2 = nxt(e1)
-        root = self._root_vertex(m)
-        org = [jnp.where(v < 0, root, v) for v in (vb[A.rank1(e) - w.tree] for e in (e0, e1, e2))]
-        return [(jnp.stack(org, axis=-1).astype(jnp.int32), (f >= lo[1]) & (f < hi[1]))]
+        rows = self._faces_walked(f, m, lambda e: tw[e - w.dart], first_dual,
+                                  lambda r: vb[r - w.tree])
+        return [(rows, (f >= lo[1]) & (f < hi[1]))]
 
     def _chunk_matches(self, w, lo, hi):
         """``(match, open & mine)`` over the chunk's parenthesis windows (``B``'s, then
@@ -281,9 +284,7 @@ class PackedPEMB(PEMB):
         mine = jnp.where(r < tcap, (q >= lo[3]) & (q < hi[3]),
                          (q - ntp >= lo[4]) & (q - ntp < hi[4]))
         op = P.is_open(q) & mine
-        found, near = P._near(q, jnp.zeros_like(q), True)
-        close = compacted(lambda q: P._search(q, P.excess(q), True), op & ~found, near, (q,))
-        match = w.local(close)
+        match = w.local(P.closes_of(q, op))
         return match.at[jnp.where(op, match, size)].set(r, mode="drop"), op
 
     def _chunk_first_duals(self, w, pos_of, opens):
@@ -291,8 +292,7 @@ class PackedPEMB(PEMB):
         a face is the dart of its ``(`` in ``B*`` (PEMB.with_tables); roots are read apart."""
         ntp, scap, gcap = self.num_tree_parens, w.caps[4], w.caps[5]
         u = jnp.arange(scap, dtype=jnp.int32)
-        m = _window_segment_ids(2 * (self.mesh_pface_offsets - self._mesh_index()), w.dual, scap,
-                                self.plans[1])
+        m = _window_segment_ids(self._dual_starts(), w.dual, scap, self.plans[1])
         g = self.P.rank_open(ntp + w.dual + u) - ntp // 2 + 1 + m
         return jnp.zeros((gcap,), jnp.int32).at[jnp.where(opens, g - w.pface, gcap)].set(
             pos_of[w.caps[3] + u], mode="drop")
@@ -314,8 +314,7 @@ class PackedPEMB(PEMB):
         back = match[jnp.maximum(k - 1, 0)]  # the '(' of the ')' at q - 1, as a prefix index
         # chains go back over earlier siblings only; anything else (other meshes' entries) stops
         ptr = jnp.where(~start & ~prev_open & (back >= 0) & (back < k), back, k)
-        ptr = jax.lax.while_loop(lambda p: jnp.any(p[p] != p), lambda p: p[p], ptr)
-        return val[ptr].astype(jnp.int32)
+        return val[chain_ends(ptr)].astype(jnp.int32)
 
     def __repr__(self) -> str:
         return (f"PackedPEMB(meshes={int(self.mesh_dart_offsets.shape[0])}, "
@@ -348,27 +347,6 @@ class _ChunkWindows:
     def local(self, x):
         """A parenthesis of ``B B*`` -> its index in the chunk's windows (``B``'s, then ``B*``'s)."""
         return jnp.where(x < self.ntp, x - self.tree, self.caps[3] + x - self.ntp - self.dual)
-
-
-def _window_segment_ids(starts, w, size: int, plan, total: Optional[int] = None):
-    """:func:`~jaxcds.structures.lr_packed._segment_ids` of the elements ``w .. w + size - 1``
-    only (a chunk's window; ``w`` traced): one search per ``plan`` chunk the window touches,
-    then the plan's ``span`` comparisons per element. Elements at or past ``total`` (when
-    given) read as the last one's."""
-    b = starts.shape[0]
-    chunk, span = plan
-    g = w + jnp.arange(size, dtype=jnp.int32)
-    if total is not None:
-        g = jnp.minimum(g, total - 1)
-    c0 = w // chunk
-    nc = size // chunk + 2
-    first = jnp.searchsorted(starts, (c0 + jnp.arange(nc, dtype=jnp.int32)) * chunk, side="right")
-    first = (first - 1).astype(jnp.int32)
-    c = first[jnp.clip(g // chunk - c0, 0, nc - 1)]
-    m = c
-    for i in range(1, span + 1):
-        m = m + ((c + i < b) & (g >= starts[jnp.minimum(c + i, b - 1)])).astype(jnp.int32)
-    return m
 
 
 def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:

@@ -453,11 +453,18 @@ class BalancedParens:
         n = self.size
         i = jnp.arange(n, dtype=jnp.int32)
         op = self.is_open(i)
-        found, res = self._near(i, jnp.zeros_like(i), True)
-        close = compacted(lambda i: self._search(i, self.excess(i), True), op & ~found, res, (i,),
-                          chunk)
+        close = self.closes_of(i, op, chunk=chunk)
         # every ')' is the match of exactly one '(': one scatter fills them all
         return close.at[jnp.where(op, close, n)].set(i, mode="drop")
+
+    def closes_of(self, i, opens, *, chunk: Optional[int] = None) -> jnp.ndarray:
+        """``(k,)`` int32: the ``)`` matching the ``(`` at each position ``i`` (1-D) where
+        ``opens``; other lanes unspecified and spared the slow route. The forward half of
+        :meth:`match`'s two stages (``fw`` a constant): :meth:`_near`, then the min-max tree
+        for the misses only (compacted, :func:`compacted`)."""
+        found, near = self._near(i, jnp.zeros_like(i), True)
+        return compacted(lambda i: self._search(i, self.excess(i), True), opens & ~found, near,
+                         (i,), chunk)
 
     def _match_slow(self, i, d, op):
         r = self._search(i, self.excess(i) + d, op)
