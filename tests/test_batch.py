@@ -459,6 +459,37 @@ def _pemb_probe(s, d, v, f):
     return (s.origin(d), s.next(d), s.face(d), s.edge_of_vertex(v), s.edge_of_face(f), s.last(v))
 
 
+def _probe_per_mesh(parts):
+    """The probe (tables route) of each mesh's own pemb, jitted once per shape."""
+    ar = lambda n: jnp.arange(n, dtype=jnp.int32)  # noqa: E731
+    probe = jax.jit(_pemb_probe)
+    return [probe(p.with_tables(), ar(p.num_darts), ar(p.num_vertices), ar(p.num_faces)) for p in parts]
+
+
+def _assert_probe_of_union(s, b, parts, want, label=""):
+    """The probe on every global id of the union structure ``s`` (of batch ``b``) equals each
+    mesh's answers ``want`` mapped through the offsets (a face sentinel to the union's)."""
+    ar = lambda n: jnp.arange(n, dtype=jnp.int32)  # noqa: E731
+    got = jax.jit(_pemb_probe)(s, ar(s.num_darts), ar(s.num_vertices), ar(s.num_faces))
+    do, vo, fo = (np.asarray(x) for x in (b.dart_offsets, b.vertex_offsets, b.face_offsets))
+    for k, off in enumerate((vo, do, fo, do, do, do)):
+        w = np.concatenate([np.where((k == 2) & (np.asarray(wi[k]) == p.num_faces), s.num_faces,
+                                     np.asarray(wi[k]) + off[i])
+                            for i, (wi, p) in enumerate(zip(want, parts))])
+        np.testing.assert_array_equal(np.asarray(got[k]), w, err_msg=f"{label} output {k}")
+
+
+def _annulus(m):
+    """``m`` with face 0 and a face sharing no vertex with it removed (two border loops, every
+    vertex still in a triangle); ``m`` itself when no such face exists."""
+    far = ~np.isin(m.faces, m.faces[0]).any(axis=1)
+    if not far.any():
+        return m
+    keep = np.ones(m.num_faces, bool)
+    keep[[0, int(np.argmax(far))]] = False
+    return TriMesh(vertices=m.vertices, faces=m.faces[keep], source="annulus")
+
+
 def test_pemb_batch_quick():
     """pemb batch, quick: meshes with and without border loops, one program of the main
     operators on every global id (every root, walk end and border loop), searched and with
@@ -468,18 +499,9 @@ def test_pemb_batch_quick():
     b = B.pack(ms, "pemb")
     parts = [registry.build("pemb", m) for m in ms]
     u = b.structure
-    ar = lambda n: jnp.arange(n, dtype=jnp.int32)  # noqa: E731
-    probe = jax.jit(_pemb_probe)
-    want = [probe(p.with_tables(), ar(p.num_darts), ar(p.num_vertices), ar(p.num_faces)) for p in parts]
-    do, vo, fo = (np.asarray(x) for x in (b.dart_offsets, b.vertex_offsets, b.face_offsets))
-    kinds = (vo, do, fo, do, do, do)
+    want = _probe_per_mesh(parts)
     for s in (u, u.with_tables()):
-        got = probe(s, ar(u.num_darts), ar(u.num_vertices), ar(u.num_faces))
-        for k, off in enumerate(kinds):
-            w = np.concatenate([np.where((k == 2) & (np.asarray(wi[k]) == p.num_faces), u.num_faces,
-                                         np.asarray(wi[k]) + off[i])
-                                for i, (wi, p) in enumerate(zip(want, parts))])
-            np.testing.assert_array_equal(np.asarray(got[k]), w, err_msg=f"{type(s).__name__} output {k}")
+        _assert_probe_of_union(s, b, parts, want, type(s).__name__)
     with pytest.raises(errors.UnsupportedTopologyError, match="packed batch cannot be packed again"):
         type(u).concatenate([u, u])
 
@@ -497,27 +519,13 @@ def test_pemb_batch_on_random_triangulations(sizes, opened, seed):
     ms = []
     for i, n in enumerate(sizes):
         m = random_planar_triangulation(n, seed=(seed + i) % 2**31)
-        far = ~np.isin(m.faces, m.faces[0]).any(axis=1)  # faces sharing no vertex with face 0
-        if opened[i] and far.any():  # two holes (an annulus): every vertex still in a triangle
-            keep = np.ones(m.num_faces, bool)
-            keep[[0, int(np.argmax(far))]] = False
-            m = TriMesh(vertices=m.vertices, faces=m.faces[keep], source="opened")
-        ms.append(m)
+        ms.append(_annulus(m) if opened[i] else m)
     b = B.pack(ms, "pemb")
     parts = [registry.build("pemb", m) for m in ms]
-    ar = lambda n: jnp.arange(n, dtype=jnp.int32)  # noqa: E731
-    probe = jax.jit(_pemb_probe)
     u = b.structure
-    got = probe(u.with_tables(), ar(u.num_darts), ar(u.num_vertices), ar(u.num_faces))
-    want = [probe(p.with_tables(), ar(p.num_darts), ar(p.num_vertices), ar(p.num_faces)) for p in parts]
-    offs = [np.asarray(x) for x in (b.vertex_offsets, b.dart_offsets, b.face_offsets)]
-    for k, off in enumerate((offs[0], offs[1], offs[2], offs[1], offs[1], offs[1])):
-        w = np.concatenate([np.where((k == 2) & (np.asarray(wi[k]) == p.num_faces), u.num_faces,
-                                     np.asarray(wi[k]) + off[i])
-                            for i, (wi, p) in enumerate(zip(want, parts))])
-        np.testing.assert_array_equal(np.asarray(got[k]), w, err_msg=f"output {k}")
+    _assert_probe_of_union(u.with_tables(), b, parts, _probe_per_mesh(parts))
     np.testing.assert_array_equal(np.asarray(u.face_vertices()), np.concatenate(
-        [np.asarray(p.face_vertices()) + o for p, o in zip(parts, offs[0])]))
+        [np.asarray(p.face_vertices()) + o for p, o in zip(parts, np.asarray(b.vertex_offsets))]))
 
 
 @pytest.mark.slow
@@ -698,11 +706,7 @@ def test_chunked_normals_equal_whole_union_and_per_mesh(name, monkeypatch):
     if holed:
         ms[1:1] = [load_shared("grid.off"), load_shared("2triangles.off")]
     if name == "pemb":  # an annulus: a border loop that is not the root face (the holes table)
-        m = random_planar_triangulation(30, seed=9)
-        far = ~np.isin(m.faces, m.faces[0]).any(axis=1)
-        keep = np.ones(m.num_faces, bool)
-        keep[[0, int(np.argmax(far))]] = False
-        ms.append(TriMesh(vertices=m.vertices, faces=m.faces[keep], source="annulus"))
+        ms.append(_annulus(random_planar_triangulation(30, seed=9)))
     b = B.pack(ms, name)
     assert b.chunk_starts is not None and b.chunk_starts.shape[0] >= 5
     if name == "pemb":
