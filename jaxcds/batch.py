@@ -64,6 +64,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
@@ -304,7 +305,7 @@ class PackedBatch(MeshStructure):
         """Per-mesh sums of ``values`` with the rows flagged in ``dummy`` (or none) left out."""
         seg = self.vertex_mesh() if kind == "vertex" else self.face_mesh()
         if dummy is not None:
-            values = jnp.asarray(values)
+            values = to_device(values, copy=True)
             values = jnp.where(dummy.reshape((-1,) + (1,) * (values.ndim - 1)), 0, values)
         return jax.ops.segment_sum(values, seg, num_segments=self.num_meshes)
 
@@ -404,7 +405,7 @@ def _id_arg(x, what: str) -> Int:
         a = np.minimum(a, info.max)
     else:
         a = np.where(a < info.min, -1, np.minimum(a, info.max))
-    return jnp.asarray(a.astype(np.int32))
+    return to_device(a.astype(np.int32))
 
 
 def _id_pair(mesh, local, what: str):
@@ -723,9 +724,9 @@ def _assemble(s, nv, nf, nd, nx) -> PackedBatch:
     nv, nf, nd, nx = (np.asarray(a, np.int64) for a in (nv, nf, nd, nx))
 
     def off(c):
-        return jnp.asarray(np.concatenate([[0], np.cumsum(c)[:-1]]).astype(np.int32))
+        return to_device(np.concatenate([[0], np.cumsum(c)[:-1]]).astype(np.int32))
 
-    i32 = lambda a: jnp.asarray(a.astype(np.int32))  # noqa: E731
+    i32 = lambda a: to_device(a.astype(np.int32))  # noqa: E731
     if int(nv.sum()) != s.num_vertices or int(nf.sum()) != s.num_faces or \
             int(nd.sum() + nx.sum()) != s.num_darts:
         raise errors.StructureError(
@@ -738,7 +739,7 @@ def _assemble(s, nv, nf, nd, nx) -> PackedBatch:
                        dart_offsets=off(nd), extra_dart_offsets=off(nx), num_meshes=int(nv.size),
                        num_vertices=int(nv.sum()), num_faces=int(nf.sum()),
                        num_primary_darts=int(nd.sum()),
-                       chunk_starts=None if plan is None else jnp.asarray(plan[0]),
+                       chunk_starts=None if plan is None else to_device(plan[0]),
                        chunk_caps=() if plan is None else plan[1])
 
 
@@ -831,4 +832,4 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
     order = batch.vertex_order
     if order is not None:
         p = p[np.asarray(order)]
-    return jnp.asarray(p, dtype=dtype)
+    return to_device(p, dtype)

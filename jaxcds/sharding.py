@@ -24,11 +24,11 @@ from __future__ import annotations
 from typing import Any, Optional, Sequence
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, replace, static_field
 from jaxcds.structures.base import Int, MeshStructure, integer_array, one_pass_queries
@@ -277,7 +277,7 @@ def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatte
     from jaxcds.algorithms import vertex_normals
 
     refuse_non_real(positions, "sharded_vertex_normals: positions")
-    positions = positions if isinstance(positions, jax.Array) else jnp.asarray(positions)
+    positions = to_device(positions, copy=True)  # the caller's array: no shared buffer
     n, d = s.num_vertices, s.num_devices
     padded = -(-n // d) * d  # shard_rows' length for n rows
     if positions.ndim != 2 or positions.shape[0] not in (n, padded):

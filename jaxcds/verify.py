@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds.mesh import TriMesh
 from jaxcds.structures.base import per_query_routes
 from jaxcds.structures.halfedge import HalfEdge
@@ -146,7 +147,7 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
 
     # reference: key (u, v) -> results
     he_darts = he.all_darts()
-    he_res = {k: np.asarray(v) for k, v in _apply_all(he, jnp.asarray(he_darts)).items()}
+    he_res = {k: np.asarray(v) for k, v in _apply_all(he, to_device(he_darts)).items()}
     he_keys = _pair_keys(he_res["origin"], he_res["target"], n)
     srt = np.argsort(he_keys)
     he_faces = np.sort(np.asarray(he.face_vertices()), axis=1)
@@ -166,17 +167,17 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
 
     for lo in range(0, len(s_darts), chunk):
         e = s_darts[lo: lo + chunk]
-        res = {k: np.asarray(v) for k, v in _apply_all(s, jnp.asarray(e)).items()}
+        res = {k: np.asarray(v) for k, v in _apply_all(s, to_device(e)).items()}
         u, v = to_input(res["origin"]), to_input(res["target"])
         idx, found = he_lookup(_pair_keys(u, v, n))
         rep.add("dart_exists", ~found, len(e), f"dart {e[~found][:1]} = {u[~found][:1]}->{v[~found][:1]}")
         if getattr(s, "table_queries", None):
-            for (op, route), got in _other_routes(s, jnp.asarray(e)).items():
+            for (op, route), got in _other_routes(s, to_device(e)).items():
                 bad = np.asarray(got) != res[op]
                 rep.add(f"{op} ({route} route)", bad, len(e), f"dart {e[bad][:1]}")
         for op in DART_OPERATORS:
             r = res[op]
-            ru, rv = _endpoints(s, jnp.asarray(r))
+            ru, rv = _endpoints(s, to_device(r))
             got = _pair_keys(to_input(np.asarray(ru)), to_input(np.asarray(rv)), n)
             want_d = he_res[op][idx]
             want = _pair_keys(he_res["origin"][_he_index(he_darts, want_d)],

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds._args import refuse_non_real
 
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums",
@@ -168,7 +169,7 @@ vertex_normals._cache_size = _vertex_normals._cache_size  # compiled variants he
 def _check_positions(s, positions):
     """``positions`` as a floating array of shape ``(num_vertices, 3)`` (a nested list and
     integer coordinates are converted; the gather route's loop needs a float carry)."""
-    positions = jnp.asarray(positions)
+    positions = to_device(positions, copy=True)  # the caller's array: no shared buffer
     if not jnp.issubdtype(positions.dtype, jnp.floating):
         positions = positions.astype(jnp.float32)
     if positions.ndim != 2 or positions.shape != (s.num_vertices, 3):

@@ -82,6 +82,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 
 __all__ = ["PolyllaMesh", "polylla", "label_phase", "traversal_phase", "barrier_tips",
            "middle_edges", "repair_phase", "cycles_to_csr", "polygons_as_cycles",
@@ -619,7 +620,7 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
             f"{pos.shape[0]} positions for a structure of {s.num_vertices} vertices")
     vids = np.arange(s.num_vertices, dtype=np.int32) if order is None else np.asarray(order, np.int32)
     pos_s = pos if order is None else pos[vids]
-    vids_j = jnp.asarray(vids)
+    vids_j = to_device(vids)
     t = {}
     cpu = {}
     marks = [(time.perf_counter(), time.process_time())]
@@ -694,8 +695,8 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     new_darts = np.zeros(0, np.int32)
     if T:
         td, tm = _pad(tip_darts, _bucket(T))
-        mid = middle_edges(nav, jnp.asarray(td), jnp.asarray(tm), clockwise)
-        frontier, succ, new = repair_phase(nav, frontier, succ, mid, jnp.asarray(tm))
+        mid = middle_edges(nav, to_device(td), to_device(tm), clockwise)
+        frontier, succ, new = repair_phase(nav, frontier, succ, mid, to_device(tm))
         new_darts = np.asarray(new)
         new_darts = np.concatenate([new_darts[:T], new_darts[td.size: td.size + T]])
     t3 = done(succ)

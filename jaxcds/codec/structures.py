@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds.codec.decode import _MESSAGES, _bit, _raise, _check_size
 from jaxcds.codec.words import Words
 
@@ -397,13 +398,12 @@ def face_map5n(refs: np.ndarray):
 def decode_cds6n(words: Words, *, boundaries_closed: bool = False):
     """Words -> :class:`~jaxcds.structures.cds.CDS6n` (vertex ``i`` = ``i``-th vertex of the ccw
     DFS of ``T_red``; ``V_red = 0``, ``V_blue = 1``, ``V_black = n - 1``)."""
-    import jax.numpy as jnp
     from jaxcds.structures.cds import CDS6n, with_target_rounds
 
     refs = decode_refs6n(words)
     fb, unused = face_map6n(refs)
     n = words.num_vertices
-    s = CDS6n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
+    s = CDS6n(refs=to_device(refs), F_blue=to_device(fb), num_vertices=n, num_faces=2 * n - 4,
               v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
     s = with_target_rounds(s)  # the static round count of the all-Targets pass (no wood here)
     _refuse_clockwise_triangles(s)
@@ -447,13 +447,12 @@ def _refuse_clockwise_triangles(s) -> None:
 
 def decode_cds5n(words: Words, *, boundaries_closed: bool = False):
     """Words of a maximal Schnyder wood -> :class:`~jaxcds.structures.cds.CDS5n`."""
-    import jax.numpy as jnp
     from jaxcds.structures.cds import CDS5n, with_target_rounds
 
     refs = decode_refs5n(words)
     fb, unused = face_map5n(refs)
     n = words.num_vertices
-    s = CDS5n(refs=jnp.asarray(refs), F_blue=jnp.asarray(fb), num_vertices=n, num_faces=2 * n - 4,
+    s = CDS5n(refs=to_device(refs), F_blue=to_device(fb), num_vertices=n, num_faces=2 * n - 4,
               v_red=0, v_blue=1, v_black=n - 1, unused_slots=unused, boundaries_closed=boundaries_closed)
     return with_target_rounds(s)  # the static round count of the all-Targets pass (no wood here)
 
@@ -525,7 +524,6 @@ def decode_refs4n(words: Words):
 def decode_cds4n(words: Words, *, boundaries_closed: bool = False):
     """Words of a maximal Schnyder wood -> :class:`~jaxcds.structures.cds.CDS4n` (Thm 5), its
     ``vertex_order`` mapping cwBFS labels to decoded (DFS) vertex ids."""
-    import jax.numpy as jnp
     from jaxcds.structures.cds import CDS4n, with_target_rounds
 
     r4, order = decode_refs4n(words)
@@ -535,7 +533,7 @@ def decode_cds4n(words: Words, *, boundaries_closed: bool = False):
     has_black[[0, label1, 1]] = False  # V_red = 0, V_blue, V_black = label 1
     fb, unused = _face_map(n, has_black & _bits(r4[:, 2], 30), _bits(r4[:, 1], 31),
                            ~_bits(r4[:, 3], 30), outer=(0, label1, 1))
-    s = CDS4n(refs=jnp.asarray(r4), F_blue=jnp.asarray(fb), order=jnp.asarray(order), num_vertices=n,
+    s = CDS4n(refs=to_device(r4), F_blue=to_device(fb), order=to_device(order), num_vertices=n,
               num_faces=2 * n - 4, v_red=0, v_blue=label1, v_black=1, unused_slots=unused,
               boundaries_closed=boundaries_closed)
     return with_target_rounds(s)

@@ -49,6 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
            "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries",
@@ -203,7 +204,7 @@ def _chunked_query(method):
             return getattr(self, self.table_queries[name])(ids[0])
         if name not in self.chunked_queries or jax.default_backend() != "cpu":
             return method(self, *ids)
-        xs = [jnp.asarray(x) for x in ids]
+        xs = [to_device(x, copy=True) for x in ids]  # the caller's ids: no shared buffer
         shape, size = xs[0].shape, xs[0].size
         if size < 2 * chunk or any(x.shape != shape for x in xs):
             return method(self, *ids)
@@ -383,7 +384,7 @@ class MeshStructure:
         bad = (a >= size) if a.dtype.kind == "u" else (a < 0) | (a >= size)
         if kind == "dart" and a.size:
             inside = np.where(bad, 0, a).astype(np.int32)
-            bad = bad | ~np.asarray(self.dart_valid(jnp.asarray(inside)))
+            bad = bad | ~np.asarray(self.dart_valid(to_device(inside)))
         if bad.any():
             pos = np.unravel_index(int(np.argmax(bad)), a.shape) if a.ndim else ()
             x = int(a[pos]) if a.ndim else int(a)

@@ -92,6 +92,7 @@ import numba
 import numpy as np
 
 from jaxcds import _mappings, errors
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds._progress import PROGRESS_MIN_VERTICES  # noqa: F401  (re-exported)
 from jaxcds._progress import Progress as _Progress
@@ -504,9 +505,9 @@ def _build_rows(wood: SchnyderWood, kind: int, label=None, even=None):
 
 
 def _put(x: np.ndarray):
-    """A host table as a device array: ``jax.device_put`` keeps the int32 dtype and, unlike
-    ``jnp.asarray``, compiles nothing per new shape (30-150 ms per array on a small mesh)."""
-    return jax.device_put(np.ascontiguousarray(x))
+    """A host table as a device array: keeps the int32 dtype and, unlike ``jnp.asarray``,
+    compiles nothing per new shape (30-150 ms per array on a small mesh; :mod:`jaxcds._arrays`)."""
+    return to_device(x)
 
 
 def _cwbfs_checked(wood: SchnyderWood):

@@ -39,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass
 from jaxcds.structures.base import _chunk_queries, check_id_space, interleave_rows, parts_of_one_class
 from jaxcds.structures.cds import slot_blocks
@@ -313,7 +314,7 @@ def concatenate_cds(cls, parts: Sequence) -> object:
     if unused.shape != (len(parts), 4):
         raise errors.StructureError(f"{cls.__name__}.concatenate: every part must have 4 unused face slots")
     kw = {f.name: getattr(parts[0], f.name) for f in dataclasses.fields(cls)}
-    kw.update(refs=jnp.asarray(refs), F_blue=jnp.asarray(fblue), num_vertices=total,
+    kw.update(refs=to_device(refs), F_blue=to_device(fblue), num_vertices=total,
               num_faces=int(nf.sum()), v_red=-1, v_blue=-1, v_black=-1, unused_slots=(),
               boundaries_closed=any(p.boundaries_closed for p in parts))
     if "target_rounds" in kw:  # chains stay in their mesh: the union needs the most rounds of a part
@@ -321,11 +322,11 @@ def concatenate_cds(cls, parts: Sequence) -> object:
         kw["target_rounds"] = -1 if min(rounds) < 0 else max(rounds)
     dummies = [np.asarray(p.dummy_ids, np.int64) + o for p, o in zip(parts, voff)
                if p.dummy_ids is not None]
-    kw["dummy_ids"] = (jnp.asarray(np.concatenate(dummies).astype(np.int32)) if dummies else None)
+    kw["dummy_ids"] = (to_device(np.concatenate(dummies).astype(np.int32)) if dummies else None)
     if "order" in kw:  # cwBFS labels (Sec. 2.3) -> union input ids
-        kw["order"] = jnp.asarray(np.concatenate(
+        kw["order"] = to_device(np.concatenate(
             [np.asarray(p.order, np.int64) + o for p, o in zip(parts, voff)]).astype(np.int32))
-    i32 = lambda a: jnp.asarray(np.asarray(a).astype(np.int32))  # noqa: E731
+    i32 = lambda a: to_device(np.asarray(a).astype(np.int32))  # noqa: E731
     kw.update(mesh_vertex_offsets=i32(voff), mesh_vertex_counts=i32(nv), mesh_face_offsets=i32(foff),
               mesh_roots=i32(roots), mesh_unused_slots=i32(unused))
     return packed_class(cls)(**kw)

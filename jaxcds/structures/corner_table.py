@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from typing import Optional
 
-import jax
 import jax.numpy as jnp
 import numba
 import numpy as np
 
 from jaxcds import _mappings
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
@@ -125,9 +125,9 @@ class CornerTable(MeshStructure):
             O = _opposites(opp, nf)
         # a vertex in no face: the protocol's "absent", one past the corners
         vedge = np.where(np.asarray(vedge) < 0, 3 * nf, vedge).astype(np.int32)
-        # jax.device_put: a plain copy (jnp.asarray compiles a conversion per new array shape)
-        return cls(V=jax.device_put(vert[: 3 * nf]), O=jax.device_put(O),
-                   vertex_corner=jax.device_put(vedge), num_vertices=int(num_vertices), num_faces=nf)
+        # to_device: jnp.asarray would compile a copy per new array shape (jaxcds._arrays)
+        return cls(V=to_device(vert[: 3 * nf]), O=to_device(O),
+                   vertex_corner=to_device(vedge), num_vertices=int(num_vertices), num_faces=nf)
 
     # Rossignac's operators, named as in the LR paper (Sec. 2)
     def n(self, c: Int) -> Int:
@@ -207,7 +207,7 @@ class CornerTable(MeshStructure):
 
         nc = [3 * c.num_faces for c in parts]
         nv = [c.num_vertices for c in parts]
-        return cls(V=jnp.asarray(shift_ids([np.asarray(c.V) for c in parts], nv)),
-                   O=jnp.asarray(shift_ids([np.asarray(c.O) for c in parts], nc)),
-                   vertex_corner=jnp.asarray(shift_ids([np.asarray(c.vertex_corner) for c in parts], nc)),
+        return cls(V=to_device(shift_ids([np.asarray(c.V) for c in parts], nv)),
+                   O=to_device(shift_ids([np.asarray(c.O) for c in parts], nc)),
+                   vertex_corner=to_device(shift_ids([np.asarray(c.vertex_corner) for c in parts], nc)),
                    num_vertices=int(sum(nv)), num_faces=int(sum(c.num_faces for c in parts)))

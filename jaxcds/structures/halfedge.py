@@ -18,6 +18,7 @@ import numpy as np
 
 from jaxcds import _mesh_kernels as _kernels
 from jaxcds import _mappings, errors
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
@@ -67,8 +68,8 @@ class HalfEdge(MeshStructure):
         :class:`jaxcds.mesh.Twins` validation returned for these faces (no second matching)."""
         f = np.ascontiguousarray(faces, dtype=np.int32)
         nxt, opp, vert, vedge, bprev = halfedge_arrays(f, int(num_vertices), twins=twins)
-        return cls(next_=jnp.asarray(nxt), opposite=jnp.asarray(opp), vertex=jnp.asarray(vert),
-                   vertex_edge=jnp.asarray(vedge), border_prev=jnp.asarray(bprev),
+        return cls(next_=to_device(nxt), opposite=to_device(opp), vertex=to_device(vert),
+                   vertex_edge=to_device(vedge), border_prev=to_device(bprev),
                    num_vertices=int(num_vertices), num_faces=int(f.shape[0]))
 
     # -------------------------------------------------------------- protocol core
@@ -144,11 +145,11 @@ class HalfEdge(MeshStructure):
                                    shift([a[q:] for a, q in zip(arrs, p)])])
 
         darts = lambda arrs: shift_darts(arrs, p, x)  # noqa: E731
-        return cls(next_=jnp.asarray(per_dart("next_", darts)),
-                   opposite=jnp.asarray(per_dart("opposite", darts)),
-                   vertex=jnp.asarray(per_dart("vertex", lambda arrs: shift_ids(arrs, nv))),
-                   vertex_edge=jnp.asarray(darts([np.asarray(h.vertex_edge) for h in parts])),
-                   border_prev=jnp.asarray(darts([np.asarray(h.border_prev) for h in parts])),
+        return cls(next_=to_device(per_dart("next_", darts)),
+                   opposite=to_device(per_dart("opposite", darts)),
+                   vertex=to_device(per_dart("vertex", lambda arrs: shift_ids(arrs, nv))),
+                   vertex_edge=to_device(darts([np.asarray(h.vertex_edge) for h in parts])),
+                   border_prev=to_device(darts([np.asarray(h.border_prev) for h in parts])),
                    num_vertices=int(sum(nv)), num_faces=int(sum(h.num_faces for h in parts)))
 
 

@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import _mappings, errors
+from jaxcds._arrays import to_device
 from jaxcds._args import is_integer
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
@@ -845,7 +846,7 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
     the corner table (:func:`_check`, also linear)."""
     m = tb.num_ring
     nf = V.shape[0] // 3
-    _dev = jax.device_put  # a plain copy (jnp.asarray compiles a conversion per new shape)
+    _dev = to_device  # jnp.asarray would compile a copy per new shape (jaxcds._arrays)
     if nv >= 1 << _VALUE_BITS:
         raise errors.UnsupportedTopologyError(f"{nv} vertices: LR entries hold 29-bit vertex ids")
     # corner ids 8 w + i of the ring (and 4 per T0, checked below): int32 from 2^28 ring vertices

@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass
 from jaxcds.structures.base import (_chunk_queries, interleave_windows, materialize_loop,
                                     parts_of_one_class, take_nonnegative)
@@ -433,17 +434,17 @@ def concatenate_lr(cls, parts: Sequence) -> object:
             raise errors.StructureError(f"{cls.__name__}.concatenate: {a} is not {per_ring} m_r long")
     kw = {f.name: getattr(parts[0], f.name) for f in dataclasses.fields(cls)}
     for a in P._arrays:
-        kw[a] = jnp.asarray(np.concatenate([np.asarray(getattr(p, a)) for p in parts]))
+        kw[a] = to_device(np.concatenate([np.asarray(getattr(p, a)) for p in parts]))
     for j, s in enumerate(_SIZES):
         kw[s] = int(sizes[:, j].sum())
     if "num_long" in kw:  # lr-bits: long entries in all; the period k is per mesh (construction only)
         kw["num_long"] = int(sum(p.num_long for p in parts))
         kw["k"] = int(parts[0].k) if len({p.k for p in parts}) == 1 else -1
-    kw["order"] = jnp.asarray(np.concatenate(
+    kw["order"] = to_device(np.concatenate(
         [np.asarray(p.order, np.int64) + o for p, o in zip(parts, excl(sizes[:, 0]))]).astype(np.int32))
     rf_off = excl(sizes[:, 5])
     rank_cum = np.concatenate([np.asarray(p.slot_rank, np.int64) + o for p, o in zip(parts, rf_off)])
-    i32 = lambda a: jnp.asarray(np.asarray(a).astype(np.int32))  # noqa: E731
+    i32 = lambda a: to_device(np.asarray(a).astype(np.int32))  # noqa: E731
     kw.update(mesh_vertex_offsets=i32(excl(sizes[:, 0])), mesh_face_offsets=i32(excl(sizes[:, 1])),
               mesh_dart_offsets=i32(excl(nd)), mesh_sizes=i32(sizes),
               mesh_array_offsets=i32(np.stack([excl(lens[:, j]) for j in range(lens.shape[1])], axis=1)),

@@ -66,6 +66,7 @@ import numba
 import numpy as np
 
 from jaxcds import _mappings, errors
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure
@@ -340,7 +341,7 @@ class PEMB(MeshStructure):
                 f"pemb: {f_total} faces in B* but {num_faces} triangles + {holes.size} border loops")
         order = np.arange(n, dtype=np.int32) if order is None else np.asarray(order, np.int32)
         P = BalancedParens.from_bits(np.concatenate([b, bs]), check=False)  # both checked above
-        return cls(A=BitVector.from_bits(a), P=P, holes=jnp.asarray(holes), order=jnp.asarray(order),
+        return cls(A=BitVector.from_bits(a), P=P, holes=to_device(holes, copy=True), order=to_device(order, copy=True),
                    num_vertices=int(n), num_faces=int(num_faces), num_edges=m2 // 2,
                    num_tree_parens=int(b.size), root_border=holes.tolist() == [0])
 

@@ -27,6 +27,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 
 __all__ = ["BitVector", "BLOCK_BITS", "BLOCK_WORDS", "COMPACT_CHUNK", "compacted", "pack_bits", "popcount"]
@@ -207,8 +208,8 @@ class BitVector:
             s = np.concatenate([s, [nblocks - 1]]).astype(np.int32)
             samples.append(s)
             steps = max(steps, int(np.ceil(np.log2(int(np.max(np.diff(s), initial=0)) + 2))))
-        return cls(words=jnp.asarray(words), block_rank=jnp.asarray(block_rank),
-                   sel1=jnp.asarray(samples[0]), sel0=jnp.asarray(samples[1]), size=int(b.size),
+        return cls(words=to_device(words), block_rank=to_device(block_rank),
+                   sel1=to_device(samples[0]), sel0=to_device(samples[1]), size=int(b.size),
                    select_steps=steps)
 
     # ------------------------------------------------------------------ sizes

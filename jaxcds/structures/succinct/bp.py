@@ -46,6 +46,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.succinct.bitvector import (BLOCK_BITS, BLOCK_WORDS, COMPACT_CHUNK, UNROLL_FROM,
                                                   BitVector, _low_mask, compacted, popcount)
@@ -159,7 +160,7 @@ class BalancedParens:
             levels.append(prev.reshape(-1, 2).min(axis=1).astype(np.int32))
         sizes = tuple(int(x.size) for x in levels)
         offsets = tuple(int(x) for x in np.concatenate([[0], np.cumsum(sizes)[:-1]]))
-        return cls(bits=bv, tree=jnp.asarray(np.concatenate(levels)), level_offsets=offsets,
+        return cls(bits=bv, tree=to_device(np.concatenate(levels)), level_offsets=offsets,
                    level_sizes=sizes)
 
     # ------------------------------------------------------------------ sizes

@@ -1,0 +1,38 @@
+"""Host arrays onto the device without a compilation per shape.
+
+Under jax 0.10, ``jnp.asarray(host_array)`` without a dtype lifts the array with ``lax.stage``:
+an eager copy primitive compiled once per shape and dtype (10-14 ms each on this project's
+hosts, measured 2026-12-06; every compiled program also holds memory mappings, see
+:mod:`jaxcds._mappings`). A builder meets new shapes with every mesh, so a pack of 10,000 pembs
+spent most of its per-mesh build compiling copies. ``jax.device_put`` of a host array compiles
+nothing (0.1 ms), but on CPU it may share the array's buffer (zero copy): writing to the host
+array afterwards would change the device array. So builders pass arrays they made themselves,
+and inputs that belong to the caller are copied first (``copy=True``).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["to_device"]
+
+
+def to_device(x, dtype=None, *, copy: bool = False) -> jax.Array:
+    """``x`` as a device array, ``jnp.asarray``'s dtypes (int64 -> int32 and float64 ->
+    float32 unless x64 is on), without compiling anything for a host array.
+
+    ``x`` already a JAX array or a tracer, or lists holding them: ``jnp.asarray`` (nothing to copy).
+    ``copy``: copy a host array first, for arrays the caller may write to later (the device array
+    may share its buffer otherwise)."""
+    if isinstance(x, jax.Array):
+        return x if dtype is None or x.dtype == dtype else jnp.asarray(x, dtype)
+    if not isinstance(x, np.ndarray) and any(isinstance(leaf, jax.Array)
+                                             for leaf in jax.tree_util.tree_leaves(x)):
+        return jnp.asarray(x, dtype)  # nested lists of traced values (a list argument under jit)
+    a = np.asarray(x, dtype)
+    dt = jax.dtypes.canonicalize_dtype(a.dtype)
+    # np.asarray, not np.ascontiguousarray: that one turns a 0-d array into shape (1,)
+    a = np.array(a, dt, order="C", copy=True) if copy else np.asarray(a, dt, order="C")
+    return jax.device_put(a)
