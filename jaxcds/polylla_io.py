@@ -25,7 +25,8 @@ import numpy as np
 from jaxcds import errors
 
 __all__ = ["Triangulation2D", "read_triangle", "read_off_2d", "from_points", "read_input",
-           "write_polygon_off", "read_polygon_off", "orient_ccw", "twice_signed_areas"]
+           "write_polygon_off", "read_polygon_off", "orient_ccw", "twice_signed_areas",
+           "orientation_signs", "length_scale"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -157,6 +158,71 @@ def unit_scale(points: np.ndarray) -> np.ndarray:
     return np.ldexp(p, -int(np.frexp(big)[1]))
 
 
+#: exponents of the largest coordinate between which Polylla's lengths are computed on the
+#: coordinates as given (``2^LENGTH_EXPONENTS[0] <= max |x| < 2^LENGTH_EXPONENTS[1]``)
+LENGTH_EXPONENTS = (-400, 510)
+
+
+def length_scale(points: np.ndarray) -> np.ndarray:
+    """``points`` for Polylla's edge lengths: as given while their squared differences cannot
+    overflow (largest coordinate under ``2^510``, about 3.4e153: the sum of two squares of
+    differences stays under ``2^1023``) and the largest coordinate is not tiny (``2^-400``,
+    about 3.9e-121); else times a power of two (exact) that brings it just inside that range.
+
+    As given, the lengths are the reference implementation's bit for bit (it computes
+    ``sqrt(pow(dx, 2) + pow(dy, 2))`` on the input's doubles), so are its ties and polygons, also
+    where a small feature's squares fall into subnormals (an input spanning 1e-10 to 1e150:
+    scaling it to the unit box had made a rhombus's side longer than its diagonal, found
+    against the compiled reference). Outside that range the reference's lengths overflow to
+    infinity (coordinates past about 1.3e154) or underflow to zero (about 1e-162), so every
+    triangle reads as a three-way tie there; these lengths do not, so the polygons differ from
+    the reference's on such inputs (README, Polylla)."""
+    p = np.asarray(points, dtype=np.float64)
+    big = float(np.max(np.abs(p))) if p.size else 0.0
+    if big == 0.0 or not np.isfinite(big):
+        return p
+    e = int(np.frexp(big)[1])  # big = m 2^e, m in [0.5, 1)
+    lo, hi = LENGTH_EXPONENTS
+    if e > hi:
+        return np.ldexp(p, hi - e)  # scaled down as little as it takes: fewest subnormals
+    if e <= lo:
+        return np.ldexp(p, -e)  # scaled up: exact, and no square underflows any more
+    return p
+
+
+def orientation_signs(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(F,)`` int8: the exact sign of every triangle's area (1 counter-clockwise, -1 clockwise,
+    0 collinear corners), for float64 ``points``.
+
+    A floating-point determinant decides where it is clear of its rounding error (Shewchuk's
+    ``ccwerrboundA`` on coordinates scaled to the unit box, which keeps its products normal);
+    the rest (slivers, near-collinear corners far from the origin, features under the
+    subnormal range) are decided in exact rational arithmetic on the coordinates as given: a
+    triangle whose exact area is positive is never called flat (the compiled reference
+    accepted one that a float area test had refused)."""
+    q = unit_scale(points)
+    t = q[faces]
+    left = (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1])
+    right = (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
+    det = left - right
+    eps = 2.0 ** -53
+    bound = (3.0 + 16.0 * eps) * eps * (np.abs(left) + np.abs(right))
+    # below 2^-960 the products may have lost bits to subnormals: the bound no longer holds
+    unsure = (np.abs(det) <= bound) | (np.abs(left) + np.abs(right) < 2.0 ** -960)
+    sign = np.sign(det).astype(np.int8)
+    for f in np.nonzero(unsure)[0]:
+        sign[f] = _exact_orientation(points[faces[f]])
+    return sign
+
+
+def _exact_orientation(corners: np.ndarray) -> int:
+    from fractions import Fraction
+
+    (ax, ay), (bx, by), (cx, cy) = ((Fraction(float(x)), Fraction(float(y))) for x, y in corners)
+    d = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    return (d > 0) - (d < 0)
+
+
 def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
     """Faces turned counter-clockwise (by the sign of their area); ``(faces, n_flipped)``.
 
@@ -177,7 +243,7 @@ def twice_signed_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def _orient(points: np.ndarray, faces: np.ndarray, source: str):
     """:func:`orient_ccw`, returning which faces were clockwise (a bool mask)."""
-    area2 = twice_signed_areas(unit_scale(points), faces)
+    area2 = orientation_signs(points, faces)
     flat = np.nonzero(area2 == 0)[0]
     if flat.size:
         raise errors.PolyllaError(

@@ -609,11 +609,11 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     close (a structure bug), and :class:`~jaxcds.errors.PolyllaError` for ``corners`` that are
     not the structure's triangles or an unknown ``mode``.
     """
-    from jaxcds.polylla_io import unit_scale
+    from jaxcds.polylla_io import length_scale
 
-    # scaled by a power of two (exact): the length comparisons decide as on the input, without
-    # overflow or subnormals at extreme coordinate scales
-    pos = unit_scale(np.asarray(positions, dtype=np.float64)[:, :2])
+    # as given, the reference's own lengths; scaled by a power of two only where its squares
+    # would overflow or the coordinates are tiny (length_scale)
+    pos = length_scale(np.asarray(positions, dtype=np.float64)[:, :2])
     order = s.vertex_order
     if pos.shape[0] != s.num_vertices:
         raise errors.PolyllaError(

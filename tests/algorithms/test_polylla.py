@@ -789,8 +789,9 @@ def test_collinear_points_are_named_in_one_line():
 @pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300])
 def test_points50_at_extreme_coordinate_scales(scale, tmp_path):
     """Polylla does not depend on the scale: squared lengths overflowed (1e160) or fell into
-    subnormals (1e-160) and ties gave 28 polygons instead of 17; now the coordinates are scaled
-    by a power of two first (exact). Through the files too, without overflow warnings."""
+    subnormals (1e-160) and ties gave 28 polygons instead of 17; now such coordinates are
+    scaled by a power of two first (exact; polylla_io.length_scale). Through the files too,
+    without overflow warnings."""
     import warnings
 
     tri = io.read_triangle(_need(POLYLLA / "points50.1.node"))
@@ -863,3 +864,60 @@ def test_overlapping_triangles_are_named_as_a_fold_not_an_orientation(tmp_path, 
     hand = io.Triangulation2D(points=pts, faces=np.array([[0, 1, 2], [1, 2, 3]], np.int32))
     with pytest.raises(errors.InconsistentOrientationError, match="orient faces consistently"):
         P.run(hand, structure=structure)
+
+
+# --------------------------------------------- reference outputs of inputs not in ../shared
+REFERENCE_CASES = pathlib.Path(__file__).resolve().parents[1] / "data" / "polylla_reference"
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("case", sorted(p.name for p in REFERENCE_CASES.iterdir() if p.is_dir()))
+def test_reference_mode_gives_the_compiled_references_file(case, structure):
+    """Outputs of the compiled reference (tests/data/polylla_reference/README.md): reference
+    mode gives its polygons in its order, each from its first vertex. ``mixedscale`` failed
+    while lengths were taken on coordinates scaled to the unit box (a rhombus's squares fell
+    into subnormals), ``reject_area`` while areas were tested in floating point only."""
+    d = REFERENCE_CASES / case
+    tri = io.read_triangle(str(d / "in.node"))
+    _, ref = io.read_polygon_off(str(d / "reference.off"))
+    got = P.polylla(P.build_structure(tri, structure), tri.points, corners=tri.input_faces)
+    assert got.polygons() == [list(map(int, p)) for p in ref]
+    if not tri.flipped:  # clockwise input: clockwise polygons, as the reference's
+        check_partition(tri, got)
+
+
+def test_orientation_signs_are_exact_on_slivers():
+    """Near-collinear corners far from the origin, subnormal features next to huge ones: the
+    floating-point determinant decides only where its error bound allows, the rest exactly."""
+    from fractions import Fraction
+
+    rng = np.random.default_rng(5)
+    base = rng.uniform(-1, 1, (400, 1, 2)) * 10.0 ** rng.integers(-300, 300, (400, 1, 1))
+    t = rng.uniform(0, 1, (400, 3, 1))
+    d = rng.uniform(-1, 1, (400, 1, 2))
+    pts = base + t * d * np.abs(base)  # three points on a line through base...
+    pts[:, 2] += rng.choice([0.0, 1.0], (400, 1)) * np.spacing(pts[:, 2])  # ...one nudged by an ulp
+    pts = pts.reshape(-1, 2)
+    for k in (-1000, -500, 0, 500, 1000):  # exactly collinear, exact in binary at every scale
+        line = np.ldexp(np.array([[3.0, 5.0], [4.0, 7.0], [6.0, 11.0]]), k)
+        pts = np.concatenate([pts, line, line[[0, 2, 1]]])
+    faces = np.arange(pts.shape[0]).reshape(-1, 3)
+    got = io.orientation_signs(pts, faces)
+    want = []
+    for f in faces:
+        (ax, ay), (bx, by), (cx, cy) = ((Fraction(float(x)), Fraction(float(y))) for x, y in pts[f])
+        v = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        want.append((v > 0) - (v < 0))
+    assert got.tolist() == want
+    assert 0 in want and len(set(want)) == 3  # the sample has all three kinds
+
+
+def test_length_scale_keeps_ordinary_coordinates_as_given():
+    p = np.array([[1e-10, 3.0], [1e150, -2e150]])
+    assert io.length_scale(p) is not None and np.array_equal(io.length_scale(p), p)
+    for big in (1e160, 1e300, 1e-130, 1e-300):
+        q = io.length_scale(np.array([[big, 0.0], [0.0, big / 3]]))
+        lo, hi = io.LENGTH_EXPONENTS
+        assert lo < np.frexp(np.max(np.abs(q)))[1] <= hi
+        ratio = q / np.array([[big, 1.0], [1.0, big / 3]])
+        assert ratio[0, 0] == ratio[1, 1] and np.frexp(ratio[0, 0])[0] == 0.5  # a power of two
