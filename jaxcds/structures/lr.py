@@ -749,9 +749,10 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
             rings.append(_searched(V, O, nv, tb, dummy=dummy, sweeps=ring_sweeps))
         for t in rings:
             s = _from_corner_table(LRBits, ct, dummy=dummy, k=int(kk), check=False,
-                                   borders=borders, tables=t)
+                                   borders=borders, tables=t, device=False)
             if best is None or s.bits < best.bits:
                 best = s
+    best = _on_device(best)  # only the kept period's tables (8 periods tried by default)
     if check:
         _check_against(best, ct)
     return best
@@ -772,7 +773,7 @@ def _check_k(k) -> list:
 
 def _from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, k=None, check=True,
                        wart_skipping=True, borders=True, tables: Optional[LRTables] = None,
-                       ring_sweeps: int = 0):
+                       ring_sweeps: int = 0, device: bool = True):
     V = np.asarray(ct.V)
     O = np.asarray(ct.O)
     nv = ct.num_vertices
@@ -780,7 +781,17 @@ def _from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, k=None, che
         tables = _best_tables(V, O, nv, seeds=seeds, k=k, dummy=dummy,
                               wart_skipping=wart_skipping, ring_sweeps=ring_sweeps)
     return _pack(cls, tables, V, O, np.asarray(ct.vertex_corner), nv, check=check,
-                 k=0 if k is None else int(k), dummy=dummy if borders else None)
+                 k=0 if k is None else int(k), dummy=dummy if borders else None, device=device)
+
+
+def _on_device(s):
+    """A structure packed with host arrays (``_pack(..., device=False)``) on the device, its
+    construction statistics kept."""
+    stats = getattr(s, "_stats", None)
+    out = jax.tree_util.tree_map(to_device, s)
+    if stats is not None:
+        object.__setattr__(out, "_stats", stats)
+    return out
 
 
 _SPARE_SEEDS = 28  # at most this many more seeds when every ring is trapped (m_i > m / 4)
@@ -838,7 +849,8 @@ def _searched(V, O, nv, tb: LRTables, *, dummy, sweeps: int) -> LRTables:
     return lr_tables(V, O, new, nv, wart_skipping=True)
 
 
-def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: int, dummy=None):
+def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: int, dummy=None,
+          device: bool = True):
     """Pack the tables ``tb`` into ``cls`` (Sec. 4.5-4.7, Sec. 6 for ``LRBits``): a few O(n)
     numba passes (:mod:`jaxcds.construct.lr_pack`); the ring case analysis of Sec. 4.5 / Fig. 6
     runs on every regular corner and makes a slot irregular (``VO*``) where it cannot resolve a
@@ -846,7 +858,9 @@ def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: in
     the corner table (:func:`_check`, also linear)."""
     m = tb.num_ring
     nf = V.shape[0] // 3
-    _dev = to_device  # jnp.asarray would compile a copy per new shape (jaxcds._arrays)
+    # jnp.asarray would compile a copy per new shape (jaxcds._arrays); device=False: host
+    # arrays, for candidates compared by size before one goes to the device (build_lr)
+    _dev = to_device if device else np.asarray
     if nv >= 1 << _VALUE_BITS:
         raise errors.UnsupportedTopologyError(f"{nv} vertices: LR entries hold 29-bit vertex ids")
     # corner ids 8 w + i of the ring (and 4 per T0, checked below): int32 from 2^28 ring vertices
