@@ -80,7 +80,7 @@ def _meshes():
     return out
 
 
-@pytest.mark.parametrize("tree", ["bfs", "dfs"])
+@pytest.mark.parametrize("tree", ["bfs", "dfs", "stack"])
 @pytest.mark.parametrize("name,faces,nv", _meshes(), ids=lambda x: x if isinstance(x, str) else "")
 def test_queries_against_walk_oracles(tree, name, faces, nv):
     s = PEMB.from_faces(faces, nv, tree=tree)
@@ -114,3 +114,58 @@ def test_from_bits_names_the_unbalanced_sequence_and_offset():
         PEMB.from_bits(a, np.array([1, 0], np.uint8), np.array([1, 1], np.uint8))
     with pytest.raises(errors.EncodingError, match=r"pemb: B is unbalanced at offset 2"):
         PEMB.from_bits(a, np.array([1, 1], np.uint8), np.array([0, 0], np.uint8))
+
+
+# ------------------------------------------------------- the original implementation's bits
+PEMB_ORIGINAL = pathlib.Path(__file__).resolve().parents[1] / "data" / "pemb_original"
+
+
+def _read_original_graph(path):
+    """A graph file of the original implementation -> ``(opp, ccw, vert, n)``: a dart per line in
+    file order, each vertex's lines its ccw rotation, twins paired by their endpoints."""
+    lines = path.read_text().split()
+    n, m = int(lines[0]), int(lines[1])
+    ends = np.array(lines[2:], np.int64).reshape(2 * m, 2)
+    vert = ends[:, 0]
+    first = np.searchsorted(vert, np.arange(n))
+    last = np.searchsorted(vert, np.arange(n), side="right")
+    e = np.arange(2 * m)
+    ccw = np.where(e + 1 < last[vert], e + 1, first[vert])
+    index = {(int(a), int(b)): i for i, (a, b) in enumerate(ends)}
+    opp = np.array([index[(int(b), int(a))] for a, b in ends], np.int64)
+    return opp, ccw, vert, n
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in PEMB_ORIGINAL.glob("*.graph")))
+def test_stack_tree_gives_the_original_implementations_bits(name):
+    """tests/data/pemb_original/README.md: with the original's tree (``tree="stack"``) the walk
+    writes its ``A`` and its ``B``, ``B*`` inside their outer pairs, bit for bit; the BFS tree
+    (the default) gives other bits of the same length."""
+    from jaxcds.structures.pemb import _bfs_tree, _stack_tree, encode_rotation_system
+
+    opp, ccw, vert, n = _read_original_graph(PEMB_ORIGINAL / f"{name}.graph")
+    want = dict(line.split() for line in (PEMB_ORIGINAL / f"{name}.orig_bits").read_text().splitlines())
+    bits = lambda a: "".join(map(str, np.asarray(a, np.uint8).tolist()))  # noqa: E731
+    enc = encode_rotation_system(opp, ccw, vert, n, 0, _stack_tree(opp, ccw, vert, 0, n))
+    assert bits(enc["A"]) == want["A"]
+    assert "1" + bits(enc["B"]) + "0" == want["B"]
+    assert "1" + bits(enc["B_star"]) + "0" == want["Bs"]
+    other = encode_rotation_system(opp, ccw, vert, n, 0, _bfs_tree(opp, ccw, vert, 0, n))
+    assert len(bits(other["A"])) == len(want["A"])
+    if n > 5:  # K4 and small wheels: both trees are the star around the root
+        assert bits(other["A"]) != want["A"]
+
+
+def test_from_faces_takes_the_stack_tree():
+    """``tree="stack"`` through the builder: the same 4m bits in other places (its operators are
+    checked against the walk oracles in test_queries_against_walk_oracles), and an unknown tree
+    named."""
+    from jaxcds.generators import random_planar_triangulation
+
+    mesh = random_planar_triangulation(300, seed=4)
+    s = PEMB.from_faces(mesh.faces, mesh.num_vertices, tree="stack")
+    b = PEMB.from_faces(mesh.faces, mesh.num_vertices, tree="bfs")
+    assert s.bits_payload == b.bits_payload == 4 * s.num_edges
+    assert not np.array_equal(s.A.to_numpy(), b.A.to_numpy())
+    with pytest.raises(errors.ArgumentError, match="unknown spanning tree 'bfss'"):
+        PEMB.from_faces(mesh.faces, mesh.num_vertices, tree="bfss")
