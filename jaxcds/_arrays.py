@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["to_device"]
+__all__ = ["to_device", "native_order"]
 
 
 def to_device(x, dtype=None, *, copy: bool = False) -> jax.Array:
@@ -32,7 +32,18 @@ def to_device(x, dtype=None, *, copy: bool = False) -> jax.Array:
                                              for leaf in jax.tree_util.tree_leaves(x)):
         return jnp.asarray(x, dtype)  # nested lists of traced values (a list argument under jit)
     a = np.asarray(x, dtype)
+    if a.dtype.byteorder not in "=|":  # big-endian data (a binary file read as it is): native
+        a = a.astype(a.dtype.newbyteorder("="))  # order first (JAX refuses other orders)
     dt = jax.dtypes.canonicalize_dtype(a.dtype)
     # np.asarray, not np.ascontiguousarray: that one turns a 0-d array into shape (1,)
     a = np.array(a, dt, order="C", copy=True) if copy else np.asarray(a, dt, order="C")
     return jax.device_put(a)
+
+
+def native_order(x):
+    """``x`` with a big-endian (non-native) numpy dtype converted to native order; anything else
+    as it is. ``jax.jit`` refuses such arguments with a message about static arguments; public
+    entry points pass user arrays through this before their jitted call."""
+    if isinstance(x, np.ndarray) and x.dtype.byteorder not in "=|":
+        return x.astype(x.dtype.newbyteorder("="))
+    return x

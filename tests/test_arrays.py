@@ -54,6 +54,13 @@ def test_dtypes_are_those_of_jnp_asarray(x, dtype, want):
     np.testing.assert_array_equal(np.asarray(got), np.asarray(x).astype(want))
 
 
+def test_big_endian_arrays_are_read_in_native_order():
+    # jnp.asarray refuses them ("not a valid JAX array type"); a binary file read as it is has them
+    for a in (np.arange(5, dtype=">f8"), np.arange(5, dtype=">i4"), np.arange(5, dtype=">u2")):
+        got = to_device(a)
+        np.testing.assert_array_equal(np.asarray(got), a.astype(a.dtype.newbyteorder("=")))
+
+
 def test_shapes_are_kept_zero_d_and_strided_too():
     assert to_device(np.int64(3)).shape == ()
     assert to_device(np.zeros((0, 3), np.int64)).shape == (0, 3)
@@ -99,3 +106,18 @@ def test_builds_and_packs_compile_nothing_per_mesh(name):
         registry.build(name, meshes[2])
         batch.pack(meshes[1:], name)
     assert seen == [], f"{name}: {len(seen)} XLA compilations in two builds and a pack"
+
+
+def test_operators_and_normals_take_big_endian_arrays():
+    """jnp.asarray and jax.jit refuse big-endian numpy arrays (TypeError naming neither the
+    argument nor the fix); the protocol's operators and vertex_normals read them in native order."""
+    from jaxcds.algorithms import vertex_normals
+    from jaxcds.generators import icosphere
+
+    mesh = icosphere(1)
+    s = registry.build("halfedge", mesh)
+    ids = np.arange(7)
+    np.testing.assert_array_equal(np.asarray(s.twin(ids.astype(">i4"))), np.asarray(s.twin(ids.astype(np.int32))))
+    p = np.asarray(mesh.vertices, np.float32)
+    np.testing.assert_array_equal(np.asarray(vertex_normals(s, p.astype(">f4"))),
+                                  np.asarray(vertex_normals(s, p)))

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._arrays import to_device
+from jaxcds._arrays import native_order, to_device
 from jaxcds._args import refuse_non_real
 
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums",
@@ -149,7 +149,7 @@ def vertex_normals(s, positions, method: str = "scatter"):
       ArgumentError: an unknown ``method``.
     """
     refuse_non_real(positions, "positions", bools=True)
-    return _vertex_normals(s, positions, method=method)
+    return _vertex_normals(s, native_order(positions), method=method)
 
 
 @functools.partial(jax.jit, static_argnames=("method",))

@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._arrays import to_device
+from jaxcds._arrays import native_order, to_device
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
            "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries",
@@ -198,6 +198,7 @@ def _chunked_query(method):
     @functools.wraps(method)
     def run(self, *ids, **kwargs):
         chunk = QUERY_CHUNK
+        ids = tuple(native_order(x) for x in ids)  # big-endian numpy ids: jnp refuses them
         if kwargs or _ONE_PASS:
             return method(self, *ids, **kwargs)
         if len(ids) == 1 and self.takes_table(name, jnp.size(ids[0])):
