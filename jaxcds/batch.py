@@ -68,7 +68,7 @@ from jaxcds._arrays import to_device
 from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
-from jaxcds.structures.base import Int, MeshStructure, integer_array
+from jaxcds.structures.base import Int, MeshStructure, id_arg
 
 __all__ = ["PackedBatch", "pack", "concatenate", "shift_ids", "shift_darts", "OPERATOR_KINDS",
            "pack_positions", "chunk_plan", "NORMALS_CHUNK_VERTICES"]
@@ -388,24 +388,7 @@ for _op in _FORWARDED:
         setattr(PackedBatch, _op, _make_forward(_op))
 
 
-def _id_arg(x, what: str) -> Int:
-    """Ids handed to a batch method, as int32: a traced or int32 jax array as it is (inside
-    ``jit`` the caller's dtype is fixed already); host values checked first, so that floats,
-    bools and strings are refused (a cast truncates 1.7 to 1) and integers past int32 read as
-    out of range (-1 or int32 max: "absent") instead of wrapping onto a valid id."""
-    if isinstance(x, jax.Array) and (isinstance(x, jax.core.Tracer) or x.dtype.itemsize <= 4):
-        if not jnp.issubdtype(x.dtype, jnp.integer):
-            raise errors.InvalidIndexError(f"{what} must be integers, got dtype {x.dtype}")
-        return x.astype(jnp.int32)
-    a = integer_array(x, what)
-    if a.size == 0:
-        return jnp.asarray(a, jnp.int32)
-    info = np.iinfo(np.int32)
-    if a.dtype.kind == "u":
-        a = np.minimum(a, info.max)
-    else:
-        a = np.where(a < info.min, -1, np.minimum(a, info.max))
-    return to_device(a.astype(np.int32))
+_id_arg = id_arg  # kept for the callers below (jaxcds.structures.base.id_arg)
 
 
 def _id_pair(mesh, local, what: str):

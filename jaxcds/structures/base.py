@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._arrays import native_order, to_device
+from jaxcds._arrays import to_device
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
            "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries",
@@ -77,7 +77,11 @@ def check_id_space(what: str, num_darts: int) -> None:
 def integer_array(ids, what: str) -> np.ndarray:
     """``ids`` as a numpy array of any integer dtype (an empty one of any dtype), or
     :class:`~jaxcds.errors.InvalidIndexError` naming ``what``: ragged nested lists, floats,
-    strings (a cast would truncate 1.7 to 1)."""
+    strings (a cast would truncate 1.7 to 1), booleans, masked arrays (their mask would be
+    dropped)."""
+    if isinstance(ids, np.ma.MaskedArray):
+        raise errors.InvalidIndexError(f"{what} are a masked array: fill or drop the masked "
+                                       "entries first (np.ma.compressed, .filled)")
     try:
         a = np.asarray(ids)
     except ValueError as exc:  # ragged nested lists
@@ -85,6 +89,31 @@ def integer_array(ids, what: str) -> np.ndarray:
     if a.size and not np.issubdtype(a.dtype, np.integer):
         raise errors.InvalidIndexError(f"{what} must be integers, got dtype {a.dtype}")
     return a
+
+
+def id_arg(x, what: str) -> Int:
+    """Ids handed to an operator, as int32: a traced or int32 jax array as it is (inside ``jit``
+    the caller's dtype is fixed already; other integer dtypes converted); host values (numpy
+    arrays of any byte order, lists, tuples, Python ints) checked first, so that floats, bools,
+    strings and masked arrays are refused with :class:`~jaxcds.errors.InvalidIndexError` (a
+    cast truncates 1.7 to 1, a bool array would index as a mask) and integers past int32 read
+    as out of range (-1 or int32 max: "absent" where the caller checks) instead of wrapping
+    onto a valid id."""
+    if isinstance(x, jax.Array) and (isinstance(x, jax.core.Tracer) or x.dtype.itemsize <= 4):
+        if not jnp.issubdtype(x.dtype, jnp.integer):
+            raise errors.InvalidIndexError(f"{what} must be integers, got dtype {x.dtype}")
+        return x if x.dtype == jnp.int32 else x.astype(jnp.int32)
+    a = integer_array(x, what)
+    if a.size == 0:
+        return to_device(np.zeros(a.shape, np.int32))
+    info = np.iinfo(np.int32)
+    if np.can_cast(a.dtype, np.int32):  # int8/16/32, uint8/16: every value fits
+        return to_device(a.astype(np.int32))  # a fresh array: the device may share its buffer
+    if a.dtype.kind == "u":
+        a = np.minimum(a, np.asarray(info.max, a.dtype))
+    else:
+        a = np.where(a < info.min, -1, np.minimum(a, info.max))
+    return to_device(a.astype(np.int32))
 
 
 def take_nonnegative(table, i):
@@ -198,7 +227,9 @@ def _chunked_query(method):
     @functools.wraps(method)
     def run(self, *ids, **kwargs):
         chunk = QUERY_CHUNK
-        ids = tuple(native_order(x) for x in ids)  # big-endian numpy ids: jnp refuses them
+        # int32 from here on; floats, bools, strings and masked arrays refused by name (a list
+        # indexed a corner table's array as a tuple, a bool array as a mask, int8 overflowed)
+        ids = tuple(id_arg(x, f"{name}: ids") for x in ids)
         if kwargs or _ONE_PASS:
             return method(self, *ids, **kwargs)
         if len(ids) == 1 and self.takes_table(name, jnp.size(ids[0])):

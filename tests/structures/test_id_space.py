@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import types
 
+import jax.numpy as jnp
+import numpy as np
+
 import pytest
 
 from jaxcds import errors
@@ -68,3 +71,23 @@ def test_check_ids_ragged_and_huge_unsigned():
     with pytest.raises(errors.InvalidIndexError, match=r"vertex id 9223372036854775808 at position \(1,\)"):
         s.check_ids("vertex", np.array([3, 2**63], np.uint64))
     assert s.check_ids("vertex", np.array([3, 4], np.uint64)).tolist() == [3, 4]
+
+
+@pytest.mark.parametrize("kind", ["halfedge", "corner-table", "cds5n", "lr"])
+def test_operators_read_ids_of_any_integer_kind_and_refuse_the_rest(kind):
+    """Lists and tuples, int8 and uint64, big-endian, jax int16: the same answers as int32 ids
+    (a corner table indexed its array with a list as a tuple, int8 overflowed in its offsets);
+    floats, bools (a mask), strings and masked arrays: InvalidIndexError naming the operator."""
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    s = registry.build(kind, icosphere(1))
+    want = np.asarray(s.twin(np.arange(6, dtype=np.int32)))
+    for ids in ([0, 1, 2, 3, 4, 5], tuple(range(6)), np.arange(6, dtype=np.int8),
+                np.arange(6, dtype=np.uint64), np.arange(6, dtype=">i4"), jnp.arange(6, dtype=jnp.int16)):
+        np.testing.assert_array_equal(np.asarray(s.twin(ids)), want)
+    assert int(s.twin(3)) == want[3]
+    for bad in (np.ones(6, bool), np.arange(6.0), jnp.arange(6.0), ["a"],
+                np.ma.array([0, 1], mask=[0, 1])):
+        with pytest.raises(errors.InvalidIndexError, match="twin: ids"):
+            s.twin(bad)
