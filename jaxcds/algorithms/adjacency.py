@@ -9,6 +9,7 @@ import jax.numpy as jnp
 
 from jaxcds import errors
 from jaxcds._args import is_integer
+from jaxcds.structures.base import id_arg
 
 __all__ = ["adjacent", "one_ring", "rotate_until"]
 
@@ -40,11 +41,17 @@ def rotate_until(s, start, stop_fn, max_steps: int):
     return e, hit
 
 
-@jax.jit
 def adjacent(s, u, v):
-    """``Adjacent(u, v)`` (CDS Sec. 1.3): True where ``u`` and ``v`` share an edge. O(deg u)."""
-    u = jnp.asarray(u, jnp.int32)
-    v = jnp.asarray(v, jnp.int32)
+    """``Adjacent(u, v)`` (CDS Sec. 1.3): True where ``u`` and ``v`` share an edge. O(deg u).
+
+    Raises:
+      InvalidIndexError: ``u`` or ``v`` are not integers (floats, bools, strings: a cast would
+        truncate 1.7 to 1); any integer kind and byte order is read as int32."""
+    return _adjacent(s, id_arg(u, "adjacent: u"), id_arg(v, "adjacent: v"))
+
+
+@jax.jit
+def _adjacent(s, u, v):
     if hasattr(s, "adjacent"):
         return s.adjacent(u, v)
     start = s.edge_of_vertex(u)
@@ -65,7 +72,7 @@ def one_ring(s, v, max_degree: int):
         raise errors.ArgumentError(
             f"one_ring: max_degree must be a non-negative integer (the ring's static width), "
             f"got {max_degree!r}")
-    return _one_ring(s, jnp.asarray(v, jnp.int32), int(max_degree))
+    return _one_ring(s, id_arg(v, "one_ring: vertices"), int(max_degree))
 
 
 @functools.partial(jax.jit, static_argnums=2)

@@ -135,7 +135,7 @@ def vertex_normals(s, positions, method: str = "scatter"):
     holes (``s.dummy_vertex_mask()``, the CDS family): a border vertex gets the open mesh's
     normal, a dummy vertex a zero one. Differentiable.
 
-    Integer positions are taken as float32. In float32, coordinates beyond about 1e17 or under
+    Integer, float16 and bfloat16 positions are taken as float32. In float32, coordinates beyond about 1e17 or under
     1e-17 in magnitude overflow or underflow in the face cross products (NaN or zero normals):
     pass :func:`within_range` of them (an exact power-of-two rescaling; normals are scale
     invariant), or float64 positions.
@@ -170,7 +170,9 @@ def _check_positions(s, positions):
     """``positions`` as a floating array of shape ``(num_vertices, 3)`` (a nested list and
     integer coordinates are converted; the gather route's loop needs a float carry)."""
     positions = to_device(positions, copy=True)  # the caller's array: no shared buffer
-    if not jnp.issubdtype(positions.dtype, jnp.floating):
+    if not jnp.issubdtype(positions.dtype, jnp.floating) or jnp.finfo(positions.dtype).bits < 32:
+        # integers, and float16 / bfloat16: their cross products overflow at coordinates of a
+        # few hundred (all-NaN normals at 1,000, found by a sweep)
         positions = positions.astype(jnp.float32)
     if positions.ndim != 2 or positions.shape != (s.num_vertices, 3):
         raise errors.MeshError(

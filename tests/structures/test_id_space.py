@@ -91,3 +91,36 @@ def test_operators_read_ids_of_any_integer_kind_and_refuse_the_rest(kind):
                 np.ma.array([0, 1], mask=[0, 1])):
         with pytest.raises(errors.InvalidIndexError, match="twin: ids"):
             s.twin(bad)
+
+
+def test_adjacent_and_one_ring_check_their_ids_and_read_big_endian():
+    """adjacent and one_ring took ids straight into jit: 0.9 read as 0, and big-endian ids, after
+    a call with native ones of the same shape, were read as native bytes (wrong answers)."""
+    from jaxcds.algorithms import adjacent, one_ring
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    s = registry.build("halfedge", icosphere(1))
+    u = np.array([0, 1], np.int32)
+    v = np.asarray(s.target(s.edge_of_vertex(u)))
+    assert np.asarray(adjacent(s, u, v)).all()
+    assert np.asarray(adjacent(s, u.astype(">i4"), v.astype(">i4"))).all()
+    np.testing.assert_array_equal(np.asarray(one_ring(s, u.astype(">i4"), 8)[0]),
+                                  np.asarray(one_ring(s, u, 8)[0]))
+    with pytest.raises(errors.InvalidIndexError, match="adjacent: u"):
+        adjacent(s, [0.9], [1])
+    with pytest.raises(errors.InvalidIndexError, match="one_ring: vertices"):
+        one_ring(s, np.array([1.9]), 6)
+
+
+def test_half_precision_positions_are_summed_in_float32():
+    from jaxcds.algorithms import vertex_normals
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    mesh = icosphere(2)
+    s = registry.build("halfedge", mesh)
+    p = np.asarray(mesh.vertices * 1000, np.float32)
+    got = np.asarray(vertex_normals(s, p.astype(np.float16)))  # all NaN before (cross products)
+    np.testing.assert_allclose(got, np.asarray(vertex_normals(s, p.astype(np.float16).astype(np.float32))),
+                               atol=1e-6)
