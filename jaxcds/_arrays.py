@@ -31,9 +31,7 @@ def to_device(x, dtype=None, *, copy: bool = False) -> jax.Array:
     if not isinstance(x, np.ndarray) and any(isinstance(leaf, jax.Array)
                                              for leaf in jax.tree_util.tree_leaves(x)):
         return jnp.asarray(x, dtype)  # nested lists of traced values (a list argument under jit)
-    a = np.asarray(x, dtype)
-    if a.dtype.byteorder not in "=|":  # big-endian data (a binary file read as it is): native
-        a = a.astype(a.dtype.newbyteorder("="))  # order first (JAX refuses other orders)
+    a = native_order(np.asarray(x, dtype))  # JAX refuses big-endian data
     dt = jax.dtypes.canonicalize_dtype(a.dtype)
     # np.asarray, not np.ascontiguousarray: that one turns a 0-d array into shape (1,)
     a = np.array(a, dt, order="C", copy=True) if copy else np.asarray(a, dt, order="C")

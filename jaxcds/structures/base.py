@@ -236,11 +236,10 @@ def _chunked_query(method):
             return getattr(self, self.table_queries[name])(ids[0])
         if name not in self.chunked_queries or jax.default_backend() != "cpu":
             return method(self, *ids)
-        xs = [to_device(x, copy=True) for x in ids]  # the caller's ids: no shared buffer
-        shape, size = xs[0].shape, xs[0].size
-        if size < 2 * chunk or any(x.shape != shape for x in xs):
+        shape, size = ids[0].shape, ids[0].size  # device arrays already (id_arg above)
+        if size < 2 * chunk or any(x.shape != shape for x in ids):
             return method(self, *ids)
-        flat = [x.reshape(-1) for x in xs]
+        flat = [x.reshape(-1) for x in ids]
         dtype = jax.eval_shape(lambda: method(self, *(f[:chunk] for f in flat))).dtype
         apart = (WRITE_CHUNK_ANSWERS_APART and name in self.chunk_answers_apart
                  and jnp.issubdtype(dtype, jnp.integer))
