@@ -51,6 +51,11 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._arrays import to_device
 
+try:  # public in jax <= 0.10; imported, not looked up per call, so a move fails at import
+    from jax.core import Tracer as _Tracer
+except ImportError:  # pragma: no cover - newer jax without the alias
+    from jax._src.core import Tracer as _Tracer
+
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
            "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries",
            "by_table", "per_query_routes"]
@@ -99,7 +104,7 @@ def id_arg(x, what: str) -> Int:
     cast truncates 1.7 to 1, a bool array would index as a mask) and integers past int32 read
     as out of range (-1 or int32 max: "absent" where the caller checks) instead of wrapping
     onto a valid id."""
-    if isinstance(x, jax.Array) and (isinstance(x, jax.core.Tracer) or x.dtype.itemsize <= 4):
+    if isinstance(x, jax.Array) and (isinstance(x, _Tracer) or x.dtype.itemsize <= 4):
         if not jnp.issubdtype(x.dtype, jnp.integer):
             raise errors.InvalidIndexError(f"{what} must be integers, got dtype {x.dtype}")
         return x if x.dtype == jnp.int32 else x.astype(jnp.int32)
