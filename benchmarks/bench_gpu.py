@@ -48,6 +48,9 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 
+#: unit normals in float32: sums taken in another order differ by a few 1e-4 on a 5M-vertex
+#: mesh (the face list itself is 2.1e-4 off a float64 reference there, on an H100)
+NORMALS_TOL = 1e-3
 DEFAULT_ORDER = ("halfedge", "corner-table", "cds5n-o1", "cds6n", "lr", "pemb", "cds5n", "cds4n", "lr-bits")
 
 
@@ -137,11 +140,12 @@ def main(argv=None) -> int:
     fl_grad = jax.jit(jax.grad(lambda x, f, w: jnp.sum(face_list_vertex_normals(x, f) * w)))
     t = time_compiled(fl_normals, (pos_d, faces_d), args.repeats)
     fl_n = np.asarray(fl_normals(pos_d, faces_d))
-    err64 = float(np.max(np.abs(fl_n - _reference_normals(m.vertices, m.faces))))
+    ref64 = _reference_normals(m.vertices, m.faces)
+    err64 = float(np.max(np.abs(fl_n - ref64)))
     base = {"normals": t["median_s"]}
     rec.row(what="normals", impl="face-list", items=n, median_s=t["median_s"], min_s=t["min_s"],
             compile_s=t["compile_s"], ns_per_item=1e9 * t["median_s"] / n,
-            max_abs_diff_vs_float64=err64, ok=err64 < 1e-3)
+            max_abs_diff_vs_float64=err64, ok=err64 < NORMALS_TOL)
     t = time_compiled(fl_grad, (pos_d, faces_d, w_d), args.repeats)
     fl_g = np.asarray(fl_grad(pos_d, faces_d, w_d))
     base["grad"] = t["median_s"]
@@ -162,7 +166,7 @@ def main(argv=None) -> int:
             rec.skip(impl=name, reason=f"past --deadline {args.deadline:g} s")
             continue
         try:
-            s, answers = _one_structure(name, m, pos_np, w_np, deg_ref, fl_n, fl_g, base, ops, args,
+            s, answers = _one_structure(name, m, pos_np, w_np, deg_ref, fl_n, ref64, fl_g, base, ops, args,
                                         rec, registry, to_device, time_compiled)
         except Exception as exc:  # one structure failing on a new backend must not hide the rest
             rec.skip(impl=name, reason=f"{type(exc).__name__}: {exc}", trace=traceback.format_exc()[-2000:])
@@ -181,7 +185,7 @@ def main(argv=None) -> int:
     return 0
 
 
-def _one_structure(name, m, pos_np, w_np, deg_ref, fl_n, fl_g, base, ops, args, rec, registry,
+def _one_structure(name, m, pos_np, w_np, deg_ref, fl_n, ref64, fl_g, base, ops, args, rec, registry,
                    to_device, time_compiled):
     import jax.numpy as jnp
 
@@ -214,8 +218,10 @@ def _one_structure(name, m, pos_np, w_np, deg_ref, fl_n, fl_g, base, ops, args, 
                    compile_s=t["compile_s"], ns_per_item=1e9 * t["median_s"] / items)
         if op == "normals":
             row["max_abs_diff_vs_face_list"] = float(np.max(np.abs(got - fl_n[o])))
+            row["max_abs_diff_vs_float64"] = float(np.max(np.abs(got - ref64[o])))
             row["vs_face_list"] = t["median_s"] / base["normals"]
-            row["ok"] = row["max_abs_diff_vs_face_list"] < 1e-4
+            # float32 sums in another order: the face list itself is ~2e-4 off float64 at 5M
+            row["ok"] = row["max_abs_diff_vs_float64"] < NORMALS_TOL
         elif op == "grad":
             scale = float(np.max(np.abs(fl_g)))
             row["max_rel_diff_vs_face_list"] = float(np.max(np.abs(got - fl_g[o]))) / scale
@@ -251,7 +257,7 @@ def _cpu_check(name, s, answers, ops, cpu, rec):
             got = np.asarray(ops[op](*on_cpu))
         if op == "normals":
             diff = float(np.max(np.abs(got - want)))
-            ok = diff < 1e-5
+            ok = diff < NORMALS_TOL  # float32 sums in another order (GPU scatter-adds)
         else:
             diff = int(np.count_nonzero(got != want))
             ok = diff == 0

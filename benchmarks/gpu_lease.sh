@@ -12,7 +12,8 @@ set -u
 OUT=${OUT:-benchmarks/out/gpu}
 V=${V:-5000000}; Q=${Q:-10000000}; MESHES=${MESHES:-1000}
 T1=${T1:-330}; DEADLINE=${DEADLINE:-250}; T2=${T2:-200}
-PY=${PY:-python3}
+PY=${PY:-python3}; STRUCTURES=${STRUCTURES:-halfedge,corner-table,cds5n-o1,cds6n,lr,pemb,cds5n,cds4n,lr-bits}
+BATCH=${BATCH:-1}
 mkdir -p "$OUT"
 export PYTHONPATH=$PWD PYTHONUNBUFFERED=1
 {
@@ -23,9 +24,10 @@ export PYTHONPATH=$PWD PYTHONUNBUFFERED=1
 cat "$OUT/env.txt"
 t0=$(date +%s)
 timeout "$T1" $PY benchmarks/bench_gpu.py --vertices "$V" --queries "$Q" --deadline "$DEADLINE" \
-  --repeats 5 --out "$OUT" 2> "$OUT/bench_gpu.log"
+  --structures "$STRUCTURES" --repeats 5 --out "$OUT" 2> "$OUT/bench_gpu.log"
 echo "bench_gpu rc=$? in $(( $(date +%s) - t0 )) s"
 grep -E "Error|skipped" "$OUT/bench_gpu.log" | cut -c1-300 | head -20
+[ "$BATCH" = 1 ] || exit 0
 t0=$(date +%s)
 timeout "$T2" $PY benchmarks/bench_batch.py --meshes "$MESHES" --no-check \
   --structures cds5n-o1,lr,pemb,cds6n,cds5n,cds4n,lr-bits --loop-meshes 5 --queries 1000000 \

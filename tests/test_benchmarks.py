@@ -402,3 +402,27 @@ def test_race_queries_pairs_are_edges_on_even_positions():
     u, v = race_queries.random_pairs(s, np.random.default_rng(0), 64)
     hit = np.asarray(s.adjacent(u, v))  # (checked against the half-edge in tests/structures)
     assert u.dtype == v.dtype == np.int32 and hit[::2].all() and not hit[1::2].all()
+
+
+def test_bench_gpu_checks_every_op_against_the_cpu_backend(tmp_path, capsys):
+    """bench_gpu.py (the leased-GPU run) on CPU, tiny: every op timed, normals and degrees
+    judged, each op re-asked on the CPU backend, the JSON written as rows come; a structure
+    past the deadline is listed as skipped, not dropped."""
+    from benchmarks import bench_gpu
+
+    assert bench_gpu.main(["--vertices", "300", "--queries", "2000", "--check-queries", "500",
+                           "--repeats", "1", "--structures", "cds5n-o1,halfedge",
+                           "--out", str(tmp_path)]) == 0
+    doc = json.loads((tmp_path / "bench_gpu.json").read_text())
+    ops = {(r.get("impl"), r["what"]) for r in doc["rows"]}
+    for impl in ("cds5n-o1", "halfedge"):
+        for op in ("normals", "grad", "degrees", "target", "face_left", "adjacent", "cpu-check"):
+            assert (impl, op) in ops
+    judged = [r for r in doc["rows"] if "ok" in r]
+    assert judged and all(r["ok"] for r in judged)
+    assert sum(r["what"] == "cpu-check" for r in doc["rows"]) == 10
+    assert "CPU-backend checks: 10 run, 0 failed" in capsys.readouterr().out
+    assert bench_gpu.main(["--vertices", "100", "--queries", "100", "--repeats", "1",
+                           "--structures", "halfedge", "--deadline", "0", "--out", str(tmp_path)]) == 0
+    doc = json.loads((tmp_path / "bench_gpu.json").read_text())
+    assert [s["impl"] for s in doc["skipped"]] == ["halfedge"]
