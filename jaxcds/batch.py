@@ -46,7 +46,7 @@ So a mesh's dart range is split into a *primary* block ``[0, P_i)`` (a structure
 dart, to ``sum(P) + extra_dart_offsets[i] + (d - P_i)``. For a closed mesh the extra block is
 empty and a dart id is simply ``dart_offsets[i] + d``.
 
-Normals of a batch of several chunks are summed chunk by chunk (:meth:`PackedBatch.normal_sums`:
+On CPU, normals of a batch of several chunks are summed chunk by chunk (:meth:`PackedBatch.normal_sums`:
 a loop over groups of whole meshes whose temporaries stay in cache; the plan, :func:`chunk_plan`,
 is made here on the host), the rows still derived once by the union structure.
 
@@ -71,7 +71,7 @@ from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure, id_arg
 
 __all__ = ["PackedBatch", "pack", "concatenate", "shift_ids", "shift_darts", "OPERATOR_KINDS",
-           "pack_positions", "chunk_plan", "NORMALS_CHUNK_VERTICES"]
+           "pack_positions", "chunk_plan", "chunks_pay_off", "NORMALS_CHUNK_VERTICES"]
 
 #: operator -> (kind of its argument, kind of its result); kinds: dart, vertex, face, bool
 OPERATOR_KINDS = {
@@ -172,9 +172,15 @@ class PackedBatch(MeshStructure):
         chunk's temporaries fit in cache. The face rows are still derived once over the whole
         union (the structure's own route); only their sums are chunked. Measured in
         ``benchmarks/RESULTS.md`` ("stop 39"). Meshes never share a vertex, so a chunk's sums
-        are final. Differentiable (the loop has a static trip count)."""
+        are final. Differentiable (the loop has a static trip count).
+
+        On a GPU (the platform the call is traced for, :func:`chunks_pay_off`) the whole-union
+        route runs: the loop's trips run one after the other there, each a few small kernels
+        and a predicate read back by the host."""
         if self.chunk_starts is None or not _chunkable(self.structure):
             return None  # a sharded union (jaxcds.sharding) takes the partitioned whole route
+        if not chunks_pay_off():
+            return None
         return _chunked_sums(self, positions)
 
     # ------------------------------------------------------------------ mesh of each id
@@ -590,6 +596,22 @@ def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBat
 #: RESULTS.md "stop 39"). Rows interleaved inside a chunk (as the whole-union route does)
 #: cost more than they saved: cds6n 98 -> 129.
 NORMALS_CHUNK_VERTICES = 1 << 17
+
+
+def chunks_pay_off() -> bool:
+    """Whether the chunked normal sums run: on CPU only, the platform a call is traced for being
+    ``jax.config.jax_default_device`` (a device or a platform name, as ``jax.default_device``
+    sets it) or else JAX's default backend.
+
+    Why: the chunks exist for a CPU's cache. On an H100 (RESULTS.md, "GPU: an H100, stop 43"),
+    1,000 random meshes (2.8M vertices), chunked: the packed corner table 2.18x the face-list
+    batch, the half-edge 2.33x, while the same structures unchunked on one 5M-vertex mesh read
+    1.12x and 1.01x. (Arrays committed to another device than the default one are traced for
+    that device; they get the default platform's route here: the answers are the same, only
+    the speed differs.)"""
+    d = jax.config.jax_default_device
+    platform = d if isinstance(d, str) else getattr(d, "platform", None)
+    return (platform or jax.default_backend()) == "cpu"
 
 
 def _row_blocks(s, num_chunks: int = 1):

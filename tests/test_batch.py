@@ -743,6 +743,25 @@ def test_chunked_normals_equal_whole_union_and_per_mesh(name, monkeypatch):
     assert np.any(g != 0)
 
 
+def test_chunked_sums_run_for_cpu_only(monkeypatch):
+    """The chunk loop is for a CPU cache: traced for a GPU the whole-union route runs (its trips
+    run one after the other there; measured on an H100, RESULTS.md)."""
+    monkeypatch.setattr(B, "NORMALS_CHUNK_VERTICES", 40)
+    ms = [random_planar_triangulation(n, seed=s) for s, n in enumerate((30, 25, 44))]
+    b = B.pack(ms, "corner-table")
+    pos = B.pack_positions(b, ms)
+    assert B.chunks_pay_off() and b.normal_sums(pos) is not None
+    with jax.default_device(jax.devices("cpu")[0]):
+        assert B.chunks_pay_off()
+    for platform in ("gpu", "cuda", "rocm", "tpu"):
+        monkeypatch.setattr(jax, "default_backend", lambda: platform)
+        assert not B.chunks_pay_off() and b.normal_sums(pos) is None
+        with jax.default_device(jax.devices("cpu")[0]):  # a CPU device named: chunks again
+            assert B.chunks_pay_off()
+    # normal_sums None: _scatter_sums takes the whole-union route, the one a batch without a
+    # chunk plan takes (equal to the chunked normals: test_chunked_normals_equal_whole_union_and_per_mesh)
+
+
 def test_sharded_packed_batch_with_a_chunk_plan(monkeypatch):
     """A sharded union has other row blocks than the plan's: its normals take the partitioned
     whole route and equal the unsharded (chunked) ones."""
