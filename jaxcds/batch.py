@@ -56,7 +56,6 @@ mesh ``i`` is ``num_faces`` in the batch, and back.
 
 from __future__ import annotations
 
-import functools
 from typing import Any, Optional, Sequence
 
 import jax
@@ -67,7 +66,7 @@ from jaxcds import errors
 from jaxcds._arrays import to_device
 from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, find_defects, load_mesh, validate
+from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure, id_arg
 
 __all__ = ["PackedBatch", "pack", "concatenate", "shift_ids", "shift_darts", "OPERATOR_KINDS",
