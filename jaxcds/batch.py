@@ -238,9 +238,10 @@ class PackedBatch(MeshStructure):
         """Local id in mesh ``mesh`` of global id ``g``; the global sentinel maps to the mesh's
         own count (its one past the end). ``mesh`` must own ``g`` (see :meth:`mesh_of`); a mesh
         index outside the batch reads as the nearest mesh (:meth:`query` sends only the
-        sentinel then)."""
-        mesh = jnp.clip(jnp.asarray(mesh, jnp.int32), 0, max(self.num_meshes - 1, 0))
-        g = jnp.asarray(g, jnp.int32)
+        sentinel then). Broadcasts; floats, strings and shapes that do not broadcast are refused
+        (:class:`~jaxcds.errors.InvalidIndexError`, ``ArgumentError``: a cast read 1.9 as 1)."""
+        mesh, g = _id_pair(mesh, g, f"to_local({kind!r})")
+        mesh = jnp.clip(mesh, 0, max(self.num_meshes - 1, 0))
         if kind == "dart" and self.num_extra_darts == 0:
             return jnp.where(g >= self.num_darts, self.n_dart[mesh], g - self.dart_offsets[mesh])
         if kind == "dart":

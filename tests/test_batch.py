@@ -630,6 +630,15 @@ def test_host_ids_that_would_wrap_or_truncate_are_not_answered_as_another_id():
             b.query("target", bad, 0)
     with pytest.raises(errors.ArgumentError, match=r"shape \(3,\).*shape \(2,\) do not broadcast"):
         b.query("target", np.array([0, 1, 0]), np.array([0, 1]))
+    # to_local too (sweep 13: [1.9] was read as global vertex 1; non-broadcasting shapes raised
+    # numpy's own error); a global id past int32 reads as the sentinel
+    assert b.to_local("vertex", 1, [b.vertex_offsets[1] + 2]).tolist() == [2]
+    assert int(b.to_local("vertex", 1, big)) == int(b.n_vertex[1])
+    for bad in ([1.9], True, "a"):
+        with pytest.raises(errors.InvalidIndexError, match=r"to_local\('vertex'\).*must be integers"):
+            b.to_local("vertex", 0, bad)
+    with pytest.raises(errors.ArgumentError, match="do not broadcast"):
+        b.to_local("face", np.array([0, 1, 0]), np.array([0, 1]))
     # int32 ids, eager and under jit, are answered as before
     d = b.query("edge_of_vertex", 1, 3)
     assert int(b.query("origin", 1, d)) == 3

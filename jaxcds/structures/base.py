@@ -151,8 +151,9 @@ QUERY_CHUNK = 1 << 16
 #: the fused write, ``benchmarks/race_chunked_queries.py``)
 WRITE_CHUNK_ANSWERS_APART = True
 
-#: the batched queries that run chunk by chunk: one or two id arrays in, one array out
-CHUNKED_QUERIES = ("origin", "source", "target", "twin", "next", "prev", "face", "face_left",
+#: the batched queries whose ids are checked (:func:`id_arg`) and which may run chunk by chunk:
+#: one or two id arrays in, one array out (``dart_valid`` is never chunked: no class names it)
+CHUNKED_QUERIES = ("dart_valid", "origin", "source", "target", "twin", "next", "prev", "face", "face_left",
                    "face_right", "edge_of_vertex", "edge_of_face", "left_front", "left_back",
                    "right_front", "right_back", "ccw_vertex_edge", "cw_vertex_edge",
                    "corner_opposite", "corner_swing", "adjacent")

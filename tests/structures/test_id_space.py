@@ -93,6 +93,22 @@ def test_operators_read_ids_of_any_integer_kind_and_refuse_the_rest(kind):
             s.twin(bad)
 
 
+@pytest.mark.parametrize("kind", ["halfedge", "corner-table", "cds5n-o1", "lr", "pemb"])
+def test_dart_valid_checks_its_ids(kind):
+    """dart_valid was left out of the checked operators: 3.5 was read as dart 3 (True). Ids past
+    int32 read as absent (False), never wrapped onto a valid dart."""
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    s = registry.build(kind, icosphere(1))
+    assert np.asarray(s.dart_valid(s.all_darts())).all()
+    assert not np.asarray(s.dart_valid(np.array([2**32 + 3, -(2**40), s.num_darts], np.int64))).any()
+    np.testing.assert_array_equal(np.asarray(s.dart_valid([0, 1])), np.asarray(s.dart_valid(np.arange(2))))
+    for bad in (np.array([3.5]), 3.0, np.ones(2, bool), "3"):
+        with pytest.raises(errors.InvalidIndexError, match="dart_valid: ids"):
+            s.dart_valid(bad)
+
+
 def test_adjacent_and_one_ring_check_their_ids_and_read_big_endian():
     """adjacent and one_ring took ids straight into jit: 0.9 read as 0, and big-endian ids, after
     a call with native ones of the same shape, were read as native bytes (wrong answers)."""
