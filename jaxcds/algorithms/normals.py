@@ -109,7 +109,22 @@ def within_range(positions):
 
     Not applied inside :func:`vertex_normals`: the extra reduction in the same program cost the
     CDS normals 5-20% at 200K vertices (races of 2026-12-01), for inputs that float32 cannot
-    hold well anyway; pass such positions through this function, or in float64."""
+    hold well anyway; pass such positions through this function, or in float64.
+
+    Integer, float16 and bfloat16 positions come back as float32 (as :func:`vertex_normals`
+    takes them), host arrays in the dtype JAX computes in (float64 is float32 unless x64 is
+    on); lists and big-endian arrays are read by value.
+
+    Raises:
+      MeshError: ``positions`` are not real numbers."""
+    if not isinstance(positions, jax.Array):
+        positions = np.asarray(positions)
+        refuse_non_real(positions, "within_range: positions", bools=True)
+        # the dtype JAX computes in (float64 is float32 unless x64 is on): its range decides
+        positions = to_device(positions)
+    refuse_non_real(positions, "within_range: positions", bools=True)
+    if not jnp.issubdtype(positions.dtype, jnp.floating) or jnp.finfo(positions.dtype).bits < 32:
+        positions = positions.astype(jnp.float32)
     fi = jnp.finfo(positions.dtype)
     hi, lo = float(np.sqrt(fi.max)) / 256, float(np.sqrt(fi.tiny)) * 256
     m = jax.lax.stop_gradient(jnp.max(jnp.abs(positions)))
@@ -120,11 +135,34 @@ def within_range(positions):
     return positions * jax.lax.stop_gradient(scale).astype(positions.dtype)
 
 
-@jax.jit
 def face_list_vertex_normals(positions, faces):
-    """The plain-JAX baseline on an ``(F, 3)`` face list (the peer in every benchmark)."""
+    """The plain-JAX baseline on an ``(F, 3)`` face list (the peer in every benchmark):
+    ``(V, 3)`` unit area-weighted normals of ``positions`` ``(V, 3)``. Jitted; differentiable.
+
+    Host arrays of either byte order are read by value (a big-endian array, after a native call
+    of the same shape, was read by jit's cache as native bytes: wrong normals).
+
+    Raises:
+      MeshError: ``positions`` are not real numbers.
+      InvalidIndexError: ``faces`` are not integers (a float index would be truncated).
+    """
+    # nested lists as arrays (jit would take a list for a pytree of scalars)
+    positions = positions if isinstance(positions, jax.Array) else np.asarray(positions)
+    faces = faces if isinstance(faces, jax.Array) else np.asarray(faces)
+    refuse_non_real(positions, "face_list_vertex_normals: positions", bools=True)
+    if not jnp.issubdtype(faces.dtype, jnp.integer):
+        raise errors.InvalidIndexError(
+            f"face_list_vertex_normals: faces must be integers, got dtype {faces.dtype}")
+    return _face_list_normals(native_order(positions), native_order(faces))
+
+
+@jax.jit
+def _face_list_normals(positions, faces):
     fn = face_normals(positions, faces)
     return normalize(corner_sums(fn, faces, positions.shape[0]))
+
+
+face_list_vertex_normals.__wrapped__ = _face_list_normals.__wrapped__  # the unjitted body
 
 
 def vertex_normals(s, positions, method: str = "scatter"):

@@ -209,6 +209,30 @@ def test_normals_and_gradients_at_extreme_coordinate_scales(scale):
     np.testing.assert_allclose(np.asarray(g) * scale, np.asarray(g1), rtol=1e-4, atol=1e-5)
 
 
+def test_face_list_normals_and_within_range_read_host_arrays_by_value():
+    """Sweep 13: the jitted face list read big-endian arrays, after a native call of the same
+    shape, as native bytes (wrong normals); float faces were truncated. within_range raised
+    numpy/jax errors on integer positions and lists, and judged float64 host positions by
+    float64's range though JAX computes them in float32 (NaN normals at 1e20)."""
+    from jaxcds.algorithms.normals import within_range
+
+    v, f = octahedron()
+    p, f = np.asarray(v, np.float32) + 0.25, np.asarray(f, np.int32)
+    want = np.asarray(face_list_vertex_normals(p, f))
+    np.testing.assert_array_equal(np.asarray(face_list_vertex_normals(p.astype(">f4"), f.astype(">i4"))), want)
+    np.testing.assert_array_equal(np.asarray(face_list_vertex_normals(p.tolist(), f.tolist())), want)
+    with pytest.raises(errors.InvalidIndexError, match="faces must be integers, got dtype float64"):
+        face_list_vertex_normals(p, f.astype(np.float64))
+    with pytest.raises(errors.MeshError, match="positions must be real numbers"):
+        face_list_vertex_normals(p.astype(complex), f)
+    big = p.astype(np.float64) * 1e20
+    for q in (big, big.astype(">f8"), big.tolist()):
+        np.testing.assert_allclose(np.asarray(face_list_vertex_normals(within_range(q), f)), want, atol=1e-6)
+    assert within_range(np.arange(6, dtype=np.int32).reshape(2, 3)).dtype == jnp.float32
+    with pytest.raises(errors.MeshError, match="within_range: positions must be real numbers"):
+        within_range(np.array([["a", "b", "c"]]))
+
+
 @pytest.mark.parametrize("structure", CDS_FAMILY)
 def test_cds_gather_normals_on_vertices_of_high_degree(structure):
     """The gather route asked Thm 2's O(d) Target inside its turn around every vertex: O(n d^2)
