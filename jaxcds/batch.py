@@ -303,7 +303,15 @@ class PackedBatch(MeshStructure):
     def per_mesh_sum(self, values, kind: str = "vertex"):
         """``(num_meshes, ...)`` sums of per-vertex (or per-face) ``values`` over each mesh:
         the input meshes' sums, the rows of a structure's dummy vertices (holes closed,
-        :meth:`dummy_vertex_mask`) and of their fans' faces left out."""
+        :meth:`dummy_vertex_mask`) and of their fans' faces left out.
+
+        Booleans and integers narrower than 32 bits are summed as int32 (uint8 sums wrapped at
+        256); host arrays of either byte order and nested lists are read by value.
+
+        Raises:
+          ArgumentError: not one row per vertex (face); not real numbers; a masked array (fill
+            it first: its mask would be ignored)."""
+        values = _values_arg(values, "per_mesh_sum")
         self._check_length("per_mesh_sum", values, kind)
         return self._sum_own(values, kind, self._dummy_rows(kind))
 
@@ -338,6 +346,7 @@ class PackedBatch(MeshStructure):
     def per_mesh_mean(self, values, kind: str = "vertex"):
         """Per-mesh means (0 for an empty mesh): the input meshes' (a structure's dummy vertices
         and fan faces neither summed nor counted, as in :meth:`per_mesh_sum`)."""
+        values = _values_arg(values, "per_mesh_mean")
         self._check_length("per_mesh_mean", values, kind)
         dummy = self._dummy_rows(kind)  # once: for faces it reads the union's face list
         s = self._sum_own(values, kind, dummy)
@@ -395,6 +404,26 @@ for _op in _FORWARDED:
 
 
 _id_arg = id_arg  # kept for the callers below (jaxcds.structures.base.id_arg)
+
+
+def _values_arg(values, what: str):
+    """Per-row ``values`` for the per-mesh reductions: a jax array as it is (narrow integers and
+    booleans widened to int32), host values checked, in native byte order, on the device."""
+    if isinstance(values, np.ma.MaskedArray):
+        raise errors.ArgumentError(f"PackedBatch.{what}: a masked array (its mask would be ignored); "
+                                   "pass values.filled(0) or the kept rows' values")
+    if not isinstance(values, jax.Array):
+        try:
+            values = np.asarray(values)
+        except (TypeError, ValueError) as exc:  # ragged nested lists
+            raise errors.ArgumentError(f"PackedBatch.{what}: values are not an array of numbers: {exc}") from None
+    dtype = values.dtype
+    if not (jnp.issubdtype(dtype, jnp.floating) or jnp.issubdtype(dtype, jnp.integer)
+            or jnp.issubdtype(dtype, jnp.bool_)):
+        raise errors.ArgumentError(f"PackedBatch.{what}: values must be real numbers, got dtype {dtype}")
+    if jnp.issubdtype(dtype, jnp.bool_) or (jnp.issubdtype(dtype, jnp.integer) and dtype.itemsize < 4):
+        return to_device(values, jnp.int32)
+    return to_device(values)  # native byte order: JAX refuses big-endian data
 
 
 def _id_pair(mesh, local, what: str):

@@ -210,6 +210,25 @@ def test_per_mesh_reductions():
     np.testing.assert_array_equal(area2, [m.num_faces for m in ms])
 
 
+def test_per_mesh_reductions_read_host_values_by_value():
+    """Sweep 13: big-endian values raised jax's TypeError, uint8 sums wrapped at 256, bools and
+    lists and masked arrays were untyped failures or silently unmasked."""
+    ms = closed_meshes()
+    b = B.pack(ms, "corner-table")
+    nv = np.array([m.num_vertices for m in ms])
+    v = np.arange(b.num_vertices, dtype=np.float32)
+    want = np.asarray(b.per_mesh_sum(v))
+    np.testing.assert_array_equal(np.asarray(b.per_mesh_sum(v.astype(">f4"))), want)
+    np.testing.assert_array_equal(np.asarray(b.per_mesh_sum(v.tolist())), want)
+    np.testing.assert_allclose(np.asarray(b.per_mesh_mean(v.astype(">f8"))), want / nv, rtol=1e-6)
+    np.testing.assert_array_equal(np.asarray(b.per_mesh_sum(np.full(b.num_vertices, 200, np.uint8))), 200 * nv)
+    np.testing.assert_array_equal(np.asarray(b.per_mesh_sum(np.ones(b.num_vertices, bool))), nv)
+    with pytest.raises(errors.ArgumentError, match="per_mesh_sum: a masked array"):
+        b.per_mesh_sum(np.ma.array(v, mask=v > 3))
+    with pytest.raises(errors.ArgumentError, match="per_mesh_mean: values must be real numbers"):
+        b.per_mesh_mean(v.astype(str))
+
+
 def test_batch_helpers_refuse_bad_arguments_by_name():
     """An unknown operator or id kind, and per-vertex / per-face arrays of the wrong length, are
     ArgumentErrors naming the call (a segment sum dropped or misassigned rows silently)."""
