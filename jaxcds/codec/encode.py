@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
-from jaxcds.codec.words import Words, num_bits, pack
+from jaxcds.codec.words import MAX_VERTICES, Words, num_bits, pack
 
 __all__ = ["encode_wood", "encode_schnyder", "encode_faces", "dart_twins"]
 
@@ -436,14 +436,41 @@ def encode_faces(faces: np.ndarray, num_vertices: int, *, mixed: bool = True, ma
     writes the packed words; the colour labels of a full :class:`SchnyderWood` are never built
     (the encoder reads the local Schnyder rule by position). The words equal
     ``encode_schnyder(schnyder_wood(faces, n, ...))``. ``timings``, if given, receives
-    ``wood_s`` and ``words_s``. Returns ``(words, order)`` as :func:`encode_wood`."""
+    ``wood_s`` and ``words_s``. Returns ``(words, order)`` as :func:`encode_wood`.
+
+    The arguments are checked before anything sized by ``num_vertices`` is allocated:
+    :class:`~jaxcds.errors.ArgumentError` for a ``num_vertices`` that is not an integer,
+    :class:`~jaxcds.errors.UnsupportedTopologyError` for one outside ``[4, MAX_VERTICES]`` or
+    not matching ``2n - 4`` faces, :class:`~jaxcds.errors.InvalidIndexError` for faces that are
+    not an integer ``(F, 3)`` array (floats are refused, not truncated) or out of ``[0, n)``."""
     import time
 
+    from jaxcds._args import is_integer
     from jaxcds.construct.schnyder import schnyder_out
+    from jaxcds.structures.base import integer_array
 
+    if not is_integer(num_vertices):  # int() truncated 30.5 to 30
+        raise errors.ArgumentError(f"encode_faces: num_vertices must be an integer, got {num_vertices!r}")
     n = int(num_vertices)
     if n < 4:
         raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
+    if n > MAX_VERTICES:  # checked before the 6n + 16 scratch below (2**40 raised MemoryError)
+        raise errors.UnsupportedTopologyError(
+            f"encode_faces: num_vertices {n:,} is past the {MAX_VERTICES:,} vertices the 4n-bit codec "
+            "holds (int32 vertex ids)")
+    faces = integer_array(faces, "encode_faces: face indices")  # float faces were truncated
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise errors.InvalidIndexError(f"encode_faces: faces must be (F, 3), got shape {faces.shape}")
+    if faces.shape[0] != 2 * n - 4:  # schnyder_out names the genus, before allocating anything
+        schnyder_out(faces, n, root_face=root_face, maximal=maximal)
+        raise errors.UnsupportedTopologyError(  # not reached
+            f"encode_faces: num_vertices = {n:,} needs 2n - 4 = {2 * n - 4:,} faces, got {faces.shape[0]:,}")
+    if not np.can_cast(faces.dtype, np.int32):  # int64 / uint ids would wrap in the int32 cast
+        bad = np.nonzero((faces < 0) | (faces >= n))
+        if bad[0].size:
+            f, k = int(bad[0][0]), int(bad[1][0])
+            raise errors.InvalidIndexError(f"encode_faces: face {f} refers to vertex {int(faces[f, k])}, "
+                                           f"outside [0, {n})")
     t0 = time.perf_counter()
     work = np.empty(6 * n + 16, dtype=np.int32)  # one scratch for rotations, conquest and words
     blk = np.empty((n, 3), dtype=np.int32)       # red-children blocks + black in-degrees, from the conquest

@@ -40,7 +40,7 @@ from typing import Optional
 import numpy as np
 
 from jaxcds import errors
-from jaxcds.codec.words import Words, num_bits
+from jaxcds.codec.words import MAX_VERTICES, Words, num_bits
 
 __all__ = ["MAGIC", "VERSION", "HEADER_SIZE", "CdsContents", "pack_cds", "unpack_cds", "read_header",
            "atomic_write_bytes", "check_writable", "FLAG_MIXED", "FLAG_GEOMETRY", "FLAG_ORDER", "FLAG_DUMMY"]
@@ -51,7 +51,6 @@ FLAG_MIXED, FLAG_GEOMETRY, FLAG_ORDER, FLAG_DUMMY = 1, 2, 4, 8
 _KNOWN = FLAG_MIXED | FLAG_GEOMETRY | FLAG_ORDER | FLAG_DUMMY
 _HEAD = struct.Struct("<8sHHQQI")  # magic, version, flags, n, bits, reserved  (32 bytes)
 HEADER_SIZE = _HEAD.size + 4
-MAX_VERTICES = 2**31 - 1
 
 
 @dataclasses.dataclass(frozen=True)

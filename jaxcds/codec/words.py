@@ -29,6 +29,7 @@ from jaxcds import errors
 
 __all__ = [
     "Words",
+    "MAX_VERTICES",
     "num_bits",
     "pack",
     "unpack",
@@ -39,6 +40,11 @@ __all__ = [
     "to_mixed",
     "to_separate",
 ]
+
+
+#: the most vertices a word (and a ``.cds`` file) can describe: vertex ids are int32 everywhere in
+#: the codec (faces, rotations, the Thm 2 table) and ``n`` itself is the "absent" sentinel
+MAX_VERTICES = 2**31 - 1
 
 
 def num_bits(n: int) -> int:
@@ -56,6 +62,10 @@ class Words:
       bits: packed ``uint8`` buffer (MSB first) of at least ``4n - 3`` bits.
       mixed: ``False``: red word (``2n`` bits) then black word (``2n - 3`` bits);
         ``True``: the streamable mixed word of Sec. 3.3.
+
+    The constructor raises :class:`~jaxcds.errors.EncodingError` for a ``num_vertices`` that is
+    not an integer in ``[1, MAX_VERTICES]`` and for ``bits`` that are not a 1-d ``uint8`` array
+    (the buffer's length is checked by the decoder).
     """
 
     num_vertices: int
@@ -68,6 +78,20 @@ class Words:
         if not is_integer(self.num_vertices):  # 20.0 raised TypeError deep in the decoder
             raise errors.EncodingError(f"Words: num_vertices must be an integer, got "
                                        f"{self.num_vertices!r}")
+        if not 1 <= self.num_vertices <= MAX_VERTICES:  # 4n - 3 bits: n = 0 has a negative length
+            raise errors.EncodingError(f"Words: num_vertices {int(self.num_vertices)} out of range "
+                                       f"[1, {MAX_VERTICES}]")
+        # a 2-d buffer raised numpy's ValueError in the decoder, a wider dtype was cut to bytes
+        try:
+            a = np.asarray(self.bits)
+        except ValueError as exc:  # ragged nested lists
+            raise errors.EncodingError(f"Words: bits must be a 1-d uint8 array of packed bytes, got "
+                                       f"{type(self.bits).__name__} ({exc})") from None
+        if a.ndim != 1 or a.dtype != np.uint8:
+            raise errors.EncodingError(
+                f"Words: bits must be a 1-d uint8 array of packed bytes, shape (ceil((4n - 3) / 8),) "
+                f"= ({(num_bits(self.num_vertices) + 7) // 8},) for n = {int(self.num_vertices)}; got "
+                f"dtype {a.dtype}, shape {a.shape} (pack 0/1 bits with jaxcds.codec.words.pack)")
 
     @property
     def num_bits(self) -> int:

@@ -70,3 +70,33 @@ def test_bad_indices_and_open_fans_are_typed_errors():
     f[3] = f[3, ::-1]  # one face flipped: its vertices' fans no longer close
     with pytest.raises(errors.UnsupportedTopologyError):
         encode_faces(f, 30)
+
+
+def test_giant_vertex_count_is_refused_before_allocating():
+    """Sweep: encode_faces(faces, 2**40) raised MemoryError (a 6n + 16 scratch was allocated
+    before any check); the codec's vertex ids are int32, so at most 2**31 - 1 vertices."""
+    f = random_planar_triangulation(30, seed=1).faces
+    for n in (2**40, 2**31):
+        with pytest.raises(errors.UnsupportedTopologyError, match=f"num_vertices {n:,} is past the 2,147,483,647"):
+            encode_faces(f, n)
+    # representable, but not the faces' vertex count: refused before the scratch is allocated
+    with pytest.raises(errors.UnsupportedTopologyError, match="F = 2n - 4 faces; got n = 1073741829"):
+        encode_faces(f, 2**30 + 5)
+    with pytest.raises(errors.ArgumentError, match="num_vertices must be an integer, got 30.0"):
+        encode_faces(f, 30.0)
+
+
+def test_float_faces_are_refused_not_truncated():
+    """Sweep: float faces (faces + 0.5, even integral floats) were cast to int32 and encoded."""
+    m = random_planar_triangulation(30, seed=1)
+    for f in (m.faces.astype(float) + 0.5, m.faces.astype(float), m.faces.astype(np.float32)):
+        with pytest.raises(errors.InvalidIndexError, match=f"face indices must be integers, got dtype {f.dtype}"):
+            encode_faces(f, 30)
+    with pytest.raises(errors.InvalidIndexError, match=r"faces must be \(F, 3\), got shape \(56, 2\)"):
+        encode_faces(m.faces[:, :2], 30)
+    # int64 ids past int32 would wrap onto valid vertices in the cast
+    with pytest.raises(errors.InvalidIndexError, match=r"face 0 refers to vertex 4294967\d+, outside \[0, 30\)"):
+        encode_faces(m.faces.astype(np.int64) + 2**32, 30)
+    ref = encode_faces(m.faces, 30)[0]
+    for f in (m.faces.astype(np.int64), m.faces.astype(np.uint16), m.faces.tolist()):
+        assert encode_faces(f, 30)[0] == ref

@@ -66,3 +66,23 @@ def test_invalid_words_raise_with_offsets(red, black, msg):
     with pytest.raises(errors.EncodingError, match=msg) as exc:
         decode_faces(w)
     assert "bit" in str(exc.value) or "vertex" in str(exc.value)
+
+
+def test_words_with_a_misshapen_buffer_are_refused():
+    """Sweep: decode(Words(n, bits.reshape(1, -1))) raised numpy's ValueError; an int64 or
+    float buffer was cut to bytes; n = -5 or 2**40 reached the decoder."""
+    from jaxcds.codec import decode
+
+    w = fig9()
+    with pytest.raises(errors.EncodingError, match=r"bits must be a 1-d uint8 array .* = \(5,\) for n = 10; "
+                                                   r"got dtype uint8, shape \(1, 5\)"):
+        decode(W.Words(10, w.bits.reshape(1, -1)))
+    for dtype in (np.int64, np.float64):
+        with pytest.raises(errors.EncodingError, match=f"got dtype {np.dtype(dtype)}, shape \\(5,\\)"):
+            W.Words(10, w.bits.astype(dtype))
+    for n in (-5, 0, 2**31, 2**40):
+        with pytest.raises(errors.EncodingError, match=f"num_vertices {n} out of range \\[1, 2147483647\\]"):
+            W.Words(n, w.bits)
+    with pytest.raises(errors.EncodingError, match="bits must be a 1-d uint8 array of packed bytes, got list"):
+        W.Words(10, [[1], [1, 2]])
+    assert decode(W.Words(10, list(w.bits))).shape == (16, 3)
