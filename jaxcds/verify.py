@@ -121,8 +121,17 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
     of ``mesh`` (the mesh the structure was built from, dummy vertices included; an open mesh
     given with a CDS that closed its holes is closed here the same way).
 
+    ``mesh`` must be a :class:`~jaxcds.mesh.TriMesh` (``(vertices, faces)`` arrays or a path:
+    :func:`jaxcds.mesh.load_mesh` first, as the builder was given).
+
     Raises:
-      ArgumentError: the structure and the mesh do not have the same number of vertices."""
+      ArgumentError: ``mesh`` is not a :class:`~jaxcds.mesh.TriMesh`, or the structure and the
+        mesh do not have the same number of vertices."""
+    if not isinstance(mesh, TriMesh):
+        raise errors.ArgumentError(
+            f"verify: mesh must be a jaxcds.mesh.TriMesh (the mesh the structure was built "
+            f"from), got {type(mesh).__name__}; load (vertices, faces) arrays or a file with "
+            f"jaxcds.mesh.load_mesh")
     s = structure
     if s.num_vertices != mesh.num_vertices and s.dummy_vertex_mask() is not None and reference is None:
         from jaxcds.mesh import close_boundaries

@@ -82,6 +82,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import refuse_non_real
 from jaxcds._arrays import to_device
 
 __all__ = ["PolyllaMesh", "polylla", "label_phase", "traversal_phase", "barrier_tips",
@@ -606,18 +607,16 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     Lengths are compared in float64 (``jax.enable_x64`` around the label phase). Returns a
     :class:`PolyllaMesh`; raises :class:`~jaxcds.errors.StructureError` if the successor map
     does not close into cycles covering every frontier dart, or a reference-mode walk does not
-    close (a structure bug), and :class:`~jaxcds.errors.PolyllaError` for ``corners`` that are
-    not the structure's triangles or an unknown ``mode``.
+    close (a structure bug), and :class:`~jaxcds.errors.PolyllaError` for ``positions`` that are
+    not ``(V, 2)`` or ``(V, 3)`` real numbers or hold a NaN / inf (naming the vertex), ``corners``
+    that are not the structure's triangles or an unknown ``mode``.
     """
     from jaxcds.polylla_io import length_scale
 
     # as given, the reference's own lengths; scaled by a power of two only where its squares
     # would overflow or the coordinates are tiny (length_scale)
-    pos = length_scale(np.asarray(positions, dtype=np.float64)[:, :2])
+    pos = length_scale(_checked_positions(positions, s.num_vertices))
     order = s.vertex_order
-    if pos.shape[0] != s.num_vertices:
-        raise errors.PolyllaError(
-            f"{pos.shape[0]} positions for a structure of {s.num_vertices} vertices")
     vids = np.arange(s.num_vertices, dtype=np.int32) if order is None else np.asarray(order, np.int32)
     pos_s = pos if order is None else pos[vids]
     vids_j = to_device(vids)
@@ -802,6 +801,31 @@ def _reference_run(s, nav, pos, vids, cs_s, rows, row_ids, seed, frontier, clock
     return PolyllaMesh(points=pos, offsets=off, indices=indices, barrier_edge_tips=tips,
                        repaired_polygons=repaired, regions=regions, frontier_edges=n_frontier,
                        triangles=int(s.num_faces), timings=t, seed_edges=seeds)
+
+
+def _checked_positions(positions, num_vertices: int) -> np.ndarray:
+    """The ``(V, 2)`` float64 x, y of ``positions`` (``(V, 2)`` or ``(V, 3)`` real numbers, all
+    finite), or :class:`PolyllaError` naming the dtype, the shape or the first vertex with a NaN
+    or inf. On the host, before any work: a NaN length makes no edge the longest and the run
+    returns polygons all the same."""
+    try:
+        refuse_non_real(positions, "Polylla positions")
+    except errors.MeshError as exc:
+        raise errors.PolyllaError(str(exc)) from None
+    p = np.asarray(positions)
+    if p.ndim != 2 or p.shape[1] not in (2, 3):
+        raise errors.PolyllaError(
+            f"Polylla positions must be ({num_vertices}, 2) or ({num_vertices}, 3) coordinates "
+            f"(one row per vertex), got shape {p.shape}")
+    if p.shape[0] != num_vertices:
+        raise errors.PolyllaError(
+            f"{p.shape[0]} positions for a structure of {num_vertices} vertices")
+    p = np.asarray(p, dtype=np.float64)
+    if not np.isfinite(p).all():
+        bad = int(np.nonzero(~np.isfinite(p).all(axis=1))[0][0])
+        raise errors.PolyllaError(
+            f"Polylla positions: vertex {bad} has a non-finite coordinate {p[bad].tolist()}")
+    return p[:, :2]
 
 
 def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:

@@ -554,6 +554,36 @@ def test_corners_are_checked():
         reference_polylla(tri.points, tri.faces, exact=True)[0]
 
 
+def test_positions_are_checked():
+    """Bad positions are a PolyllaError on the host before any work, naming the shape, dtype or
+    the first vertex with a NaN / inf (a NaN length had run silently and returned polygons; 1-d
+    positions had been an IndexError inside)."""
+    tri = random_tri(0)
+    s = P.build_structure(tri)
+    v = tri.num_vertices
+    nan, inf = tri.points.copy(), tri.points.copy()
+    nan[7, 1], nan[9, 0] = np.nan, np.nan
+    inf[3, 0] = -np.inf
+    for bad, match in [
+            (nan, r"vertex 7 has a non-finite coordinate \[.*, nan\]"),
+            (inf, r"vertex 3 has a non-finite coordinate \[-inf, "),
+            (tri.points.ravel(), rf"must be \({v}, 2\) or \({v}, 3\).*got shape \({2 * v},\)"),
+            (np.zeros((v, 4)), rf"got shape \({v}, 4\)"),
+            (tri.points[:, :1], rf"got shape \({v}, 1\)"),
+            (np.zeros((v, 2, 1)), rf"got shape \({v}, 2, 1\)"),
+            (tri.points[:-1], rf"{v - 1} positions for a structure of {v} vertices"),
+            (tri.points.astype(complex), "real numbers, got dtype complex128"),
+            (tri.points.astype(str), "real numbers, got dtype <U"),
+            (tri.points > 0.5, "real numbers, got dtype bool"),
+            (None, "real numbers, got dtype object"),
+            ([[0.0, 1.0], [1.0]], "not an array of numbers")]:
+        with pytest.raises(errors.PolyllaError, match=match):
+            P.polylla(s, bad, corners=tri.faces)
+    # (V, 3): z is ignored, same polygons as (V, 2)
+    got = P.polylla(s, np.column_stack([tri.points, np.ones(v)]), corners=tri.faces)
+    assert got.polygons() == P.polylla(s, tri.points, corners=tri.faces).polygons()
+
+
 def test_phases_same_without_jit():
     tri = grid(3)
     tri = io.Triangulation2D(tri.points + 0.01 * np.random.default_rng(0).random(tri.points.shape),
