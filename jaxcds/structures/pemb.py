@@ -247,6 +247,8 @@ class PEMB(MeshStructure):
 
     name = "pemb"
     closed_triangles = False
+    # the searches are while_loops: run eagerly, each compiled and kept for every batch size
+    eager_buckets = True
     # jaxcds.sharding pads arrays by rows; the bit vectors' rank/select/match directories read
     # their own lengths, so padded words changed every answer (found by an adversarial sweep)
     row_sharding_refused = ("pemb cannot be split by rows over devices: its succinct bit "
