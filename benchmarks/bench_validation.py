@@ -60,7 +60,7 @@ def run(n: int, repeats: int, full: bool = True) -> dict:
     v = np.random.default_rng(0).normal(size=(n, 3))
     mesh = M.TriMesh(vertices=v, faces=f, source=f"random:{n}")
     gen_s = time.perf_counter() - t0
-    small = M.TriMesh(vertices=np.eye(4), faces=np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]],
+    small = M.TriMesh(vertices=np.eye(4, 3), faces=np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]],
                                                         np.int32))
     M.validate_and_close(small, return_twins=True)  # warm-up: numba kernels (cached on disk)
     M.edge_table(small.faces)

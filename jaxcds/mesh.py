@@ -51,6 +51,13 @@ class TriMesh:
       dummy_vertices: ``(V,)`` bool, True for vertices added by :func:`close_boundaries`.
       dummy_faces: ``(F,)`` bool, True for faces added by :func:`close_boundaries`.
       source: where the mesh came from (file name or ``"arrays"``).
+
+    Made by hand, ``vertices`` may be any real ``(V, 3)`` (or planar ``(V, 2)``, z = 0) array
+    or nested lists and ``faces`` any integer ``(F, 3)`` ones (floats of integral value too, as
+    :func:`load_mesh` takes them): they are kept as C-contiguous native float64 / int32 (no copy
+    when they are already). Other dtypes or shapes, and face ids beyond int32, raise
+    :class:`~jaxcds.errors.UnreadableMeshError` / :class:`~jaxcds.errors.InvalidIndexError`
+    here; other ids outside ``[0, V)`` are named by :func:`validate`.
     """
 
     vertices: np.ndarray
@@ -60,6 +67,20 @@ class TriMesh:
     dummy_vertices: Optional[np.ndarray] = None
     dummy_faces: Optional[np.ndarray] = None
     source: str = "arrays"
+
+    def __post_init__(self) -> None:
+        # A TriMesh made by hand may hold big-endian, float, unsigned, strided or list arrays:
+        # the numba kernels and the checks take one kind only, so they are made that kind once,
+        # here (typed errors as load_mesh's). Already canonical arrays are kept, not copied.
+        v = self.vertices
+        if not _canonical(v, np.float64, 3):
+            v = _real_rows(v, (2, 3), self.source, "vertex coordinates", "(V, 3)",
+                           errors.UnreadableMeshError)
+            if v.shape[1] == 2:  # planar, as load_mesh takes it: z = 0
+                v = np.concatenate([v, np.zeros((v.shape[0], 1))], axis=1)
+            object.__setattr__(self, "vertices", v)
+        if not _canonical(self.faces, np.int32, 3):
+            object.__setattr__(self, "faces", _int32_faces(self.faces, v.shape[0], self.source))
 
     @property
     def num_vertices(self) -> int:
@@ -1147,12 +1168,16 @@ def _parse_failure(raw: bytes, suffix: str, exc: Exception) -> str:
 
 
 def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMesh:
-    if np.iscomplexobj(vertices):
-        raise errors.UnreadableMeshError(f"{source}: vertex coordinates must be real numbers, "
-                                         f"got {np.asarray(vertices).dtype}")
     try:
-        v = np.asarray(vertices, dtype=np.float64)
+        v = np.asarray(vertices)
         f = np.asarray(faces)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise errors.UnreadableMeshError(f"{source}: vertices/faces are not numeric arrays: {exc}") from exc
+    if np.iscomplexobj(v):
+        raise errors.UnreadableMeshError(f"{source}: vertex coordinates must be real numbers, "
+                                         f"got {v.dtype}")
+    try:
+        v = v.astype(np.float64, copy=False)
     except (TypeError, ValueError) as exc:
         raise errors.UnreadableMeshError(f"{source}: vertices/faces are not numeric arrays: {exc}") from exc
     if v.ndim != 2 or v.shape[1] not in (2, 3):
@@ -1163,21 +1188,7 @@ def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMe
         f = f.reshape(0, 3)
     if f.ndim != 2 or f.shape[1] != 3:
         raise errors.UnreadableMeshError(f"{source}: faces must have shape (F, 3), got {f.shape}")
-    if f.shape[0] and not np.issubdtype(f.dtype, np.integer):
-        if not np.issubdtype(f.dtype, np.number) or not np.all(np.equal(np.mod(f, 1), 0)):
-            raise errors.InvalidIndexError(f"{source}: face indices must be integers, got "
-                                           f"{f.dtype} (first face {f[0].tolist()})")
-        huge = np.nonzero(np.abs(f) >= 2.0**62)
-        if huge[0].size:  # the cast below would wrap it to another number
-            fi, k = int(huge[0][0]), int(huge[1][0])
-            raise errors.InvalidIndexError(f"{source}: face {fi} refers to vertex {float(f[fi, k]):g}, "
-                                           f"outside [0, {v.shape[0]})")
-        f = f.astype(np.int64)
-    if np.issubdtype(f.dtype, np.unsignedinteger) and f.size and f.max() >= 2**63:
-        fi, k = (int(x[0]) for x in np.nonzero(f >= 2**63))
-        raise errors.InvalidIndexError(f"{source}: face {fi} refers to vertex {int(f[fi, k])}, "
-                                       f"outside [0, {v.shape[0]})")
-    f = f.astype(np.int64)
+    f = _int64_ids(f, v.shape[0], source)
     if v.shape[0] == 0 or f.shape[0] == 0:
         raise errors.EmptyMeshError(
             f"{source}: empty mesh ({v.shape[0]} vertices, {f.shape[0]} faces)")
@@ -1194,6 +1205,82 @@ def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMe
         f = remap[f]
     return TriMesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f, dtype=np.int32),
                    welded=int(welded), removed_unreferenced=removed, source=source)
+
+
+def _int64_ids(f: np.ndarray, num_vertices: int, source: str, *,
+               error: type = errors.InvalidIndexError, what: str = "face") -> np.ndarray:
+    """The ``(F, 3)`` array ``f`` as int64 vertex ids: integers, or floats of integral value;
+    anything else (fractions, NaN, complex, strings, booleans) is ``error`` naming the dtype, and
+    an id that the cast would wrap to another number (a float beyond 2^62, an unsigned integer
+    beyond 2^63) is ``error`` naming the ``what`` (face, triangle) and the id."""
+    if f.shape[0] and not np.issubdtype(f.dtype, np.integer):
+        if f.dtype.kind != "f":
+            raise error(f"{source}: {what} indices must be integers, got "
+                        f"{f.dtype} (first {what} {f[0].tolist()})")
+        with np.errstate(invalid="ignore"):  # NaN, inf: not integral either
+            frac = np.flatnonzero(~np.equal(np.mod(f, 1), 0).all(axis=1))
+        if frac.size:
+            raise error(f"{source}: {what} indices must be integers, got "
+                        f"{f.dtype} ({what} {int(frac[0])} is {f[frac[0]].tolist()})")
+        huge = np.nonzero(np.abs(f) >= 2.0**62)
+        if huge[0].size:  # the cast below would wrap it to another number
+            fi, k = int(huge[0][0]), int(huge[1][0])
+            raise error(f"{source}: {what} {fi} refers to vertex {float(f[fi, k]):g}, "
+                        f"outside [0, {num_vertices})")
+    elif np.issubdtype(f.dtype, np.unsignedinteger) and f.size and f.max() >= 2**63:
+        fi, k = (int(x[0]) for x in np.nonzero(f >= 2**63))
+        raise error(f"{source}: {what} {fi} refers to vertex {int(f[fi, k])}, "
+                    f"outside [0, {num_vertices})")
+    return f.astype(np.int64, copy=False)
+
+
+def _canonical(a: Any, dtype: type, columns: int) -> bool:
+    """``a`` is already what :class:`TriMesh` keeps: a C-contiguous ``(N, columns)`` ndarray of
+    ``dtype`` in native byte order (``np.dtype(">i4") != np.int32``)."""
+    return (type(a) is np.ndarray and a.dtype == dtype and a.ndim == 2 and a.shape[1] == columns
+            and a.flags.c_contiguous)
+
+
+def _real_rows(values: Any, columns: tuple, source: str, what: str, shape: str,
+               error: type) -> np.ndarray:
+    """``values`` (an array or nested lists of real numbers, ``(N, k)`` with ``k`` in
+    ``columns``) as a C-contiguous native float64 array, or ``error`` naming ``what`` and the
+    dtype or shape. Nothing, of any shape, is ``(0, columns[-1])``."""
+    try:
+        a = np.asarray(values)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise error(f"{source}: {what} are not an array of numbers: {exc}") from None
+    if a.dtype.kind not in "biuf":  # complex would lose its imaginary part, strings are no numbers
+        raise error(f"{source}: {what} must be real numbers, got {a.dtype}")
+    if a.size == 0:
+        a = a.reshape(0, columns[-1])
+    if a.ndim != 2 or a.shape[1] not in columns:
+        raise error(f"{source}: {what} must have shape {shape}, got {a.shape}")
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _int32_faces(faces: Any, num_vertices: int, source: str, *,
+                 error: type = errors.InvalidIndexError, shape_error: type = errors.UnreadableMeshError,
+                 what: str = "face") -> np.ndarray:
+    """``faces`` as :class:`TriMesh` keeps them: C-contiguous native int32 ``(F, 3)``, with the
+    checks of :func:`load_mesh` (:func:`_int64_ids`). Ids outside ``[0, num_vertices)`` that
+    int32 holds are left to :func:`validate` (which names them); those beyond int32 would wrap
+    to another vertex and are refused here (``error`` naming the ``what`` and the id)."""
+    try:
+        f = np.asarray(faces)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise shape_error(f"{source}: {what}s are not an array of vertex ids: {exc}") from None
+    if f.size == 0:  # no faces: validate names the empty mesh
+        return np.zeros((0, 3), np.int32)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise shape_error(f"{source}: {what}s must have shape (F, 3), got {f.shape}")
+    f = _int64_ids(f, num_vertices, source, error=error, what=what)
+    i32 = np.iinfo(np.int32)
+    if f.min() < i32.min or f.max() > i32.max:
+        fi, k = (int(x[0]) for x in np.nonzero((f < i32.min) | (f > i32.max)))
+        raise error(f"{source}: {what} {fi} refers to vertex {int(f[fi, k])}, "
+                    f"outside [0, {num_vertices})")
+    return np.ascontiguousarray(f, dtype=np.int32)
 
 
 def _check_indices(f: np.ndarray, num_vertices: int, source: str) -> None:

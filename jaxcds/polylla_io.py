@@ -39,6 +39,13 @@ class Triangulation2D:
       source: where it came from (file name, ``"points"``, ``"arrays"``).
       flipped: how many input triangles were clockwise and were re-oriented.
       clockwise: ``(F,)`` bool, which ones (None: none, or not known).
+
+    Made by hand, ``points`` may be any real ``(V, 2)`` array or nested lists (``(V, 3)`` with
+    every z = 0 too: a planar :class:`~jaxcds.mesh.TriMesh`'s vertices) and ``faces`` any
+    integer ``(F, 3)`` ones (floats of integral value too): they are kept as C-contiguous native
+    float64 / int32 (no copy when they are already). Other dtypes or shapes, and ids beyond
+    int32, raise :class:`~jaxcds.errors.PolyllaError` here; other ids outside ``[0, V)`` are
+    named when the triangulation is checked.
     """
 
     points: np.ndarray
@@ -46,6 +53,29 @@ class Triangulation2D:
     source: str = "arrays"
     flipped: int = 0
     clockwise: Optional[np.ndarray] = None
+
+    def __post_init__(self) -> None:
+        # big-endian, float, unsigned or list arrays failed untyped in the numba kernels: made
+        # the one kind they take once, here, as jaxcds.mesh.TriMesh does (typed PolyllaError)
+        if _canonical(self.points, np.float64, 2) and _canonical(self.faces, np.int32, 3):
+            return
+        from jaxcds.mesh import _int32_faces, _real_rows
+
+        p = self.points
+        if not _canonical(p, np.float64, 2):
+            p = _real_rows(p, (2, 3), self.source, "points", "(N, 2)", errors.PolyllaError)
+            if p.shape[1] == 3:  # a planar TriMesh's vertices: z = 0 is dropped, not a z != 0
+                lifted = np.flatnonzero(p[:, 2] != 0)
+                if lifted.size:
+                    raise errors.PolyllaError(
+                        f"{self.source}: points must have shape (N, 2), got {p.shape} with "
+                        f"z = {float(p[lifted[0], 2])!r} at point {int(lifted[0])}; Polylla is planar")
+                p = np.ascontiguousarray(p[:, :2])
+            object.__setattr__(self, "points", p)
+        if not _canonical(self.faces, np.int32, 3):
+            object.__setattr__(self, "faces", _int32_faces(
+                self.faces, p.shape[0], self.source, error=errors.PolyllaError,
+                shape_error=errors.PolyllaError, what="triangle"))
 
     @property
     def input_faces(self) -> np.ndarray:
@@ -71,6 +101,12 @@ class Triangulation2D:
 
 
 # ------------------------------------------------------------------------------ helpers
+def _canonical(a, dtype: type, columns: int) -> bool:
+    """``a`` is a C-contiguous ``(N, columns)`` ndarray of ``dtype`` in native byte order."""
+    return (type(a) is np.ndarray and a.dtype == dtype and a.ndim == 2 and a.shape[1] == columns
+            and a.flags.c_contiguous)
+
+
 def _input_file(path: str) -> bytes:
     """The bytes of ``path``, a regular file (not a directory, FIFO or device: a FIFO would
     block forever and ``/dev/zero`` fill memory), or :class:`PolyllaError` naming it."""

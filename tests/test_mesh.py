@@ -644,3 +644,114 @@ def test_validating_coordinates_near_the_float64_limit_prints_no_warning():
         warnings.simplefilter("error")
         validate(big)
         assert topology(big)["defects"] == []
+
+
+_HAND_FACES = {  # the octahedron's faces as a hand-made TriMesh may hold them
+    "big-endian": lambda f: f.astype(">i4"),
+    "big-endian int64": lambda f: f.astype(">i8"),
+    "int64": lambda f: f.astype(np.int64),
+    "float": lambda f: f.astype(np.float64),
+    "uint16": lambda f: f.astype(np.uint16),
+    "uint64": lambda f: f.astype(np.uint64),
+    "nested list": lambda f: f.tolist(),
+    "fortran order": np.asfortranarray,
+    "strided": lambda f: np.repeat(f, 2, axis=1)[:, ::2],
+}
+_HAND_VERTICES = {
+    "big-endian": lambda v: v.astype(">f8"),
+    "float32": lambda v: v.astype(np.float32),
+    "int": lambda v: v.astype(np.int64),
+    "nested list": lambda v: v.tolist(),
+    "fortran order": np.asfortranarray,
+}
+
+
+@pytest.mark.parametrize("kind", sorted(_HAND_FACES))
+def test_a_hand_made_trimesh_takes_faces_of_any_integer_kind(kind):
+    """Sweep: load_mesh takes faces of any integer kind, a TriMesh made by hand failed untyped
+    in validate / topology / build (numba TypingError on big-endian or float ids, OverflowError
+    on unsigned ones, AttributeError on lists). They are native C-contiguous int32 now."""
+    from jaxcds.structures import registry
+
+    v, f = octahedron()
+    m = TriMesh(vertices=v, faces=_HAND_FACES[kind](f))
+    assert m.faces.dtype == np.int32 and m.faces.dtype.isnative and m.faces.flags.c_contiguous
+    np.testing.assert_array_equal(m.faces, f)
+    assert validate(m) is m
+    assert topology(m) == topology(TriMesh(vertices=v, faces=f))
+    assert registry.build("halfedge", m).num_faces == 8
+
+
+@pytest.mark.parametrize("kind", sorted(_HAND_VERTICES))
+def test_a_hand_made_trimesh_takes_vertices_of_any_real_kind(kind):
+    from jaxcds.structures import registry
+
+    v, f = octahedron()
+    m = TriMesh(vertices=_HAND_VERTICES[kind](v), faces=f.astype(">i4"))
+    assert m.vertices.dtype == np.float64 and m.vertices.dtype.isnative and m.vertices.flags.c_contiguous
+    np.testing.assert_array_equal(m.vertices, v)
+    assert validate(m) is m and topology(m)["genus"] == 0
+    assert registry.build("halfedge", m).num_vertices == 6
+
+
+def test_a_hand_made_trimesh_keeps_canonical_arrays_and_pads_planar_vertices():
+    """No copy of arrays that are already native float64 / int32 (generators, batch packing);
+    (V, 2) vertices get z = 0 as load_mesh gives them; empty faces stay an empty mesh."""
+    import dataclasses
+
+    v, f = octahedron()
+    m = TriMesh(vertices=v, faces=f)
+    assert m.vertices is v and m.faces is f
+    assert dataclasses.replace(m, source="again").faces is f
+    flat = TriMesh(vertices=v[:, :2], faces=f)
+    np.testing.assert_array_equal(flat.vertices, np.c_[v[:, :2], np.zeros(6)])
+    np.testing.assert_array_equal(flat.vertices, load_mesh(v[:, :2], f, weld=False).vertices)
+    with pytest.raises(errors.EmptyMeshError, match="6 vertices and 0 faces"):
+        validate(TriMesh(vertices=v, faces=[]))
+
+
+@pytest.mark.parametrize("faces,error,match", [
+    (lambda f: np.where(f == 5, 0.5, f), errors.InvalidIndexError,
+     r"arrays: face indices must be integers, got float64 \(face 4 is \[2.0, 0.0, 0.5\]\)"),
+    (lambda f: np.where(f == 5, np.nan, f), errors.InvalidIndexError, r"must be integers, got float64 \(face 4"),
+    (lambda f: f.astype(bool), errors.InvalidIndexError, "must be integers, got bool"),
+    (lambda f: f.astype(complex), errors.InvalidIndexError, "must be integers, got complex128"),
+    # beyond int32: the cast would wrap them to another vertex (2^32 + 5 to 5)
+    (lambda f: np.where(f == 5, 2**32 + 5, f.astype(np.int64)), errors.InvalidIndexError,
+     r"face 4 refers to vertex 4294967301, outside \[0, 6\)"),
+    (lambda f: np.where(f == 5, -2**40, f.astype(np.int64)), errors.InvalidIndexError,
+     r"face 4 refers to vertex -1099511627776"),
+    (lambda f: np.where(f == 5, np.uint32(2**31), f.astype(np.uint32)).astype(np.uint32),
+     errors.InvalidIndexError, r"face 4 refers to vertex 2147483648"),
+    (lambda f: np.where(f == 5, np.uint64(2**64 - 1), f.astype(np.uint64)).astype(np.uint64),
+     errors.InvalidIndexError, r"face 4 refers to vertex 18446744073709551615"),
+    (lambda f: np.where(f == 5, 2.0**80, f), errors.InvalidIndexError, r"face 4 refers to vertex 1.20893e\+24"),
+    (lambda f: f[:, :2], errors.UnreadableMeshError, r"faces must have shape \(F, 3\), got \(8, 2\)"),
+    (lambda f: [[0, 2, 4], [2, 1]], errors.UnreadableMeshError, "faces are not an array of vertex ids"),
+], ids=["fraction", "nan", "bool", "complex", "int64>int32", "int64<int32", "uint32>int32",
+        "uint64>int64", "float>int64", "two-columns", "ragged"])
+def test_a_hand_made_trimesh_refuses_faces_as_load_mesh_does(faces, error, match):
+    v, f = octahedron()
+    with pytest.raises(error, match=match):
+        TriMesh(vertices=v, faces=faces(f))
+    with pytest.raises(error):
+        load_mesh(v, faces(f))
+
+
+@pytest.mark.parametrize("vertices,match", [
+    (lambda v: v.astype(complex), "vertex coordinates must be real numbers, got complex128"),
+    (lambda v: v.astype(str), "vertex coordinates must be real numbers, got <U"),
+    (lambda v: np.c_[v, v[:, :1]], r"must have shape \(V, 3\), got \(6, 4\)"),
+    (lambda v: v.ravel(), r"must have shape \(V, 3\), got \(18,\)"),
+    (lambda v: [[1.0, 0.0, 0.0], [0.0, 1.0]], "vertex coordinates are not an array of numbers"),
+], ids=["complex", "strings", "four-columns", "flat", "ragged"])
+def test_a_hand_made_trimesh_refuses_vertices_that_are_not_coordinates(vertices, match):
+    v, f = octahedron()
+    with pytest.raises(errors.UnreadableMeshError, match=match):
+        TriMesh(vertices=vertices(v), faces=f)
+
+
+def test_load_mesh_names_ragged_vertex_lists():
+    """np.iscomplexobj ran on the raw list first: a ValueError, untyped."""
+    with pytest.raises(errors.UnreadableMeshError, match="vertices/faces are not numeric arrays"):
+        load_mesh([[1.0, 0.0, 0.0], [0.0, 1.0]], [[0, 1, 2]])

@@ -951,3 +951,57 @@ def test_length_scale_keeps_ordinary_coordinates_as_given():
         assert lo < np.frexp(np.max(np.abs(q)))[1] <= hi
         ratio = q / np.array([[big, 1.0], [1.0, big / 3]])
         assert ratio[0, 0] == ratio[1, 1] and np.frexp(ratio[0, 0])[0] == 0.5  # a power of two
+
+
+_HAND_TRIANGLES = {  # a Triangulation2D's faces as a hand-made one may hold them
+    "big-endian": lambda f: f.astype(">i4"),
+    "float": lambda f: f.astype(np.float64),
+    "uint16": lambda f: f.astype(np.uint16),
+    "uint64": lambda f: f.astype(np.uint64),
+    "int64": lambda f: f.astype(np.int64),
+    "nested list": lambda f: f.tolist(),
+}
+
+
+def test_a_hand_made_triangulation_takes_any_integer_faces_and_real_points():
+    """Sweep: a Triangulation2D made by hand with big-endian or float faces failed in Polylla's
+    numba kernels (TypingError), unsigned ones with OverflowError, lists with AttributeError.
+    They are native C-contiguous int32 / float64 now, with the same polygons."""
+    tri = io.from_points(np.random.default_rng(3).random((40, 2)), source="pts")
+    want = P.run(tri)
+    again = io.Triangulation2D(points=tri.points, faces=tri.faces)
+    assert again.points is tri.points and again.faces is tri.faces  # canonical: no copy
+    points = {"big-endian": tri.points.astype(">f8"), "nested list": tri.points.tolist(),
+              "z = 0": np.c_[tri.points, np.zeros(40)]}
+    for kind, make in _HAND_TRIANGLES.items():
+        for pk, pts in points.items():
+            hand = io.Triangulation2D(points=pts, faces=make(tri.faces))
+            assert hand.faces.dtype == np.int32 and hand.faces.dtype.isnative, (kind, pk)
+            assert hand.points.dtype == np.float64 and hand.points.dtype.isnative, (kind, pk)
+            np.testing.assert_array_equal(hand.faces, tri.faces)
+            np.testing.assert_array_equal(hand.points, tri.points)
+        got = P.run(hand)
+        assert (got["polygons"], got["barrier_edge_tips"]) == (want["polygons"], want["barrier_edge_tips"]), kind
+    assert P.run(io.Triangulation2D(tri.points, tri.faces.astype(">i4")), structure="pemb")["polygons"] == \
+        P.run(tri, structure="pemb")["polygons"]
+
+
+@pytest.mark.parametrize("points,faces,match", [
+    (None, lambda f: np.where(f == 3, 0.5, f), r"arrays: triangle indices must be integers, got float64 \(triangle \d+ is"),
+    (None, lambda f: f.astype(bool), "triangle indices must be integers, got bool"),
+    (None, lambda f: np.where(f == 3, 2**32 + 3, f.astype(np.int64)), r"triangle \d+ refers to vertex 4294967299, outside \[0, 5\)"),
+    (None, lambda f: np.where(f == 3, np.uint64(2**64 - 1), f.astype(np.uint64)).astype(np.uint64),
+     "refers to vertex 18446744073709551615"),
+    (None, lambda f: f[:, :2], r"triangles must have shape \(F, 3\), got \(4, 2\)"),
+    (None, lambda f: [[0, 1, 2], [0, 1]], "triangles are not an array of vertex ids"),
+    (lambda p: p.astype(complex), None, "points must be real numbers, got complex128"),
+    (lambda p: p.astype(str), None, "points must be real numbers, got <U"),
+    (lambda p: np.c_[p, np.ones(5)], None, r"points must have shape \(N, 2\), got \(5, 3\) with z = 1.0 at point 0"),
+    (lambda p: p[:, :1], None, r"points must have shape \(N, 2\), got \(5, 1\)"),
+], ids=["fraction", "bool", "int64>int32", "uint64>int64", "two-columns", "ragged", "complex",
+        "strings", "z != 0", "one-column"])
+def test_a_hand_made_triangulation_refuses_what_is_not_one(points, faces, match):
+    tri = io.from_points(np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.4]], float))
+    with pytest.raises(errors.PolyllaError, match=match):
+        io.Triangulation2D(points=tri.points if points is None else points(tri.points),
+                           faces=tri.faces if faces is None else faces(tri.faces))
