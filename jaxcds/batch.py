@@ -827,12 +827,27 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
     The other way round, a mesh the user closed (dummies flagged) given to a structure that drops
     flagged dummies (LR shows holes as borders) contributes its own vertices only.
 
+    ``dtype``: a floating dtype (float32 by default; float16 and bfloat16 too, which
+    ``vertex_normals`` sums in float32; float64 needs jax x64, float32 otherwise), or ``None``
+    (float32).
+
     Raises:
-      ArgumentError: not one mesh per mesh of the batch.
+      ArgumentError: not one mesh per mesh of the batch; ``dtype`` not a dtype, or not a floating
+        one (integers truncated the coordinates, booleans and complex numbers are no positions).
       MeshError: the positions do not match the batch's vertex counts (naming the mesh).
     """
     from jaxcds.mesh import validate_and_close
 
+    if dtype is not None:  # numpy's / jax's TypeError before, or truncated int positions
+        try:
+            dt = np.dtype(dtype)
+        except (TypeError, ValueError) as exc:
+            raise errors.ArgumentError(f"pack_positions: dtype {dtype!r} is not a dtype ({exc}); "
+                                       "positions take a floating one (float32...)") from None
+        if not jnp.issubdtype(dt, jnp.floating):
+            raise errors.ArgumentError(f"pack_positions: dtype {dt} is not a floating dtype: "
+                                       "positions are coordinates (float32, float64, float16, "
+                                       "bfloat16)")
     want = np.asarray(batch.n_vertex)
     meshes = _mesh_list(meshes, "pack_positions")
     if len(meshes) != want.shape[0]:

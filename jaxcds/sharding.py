@@ -24,11 +24,12 @@ from __future__ import annotations
 from typing import Any, Optional, Sequence
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxcds import errors
-from jaxcds._arrays import to_device
+from jaxcds._arrays import native_order, to_device
 from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, replace, static_field
 from jaxcds.structures.base import Int, MeshStructure, integer_array, one_pass_queries
@@ -61,15 +62,93 @@ def _pad_rows(x: np.ndarray, multiple: int, value) -> np.ndarray:
     return np.concatenate([x, pad])
 
 
-def shard_rows(x, mesh: Mesh, value=0) -> jax.Array:
+def _mesh_arg(mesh, where: str) -> Mesh:
+    """``mesh``, or all devices for ``None``; anything else an ArgumentError (it had been an
+    AttributeError on ``mesh.devices``)."""
+    if mesh is None:
+        return device_mesh()
+    if not isinstance(mesh, Mesh):
+        raise errors.ArgumentError(f"{where}: mesh must be a jax.sharding.Mesh (device_mesh(), or "
+                                   f"None for all devices), got {type(mesh).__name__}")
+    return mesh
+
+
+def _is_numeric(dtype) -> bool:
+    """The dtypes JAX holds: booleans, integers, floats (bfloat16 too), complex numbers."""
+    return bool(jnp.issubdtype(dtype, jnp.number) or jnp.issubdtype(dtype, jnp.bool_))
+
+
+def _host_rows(x, where: str) -> np.ndarray:
+    """``x`` as a numpy array of a dtype JAX holds, in native byte order (read by value: JAX
+    refuses big-endian arrays), or :class:`~jaxcds.errors.ArgumentError` naming ``where``:
+    ragged nested lists, masked arrays (the mask would be dropped), strings, objects, dates,
+    records (JAX's TypeError "not a valid JAX array type" before)."""
+    if isinstance(x, np.ma.MaskedArray):
+        raise errors.ArgumentError(f"{where}: a masked array (its mask would be ignored); pass "
+                                   "x.filled(value) or the kept rows")
+    try:
+        a = np.asarray(x)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise errors.ArgumentError(f"{where}: not an array of numbers: {exc}") from None
+    if not _is_numeric(a.dtype):
+        raise errors.ArgumentError(f"{where}: dtype {a.dtype} is not numeric (JAX holds booleans, "
+                                   "integers, floats and complex numbers)")
+    return native_order(a)
+
+
+def _fill_value(value, dtype: np.dtype, where: str):
+    """``value`` as a scalar of ``dtype`` if it is a number that ``dtype`` holds (any real for a
+    floating dtype; exactly for integers and booleans: 1.5 or 1000 in int8 were truncated or
+    wrapped), else :class:`~jaxcds.errors.ArgumentError`."""
+    try:
+        v = np.asarray(value)
+    except (TypeError, ValueError):
+        v = np.asarray(None)
+    ok = v.ndim == 0 and _is_numeric(v.dtype)
+    if ok and jnp.issubdtype(v.dtype, jnp.complexfloating) and not jnp.issubdtype(
+            dtype, jnp.complexfloating):
+        ok, v = bool(v.imag == 0), v.real  # 1j in a float array lost its imaginary part
+    if ok:
+        with np.errstate(all="ignore"):
+            cast = v.astype(dtype)
+        if not jnp.issubdtype(dtype, jnp.inexact):
+            ok = bool(cast == v)
+    if not ok:
+        raise errors.ArgumentError(f"{where}: the padding value {value!r} is not a number that "
+                                   f"dtype {dtype} holds exactly")
+    return cast
+
+
+def shard_rows(x, mesh: Optional[Mesh], value=0) -> jax.Array:
     """``x`` padded along axis 0 to a multiple of the device count (with ``value``) and placed
-    with ``NamedSharding(mesh, P(axis))``: each device holds ``ceil(len / D)`` rows."""
-    x = np.asarray(x)
+    with ``NamedSharding(mesh, P(axis))``: each device holds ``ceil(len / D)`` rows. ``mesh``
+    ``None``: all devices (:func:`device_mesh`). ``x`` is read by value (big-endian arrays,
+    lists); 64-bit dtypes become 32-bit ones unless x64 is on, as ``jnp.asarray`` does.
+
+    Raises:
+      ArgumentError: ``x`` 0-d, ragged, masked, or not numeric (strings, objects...), or 64-bit
+        integers past the 32-bit dtype JAX holds them in (x64 off); ``value`` a number that dtype
+        does not hold; ``mesh`` not a Mesh."""
+    mesh = _mesh_arg(mesh, "shard_rows")
+    x = _host_rows(x, "shard_rows: x")
     if x.ndim == 0:  # _pad_rows read shape[0]: IndexError
         raise errors.ArgumentError("shard_rows: a 0-d value has no rows to split; give an array "
                                    "of at least one axis (or device_put it replicated)")
-    d = mesh.devices.size
-    return jax.device_put(_pad_rows(x, d, value), _row_sharding(mesh, x.ndim))
+    dt = np.dtype(jax.dtypes.canonicalize_dtype(x.dtype))
+    if dt != x.dtype and x.dtype.kind in "iu" and x.size:  # device_put wrapped 2^40 to 0
+        info = np.iinfo(dt)
+        wide = (x > info.max) if x.dtype.kind == "u" else (x < info.min) | (x > info.max)
+        if np.any(wide):
+            i = int(np.argmax(np.ravel(wide)))
+            raise errors.ArgumentError(
+                f"shard_rows: x's value {np.ravel(x)[i]} at flat position {i} does not fit {dt}, "
+                f"the dtype JAX holds {x.dtype} in (enable jax_enable_x64 for 64-bit values)")
+    fill = _fill_value(value, dt, "shard_rows")
+    a = np.asarray(x, dt)
+    out = _pad_rows(a, mesh.devices.size, fill)
+    if out is a:  # the caller's array (no padding): device_put may share its buffer on CPU
+        out = np.array(a, order="C", copy=True)
+    return jax.device_put(out, _row_sharding(mesh, x.ndim))
 
 
 @pytree_dataclass
@@ -199,7 +278,7 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
     if not isinstance(s, MeshStructure):  # a TriMesh, None...: AttributeError / TypeError deep in
         raise errors.ArgumentError(f"shard_structure: expected a structure (jaxcds.build(name, mesh) "
                                    f"or a packed batch), got {type(s).__name__}")
-    mesh = device_mesh() if mesh is None else mesh
+    mesh = _mesh_arg(mesh, "shard_structure")
     d = int(mesh.devices.size)
 
     if getattr(s, "row_sharding_refused", None):
@@ -237,9 +316,12 @@ def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None
     unsharded. Answers are left sharded (``P(axis)``)."""
     from jaxcds.batch import OPERATOR_KINDS
 
-    if op not in OPERATOR_KINDS:
+    if not isinstance(s, MeshStructure):  # AttributeError inside jit before
+        raise errors.ArgumentError(f"sharded_query: expected a structure (shard_structure(jaxcds."
+                                   f"build(name, mesh))), got {type(s).__name__}")
+    if not isinstance(op, str) or op not in OPERATOR_KINDS:
         raise errors.ArgumentError(f"sharded_query: unknown operator {op!r}; one of {sorted(OPERATOR_KINDS)}")
-    mesh = device_mesh() if mesh is None else mesh
+    mesh = _mesh_arg(mesh, "sharded_query")
     ids = _int32_ids(ids, op)
     if ids.ndim == 0:  # one id: a batch of one (shard_rows has no rows to split in a 0-d id)
         return sharded_query(s, op, ids.reshape(1), mesh)[0]
@@ -275,7 +357,18 @@ def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatte
     replicated or sharded (``shard_rows`` pads them; the padding rows are sliced off before the
     call). Per-vertex sums run as a partitioned ``segment_sum`` (an all-reduce of the sums)."""
     from jaxcds.algorithms import vertex_normals
+    from jaxcds.batch import PackedBatch
 
+    inner = s.structure if isinstance(s, PackedBatch) else s
+    if not isinstance(inner, ShardedStructure):  # AttributeError on num_devices before
+        what = (f"an unsharded {getattr(s, 'name', type(s).__name__)}: shard it with "
+                "shard_structure(s, mesh) first (or call vertex_normals)"
+                if isinstance(s, MeshStructure) else type(s).__name__)
+        raise errors.ArgumentError(f"sharded_vertex_normals: expected a structure from "
+                                   f"shard_structure, got {what}")
+    if isinstance(positions, np.ma.MaskedArray):
+        raise errors.ArgumentError("sharded_vertex_normals: positions are a masked array (its "
+                                   "mask would be ignored); pass positions.filled(...)")
     refuse_non_real(positions, "sharded_vertex_normals: positions")
     positions = to_device(positions, copy=True)  # the caller's array: no shared buffer
     n, d = s.num_vertices, s.num_devices

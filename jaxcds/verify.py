@@ -125,8 +125,17 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
     :func:`jaxcds.mesh.load_mesh` first, as the builder was given).
 
     Raises:
-      ArgumentError: ``mesh`` is not a :class:`~jaxcds.mesh.TriMesh`, or the structure and the
-        mesh do not have the same number of vertices."""
+      ArgumentError: ``structure`` is not a jaxcds structure, ``mesh`` is not a
+        :class:`~jaxcds.mesh.TriMesh`, or the structure and the mesh do not have the same number
+        of vertices."""
+    from jaxcds.structures.base import MeshStructure
+
+    if not isinstance(structure, MeshStructure):  # AttributeError on num_vertices before
+        swapped = " (the arguments are swapped?)" if isinstance(structure, TriMesh) else ""
+        raise errors.ArgumentError(
+            f"verify: structure must be a jaxcds structure (a MeshStructure, e.g. from "
+            f"jaxcds.structures.registry.build(name, mesh)), got "
+            f"{type(structure).__name__}{swapped}")
     if not isinstance(mesh, TriMesh):
         raise errors.ArgumentError(
             f"verify: mesh must be a jaxcds.mesh.TriMesh (the mesh the structure was built "

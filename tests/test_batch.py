@@ -803,3 +803,27 @@ def test_sharded_packed_batch_with_a_chunk_plan(monkeypatch):
     sb = S.shard_structure(b, S.device_mesh())
     np.testing.assert_allclose(np.asarray(S.sharded_vertex_normals(sb, pos)),
                                np.asarray(vertex_normals(b, pos)), atol=1e-5)
+
+
+def test_pack_positions_refuses_a_dtype_that_is_not_floating():
+    """Ninth sweep: pack_positions(dtype="nonsense") raised numpy's TypeError, dtype=object JAX's;
+    an integer dtype truncated the coordinates silently, bool and complex gave no positions. The
+    floating dtypes (float16 and bfloat16 too: vertex_normals sums them in float32) and None
+    still work."""
+    ms = [random_planar_triangulation(12, seed=3), icosphere(0)]
+    b = B.pack(ms, "halfedge")
+    for bad in ("nonsense", 3, [1, 2]):
+        with pytest.raises(errors.ArgumentError, match=r"pack_positions: dtype .* is not a dtype"):
+            B.pack_positions(b, ms, dtype=bad)
+    for bad in (np.int32, "int64", bool, "complex64", object, "U3"):
+        with pytest.raises(errors.ArgumentError,
+                           match=rf"pack_positions: dtype {np.dtype(bad)} is not a floating dtype"):
+            B.pack_positions(b, ms, dtype=bad)
+    want = np.asarray(B.pack_positions(b, ms))
+    assert want.dtype == np.float32
+    for ok in (None, np.float32, "float64", np.float16, jnp.bfloat16, "bfloat16"):
+        p = B.pack_positions(b, ms, dtype=ok)
+        assert jnp.issubdtype(p.dtype, jnp.floating) and p.shape == want.shape
+        np.testing.assert_allclose(np.asarray(p, np.float32), want, rtol=1e-2, atol=1e-2)
+    n = np.asarray(vertex_normals(b, B.pack_positions(b, ms, dtype=jnp.bfloat16)))
+    assert n.dtype == np.float32 and np.isfinite(n).all()

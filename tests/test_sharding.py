@@ -209,6 +209,127 @@ def test_packed_batch_local_queries_sharded(report):
     assert r["local_query_mismatches"] == 0
 
 
+def test_shard_rows_reads_by_value_and_refuses_non_numbers():
+    """Ninth sweep (one device, in this process): shard_rows raised JAX's TypeError ("not a valid
+    JAX array type") for big-endian arrays, strings, objects and dates and numpy's ValueError for
+    ragged lists; it wrapped int64 2^40 to 0 and dropped a mask silently, shared the caller's
+    buffer (writing to the array afterwards changed the sharded one) and truncated a padding
+    value its dtype does not hold; a mesh that is no Mesh was an AttributeError."""
+    import numpy as np
+
+    from jaxcds import errors
+    from jaxcds import sharding as S
+
+    mesh = S.device_mesh()
+    for dt in (">f8", ">f4", ">i8", ">i4", ">u2"):
+        x = (np.arange(30).reshape(10, 3) % 7).astype(dt)
+        got = S.shard_rows(x, mesh)
+        assert got.shape == (10, 3) and got.dtype.byteorder in "=|<"
+        np.testing.assert_array_equal(np.asarray(got), x.astype(x.dtype.newbyteorder("=")))
+    np.testing.assert_array_equal(np.asarray(S.shard_rows([[1, 2], [3, 4]], None)), [[1, 2], [3, 4]])
+    for bad, name in ((np.full((10, 3), "a"), "<U1"), (np.array([object()] * 4), "object"),
+                      (np.zeros(4, "datetime64[s]"), "datetime64"), (np.zeros(4, "V8"), "V8")):
+        with pytest.raises(errors.ArgumentError, match=f"shard_rows: x: dtype .*{name}.* not numeric"):
+            S.shard_rows(bad, mesh)
+    with pytest.raises(errors.ArgumentError, match="shard_rows: x: not an array of numbers"):
+        S.shard_rows([[1, 2], [3]], mesh)
+    with pytest.raises(errors.ArgumentError, match="shard_rows: x: a masked array"):
+        S.shard_rows(np.ma.masked_array([1, 2], [0, 1]), mesh)
+    with pytest.raises(errors.ArgumentError, match="value 1099511627776 at flat position 1 does not fit int32"):
+        S.shard_rows(np.array([3, 2**40]), mesh)
+    for x, value in ((np.zeros(3, np.int8), 1000), (np.zeros(3, np.int32), 1.5),
+                     (np.zeros(3, np.float32), 1j), (np.zeros(3, np.int32), "a")):
+        with pytest.raises(errors.ArgumentError, match=f"padding value .* dtype {x.dtype} holds"):
+            S.shard_rows(x, mesh, value=value)
+    with pytest.raises(errors.ArgumentError, match="mesh must be a jax.sharding.Mesh.*got str"):
+        S.shard_rows(np.zeros(3), "d")
+    for n in (1024, 100_000, 300_000):  # buffer sharing depends on the allocation's alignment
+        x = np.zeros((n, 3), np.float32)
+        got = S.shard_rows(x, mesh)
+        x[:] = 5
+        assert not np.asarray(got).any(), n
+
+
+def test_sharded_entry_points_refuse_bad_structures_meshes_and_masks():
+    """Ninth sweep (one device): sharded_query / sharded_vertex_normals given None or an unsharded
+    structure, and a mesh that is no Mesh, raised AttributeError; masked positions lost their
+    mask. Big-endian positions and ids are read by value; object ones are typed errors."""
+    import numpy as np
+
+    from jaxcds import errors
+    from jaxcds import sharding as S
+    from jaxcds.algorithms import vertex_normals
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.structures import registry
+
+    m = random_planar_triangulation(12, seed=3)
+    s = registry.build("cds5n", m)
+    ss = S.shard_structure(s)
+    with pytest.raises(errors.ArgumentError, match="sharded_query: expected a structure.*got NoneType"):
+        S.sharded_query(None, "target", [1])
+    with pytest.raises(errors.ArgumentError, match="unknown operator"):
+        S.sharded_query(ss, ["target"], [1])
+    for f in (lambda: S.sharded_query(ss, "target", [1], "d"), lambda: S.shard_structure(s, 4)):
+        with pytest.raises(errors.ArgumentError, match="mesh must be a jax.sharding.Mesh"):
+            f()
+    with pytest.raises(errors.ArgumentError, match="got NoneType"):
+        S.sharded_vertex_normals(None, np.zeros((12, 3)))
+    with pytest.raises(errors.ArgumentError, match="unsharded cds5n: shard it with shard_structure"):
+        S.sharded_vertex_normals(s, np.zeros((12, 3)))
+    assert s.vertex_order is None  # CDS5n keeps the input numbering
+    pos = np.asarray(m.vertices, np.float64)
+    with pytest.raises(errors.ArgumentError, match="positions are a masked array"):
+        S.sharded_vertex_normals(ss, np.ma.masked_array(pos, np.zeros_like(pos, bool)))
+    with pytest.raises(errors.MeshError, match="positions must be real numbers, got dtype object"):
+        S.sharded_vertex_normals(ss, pos.astype(object))
+    np.testing.assert_allclose(np.asarray(S.sharded_vertex_normals(ss, pos.astype(">f8"))),
+                               np.asarray(vertex_normals(s, pos.astype(np.float32))), atol=1e-6)
+    d = np.asarray(s.all_darts()[:7])
+    np.testing.assert_array_equal(np.asarray(S.sharded_query(ss, "target", d.astype(">i8"))),
+                                  np.asarray(s.target(d)))
+    with pytest.raises(errors.InvalidIndexError, match="ids must be integers, got dtype object"):
+        S.sharded_query(ss, "target", d.astype(object))
+
+
+_PADDED_ROWS_CHILD = """
+import json, numpy as np
+from jaxcds import sharding as S
+m = S.device_mesh()
+be = S.shard_rows(np.arange(10, dtype=">i8"), m, value=-1)
+fl = S.shard_rows(np.ones((5, 3), ">f8"), m, value=0.5)
+out = {"devices": m.devices.size, "be": np.asarray(be).tolist(),
+       "even": np.asarray(S.shard_rows(np.arange(12, dtype=">f8"), m)).tolist(),
+       "be_rows": sorted({int(sh.data.shape[0]) for sh in be.addressable_shards}),
+       "fl": np.asarray(fl)[:, 0].tolist(), "fl_dtype": str(fl.dtype)}
+try:
+    S.shard_rows(np.zeros(5, np.int8), m, value=1000)
+    out["int8_1000"] = "accepted"
+except Exception as exc:
+    out["int8_1000"] = type(exc).__name__
+print(json.dumps(out))
+"""
+
+
+def test_shard_rows_pads_big_endian_rows_on_four_devices():
+    """Several devices (in a child process: a few device_puts, no SPMD compilation): big-endian
+    rows that need no padding placed by value (JAX refused them: TypeError), padded ones with the
+    value in their native dtype, and a value the dtype cannot hold refused (np.full raised
+    OverflowError for 1000 in int8; 1.5 in int32 was truncated silently)."""
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={DEVICES}").strip()
+    env["JAX_PLATFORMS"] = "cpu"
+    env["PYTHONPATH"] = f"{ROOT}{os.pathsep}" + env.get("PYTHONPATH", "")
+    r = subprocess.run([sys.executable, "-c", _PADDED_ROWS_CHILD], env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-4000:]
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["devices"] == DEVICES
+    assert out["be"] == list(range(10)) + [-1, -1] and out["be_rows"] == [3]
+    assert out["even"] == list(range(12))
+    assert out["fl"] == [1.0] * 5 + [0.5] * 3 and out["fl_dtype"] == "float32"
+    assert out["int8_1000"] == "ArgumentError"
+
+
 # ---------------------------------------------------------------------------------- child
 def _child(full: bool) -> dict:
     import re

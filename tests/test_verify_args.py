@@ -26,3 +26,17 @@ def test_verify_refuses_a_mesh_that_is_not_a_trimesh(built, name):
 def test_verify_still_takes_a_trimesh(built):
     s, m = built
     assert verify(s, m).ok
+
+
+@pytest.mark.parametrize("name", ["NoneType", "TriMesh", "str", "dict"])
+def test_verify_refuses_a_structure_that_is_not_one(built, name):
+    """verify()'s first argument: anything but a jaxcds structure is an ArgumentError naming the
+    type received and what is expected (None had been an AttributeError on num_vertices, a
+    TriMesh -- the arguments swapped -- one on vertex_order)."""
+    s, m = built
+    bad = {"NoneType": None, "TriMesh": m, "str": "halfedge", "dict": {"num_vertices": 12}}[name]
+    with pytest.raises(errors.ArgumentError,
+                       match=rf"structure must be a jaxcds structure .*MeshStructure.*registry.build.*got {name}"):
+        verify(bad, m)
+    with pytest.raises(errors.ArgumentError, match="arguments are swapped"):
+        verify(m, s)
