@@ -187,12 +187,13 @@ def main(argv=None) -> int:
 
 def _one_structure(name, m, pos_np, w_np, deg_ref, fl_n, ref64, fl_g, base, ops, args, rec, registry,
                    to_device, time_compiled):
+    import jax
     import jax.numpy as jnp
 
     n = m.num_vertices
     t0 = time.perf_counter()
     s = registry.build(name, m)
-    s = jax_block(s)
+    s = jax.block_until_ready(s)
     build_s = time.perf_counter() - t0
     order = s.vertex_order
     o = np.arange(n) if order is None else np.asarray(order)
@@ -238,12 +239,6 @@ def _one_structure(name, m, pos_np, w_np, deg_ref, fl_n, ref64, fl_g, base, ops,
             sl = tuple(a if i == 0 else a[:k] for i, a in enumerate(op_args))
             answers[op] = (sl, got[:k])
     return s, answers
-
-
-def jax_block(tree):
-    import jax
-
-    return jax.block_until_ready(tree)
 
 
 def _cpu_check(name, s, answers, ops, cpu, rec):

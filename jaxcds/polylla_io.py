@@ -57,9 +57,10 @@ class Triangulation2D:
     def __post_init__(self) -> None:
         # big-endian, float, unsigned or list arrays failed untyped in the numba kernels: made
         # the one kind they take once, here, as jaxcds.mesh.TriMesh does (typed PolyllaError)
+        from jaxcds.mesh import _canonical, _int32_faces, _real_rows
+
         if _canonical(self.points, np.float64, 2) and _canonical(self.faces, np.int32, 3):
             return
-        from jaxcds.mesh import _int32_faces, _real_rows
 
         p = self.points
         if not _canonical(p, np.float64, 2):
@@ -101,12 +102,6 @@ class Triangulation2D:
 
 
 # ------------------------------------------------------------------------------ helpers
-def _canonical(a, dtype: type, columns: int) -> bool:
-    """``a`` is a C-contiguous ``(N, columns)`` ndarray of ``dtype`` in native byte order."""
-    return (type(a) is np.ndarray and a.dtype == dtype and a.ndim == 2 and a.shape[1] == columns
-            and a.flags.c_contiguous)
-
-
 def _input_file(path: str) -> bytes:
     """The bytes of ``path``, a regular file (not a directory, FIFO or device: a FIFO would
     block forever and ``/dev/zero`` fill memory), or :class:`PolyllaError` naming it."""
