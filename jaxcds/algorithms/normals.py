@@ -117,12 +117,11 @@ def within_range(positions):
 
     Raises:
       MeshError: ``positions`` are not real numbers."""
+    # host values checked before the transfer (strings cannot be placed on a device)
+    refuse_non_real(positions, "within_range: positions", bools=True)
     if not isinstance(positions, jax.Array):
-        positions = np.asarray(positions)
-        refuse_non_real(positions, "within_range: positions", bools=True)
         # the dtype JAX computes in (float64 is float32 unless x64 is on): its range decides
         positions = to_device(positions)
-    refuse_non_real(positions, "within_range: positions", bools=True)
     if not jnp.issubdtype(positions.dtype, jnp.floating) or jnp.finfo(positions.dtype).bits < 32:
         positions = positions.astype(jnp.float32)
     fi = jnp.finfo(positions.dtype)
