@@ -123,16 +123,19 @@ def test_operators_and_normals_take_big_endian_arrays():
                                   np.asarray(vertex_normals(s, p)))
 
 
-def test_eager_pemb_operators_compile_once_per_power_of_two():
+@pytest.mark.parametrize("kind", ["pemb", "cds5n", "cds5n-o1", "lr"])
+def test_eager_operators_compile_once_per_power_of_two(kind):
     """Eager pemb operators compiled every while_loop of their searches for each exact batch
-    size and kept it (stop 43: 24 calls of 100-5,000 darts, 119 s and 2.4 GB that stayed). Now an
-    eager call is one jitted program per power-of-two size: other sizes in the same bucket
+    size and kept it (stop 43: 24 calls of 100-5,000 darts, 119 s and 2.4 GB that stayed); the
+    CDS's and LR's loops compiled again on every eager call. Now an eager call (of the classes
+    with ``eager_buckets``) is one jitted program per power-of-two size: other sizes in the same bucket
     compile nothing, answers unchanged."""
     from jaxcds.generators import random_planar_triangulation
     from jaxcds.structures import registry
 
-    s = registry.build("pemb", random_planar_triangulation(300, seed=3))
-    e = np.random.default_rng(0).integers(0, s.num_darts, 128).astype(np.int32)
+    s = registry.build(kind, random_planar_triangulation(300, seed=3))
+    d = s.all_darts()
+    e = d[np.random.default_rng(0).integers(0, d.size, 128)].astype(np.int32)
     want = np.asarray(jax.jit(lambda s, e: s.target(e))(s, e))
     np.testing.assert_array_equal(np.asarray(s.target(e[:120])), want[:120])  # bucket 128: compiled
     with counting_compilations() as seen:

@@ -798,6 +798,10 @@ class _CDS(MeshStructure):
     # several passes over a query batch: chunked on CPU (base._chunked_query; the Front/Back
     # routes measured 1.2-1.4x slower by chunks, twin and edge_of_vertex 3-5x)
     chunked_queries = frozenset({"target", "origin", "source", "face", "face_left", "face_right"})
+    # eager calls as one jitted program per power-of-two size (base._bucketed): Thm 2's O(d)
+    # walks are while_loops compiled again on every eager call. 2,000-vertex cds5n, 12 eager
+    # calls of new sizes 8.7 -> 2.8 s, a warm call 193 -> 0.7 ms (stop 43)
+    eager_buckets = True
     # a batch of at least 1/16 of the dart ids (3n/8 darts): Target/Origin from every edge's
     # Target, computed once per call by pointer jumping (~5 ns per edge) instead of Thm 2's O(d)
     # walk per query (120-230 ns); at 1/16 the table route took 0.30x the per-query route's time
