@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["to_device", "native_order"]
+__all__ = ["to_device", "native_order", "traced_for_cpu"]
 
 
 def to_device(x, dtype=None, *, copy: bool = False) -> jax.Array:
@@ -45,3 +45,17 @@ def native_order(x):
     if isinstance(x, np.ndarray) and x.dtype.byteorder not in "=|":
         return x.astype(x.dtype.newbyteorder("="))
     return x
+
+
+def traced_for_cpu() -> bool:
+    """Whether a call traced now runs on a CPU: the platform of ``jax.config.jax_default_device``
+    (a device or a platform name, as ``jax.default_device`` sets it), else JAX's default backend.
+
+    The one CPU-or-not decision of the library's cache-shaped routes (chunked queries, chunked
+    normal sums, CDS plans in a one-trip loop): they exist for XLA:CPU's caches and thread split,
+    and on a GPU a loop's trips run one after the other (RESULTS.md, stop 43). Arrays committed
+    to another device than the default one are traced for that device but get the default
+    platform's route here: the answers are the same, only the speed differs."""
+    d = jax.config.jax_default_device
+    platform = d if isinstance(d, str) else getattr(d, "platform", None)
+    return (platform or jax.default_backend()) == "cpu"

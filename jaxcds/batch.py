@@ -63,7 +63,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._arrays import to_device
+from jaxcds._arrays import to_device, traced_for_cpu
 from jaxcds._args import refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
@@ -628,19 +628,14 @@ NORMALS_CHUNK_VERTICES = 1 << 17
 
 
 def chunks_pay_off() -> bool:
-    """Whether the chunked normal sums run: on CPU only, the platform a call is traced for being
-    ``jax.config.jax_default_device`` (a device or a platform name, as ``jax.default_device``
-    sets it) or else JAX's default backend.
+    """Whether the chunked normal sums run: on CPU only (:func:`jaxcds._arrays.traced_for_cpu`,
+    the platform a call is traced for).
 
     Why: the chunks exist for a CPU's cache. On an H100 (RESULTS.md, "GPU: an H100, stop 43"),
     1,000 random meshes (2.8M vertices), chunked: the packed corner table 2.18x the face-list
     batch, the half-edge 2.33x, while the same structures unchunked on one 5M-vertex mesh read
-    1.12x and 1.01x. (Arrays committed to another device than the default one are traced for
-    that device; they get the default platform's route here: the answers are the same, only
-    the speed differs.)"""
-    d = jax.config.jax_default_device
-    platform = d if isinstance(d, str) else getattr(d, "platform", None)
-    return (platform or jax.default_backend()) == "cpu"
+    1.12x and 1.01x."""
+    return traced_for_cpu()
 
 
 def _row_blocks(s, num_chunks: int = 1):

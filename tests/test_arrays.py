@@ -145,3 +145,39 @@ def test_eager_operators_compile_once_per_power_of_two(kind):
     assert seen == []
     np.testing.assert_array_equal(np.asarray(s.target(e[5])), want[5])  # a scalar id
     assert s.target(np.zeros(0, np.int32)).shape == (0,)
+
+
+def _has_loop(fn, *args) -> bool:
+    jaxpr = str(jax.make_jaxpr(fn)(*args))
+    return "while[" in jaxpr or "scan[" in jaxpr  # fori_loop with static bounds is a scan
+
+
+@pytest.mark.parametrize("platform", ["gpu", "cuda", "rocm", "tpu"])
+def test_cache_shaped_routes_follow_one_cpu_decision(monkeypatch, platform):
+    """Chunked queries (base), chunked normal sums (batch) and CDS plans in a one-trip loop all
+    ask traced_for_cpu: a non-CPU default backend turns all three off, and jax.default_device
+    naming a CPU device turns them on again (the query chunks asked jax.default_backend()
+    alone before: off even there)."""
+    from jaxcds import _arrays
+    from jaxcds.structures import base
+
+    mesh = random_planar_triangulation(60, seed=3)
+    lr = registry.build("lr", mesh)
+    cds = registry.build("cds5n-o1", mesh)
+    ids = jnp.zeros(2 * base.QUERY_CHUNK + 5, jnp.int32)
+    in_loop = []
+    computed_in_loop = base.computed_in_loop
+    monkeypatch.setattr(base, "computed_in_loop",
+                        lambda *a, **k: in_loop.append(1) or computed_in_loop(*a, **k))
+
+    def routes():
+        in_loop.clear()
+        jax.make_jaxpr(lambda c: c.all_edge_targets())(cds)
+        return (_arrays.traced_for_cpu(), batch.chunks_pay_off(),
+                _has_loop(lambda d: lr.right_front(d), ids), bool(in_loop))
+
+    assert routes() == (True, True, True, True)
+    monkeypatch.setattr(jax, "default_backend", lambda: platform)
+    assert routes() == (False, False, False, False)
+    with jax.default_device(jax.devices("cpu")[0]):
+        assert routes() == (True, True, True, True)

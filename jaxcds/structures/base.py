@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._arrays import to_device
+from jaxcds._arrays import to_device, traced_for_cpu
 
 try:  # public in jax <= 0.10; imported, not looked up per call, so a move fails at import
     from jax.core import Tracer as _Tracer
@@ -242,7 +242,7 @@ def _chunked_query(method):
             return _bucketed(run, self, ids)
         if len(ids) == 1 and self.takes_table(name, jnp.size(ids[0])):
             return getattr(self, self.table_queries[name])(ids[0])
-        if name not in self.chunked_queries or jax.default_backend() != "cpu":
+        if name not in self.chunked_queries or not traced_for_cpu():
             return method(self, *ids)
         shape, size = ids[0].shape, ids[0].size  # device arrays already (id_arg above)
         if size < 2 * chunk or any(x.shape != shape for x in ids):

@@ -92,7 +92,7 @@ import numba
 import numpy as np
 
 from jaxcds import _mappings, errors
-from jaxcds._arrays import to_device
+from jaxcds._arrays import to_device, traced_for_cpu
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds._progress import PROGRESS_MIN_VERTICES  # noqa: F401  (re-exported)
 from jaxcds._progress import Progress as _Progress
@@ -1588,7 +1588,6 @@ class _Tables:
         self.lf, self.rf, self.lf2 = edge_fronts(wood)
         has = wood.out < n
         self.has = has
-        c = np.arange(3)[None, :]
         self.lf_same = has & ((self.lf & 1) == 1)
         self.rf_same = has & ((self.rf & 1) == 0)
         self.inc = _incoming(wood)
@@ -2049,7 +2048,7 @@ class CDS5nO1(CDS4n):
         u = jnp.arange(self.num_vertices, dtype=jnp.int32)
         flat = None
         # XLA:CPU's thread split only; on a GPU a loop costs a host round trip per trip test
-        if self.num_vertices < _base.IN_LOOP_MAX_VERTICES and jax.default_backend() == "cpu":
+        if self.num_vertices < _base.IN_LOOP_MAX_VERTICES and traced_for_cpu():
             flat = _base.computed_in_loop(lambda refs: self._plans(u, refs), self.refs)
         return self._three_targets(u, self.refs, flat)
 
