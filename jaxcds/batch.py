@@ -64,7 +64,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._arrays import to_device, traced_for_cpu
-from jaxcds._args import refuse_non_real
+from jaxcds._args import number_array, refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, validate
 from jaxcds.structures.base import Int, MeshStructure, id_arg
@@ -408,19 +408,11 @@ _id_arg = id_arg  # kept for the callers below (jaxcds.structures.base.id_arg)
 
 def _values_arg(values, what: str):
     """Per-row ``values`` for the per-mesh reductions: a jax array as it is (narrow integers and
-    booleans widened to int32), host values checked, in native byte order, on the device."""
-    if isinstance(values, np.ma.MaskedArray):
-        raise errors.ArgumentError(f"PackedBatch.{what}: a masked array (its mask would be ignored); "
-                                   "pass values.filled(0) or the kept rows' values")
-    if not isinstance(values, jax.Array):
-        try:
-            values = np.asarray(values)
-        except (TypeError, ValueError) as exc:  # ragged nested lists
-            raise errors.ArgumentError(f"PackedBatch.{what}: values are not an array of numbers: {exc}") from None
+    booleans widened to int32), host values checked (:func:`~jaxcds._args.number_array`), in
+    native byte order, on the device."""
+    values = number_array(values, f"PackedBatch.{what}: values", error=errors.ArgumentError,
+                          bools=True)
     dtype = values.dtype
-    if not (jnp.issubdtype(dtype, jnp.floating) or jnp.issubdtype(dtype, jnp.integer)
-            or jnp.issubdtype(dtype, jnp.bool_)):
-        raise errors.ArgumentError(f"PackedBatch.{what}: values must be real numbers, got dtype {dtype}")
     if jnp.issubdtype(dtype, jnp.bool_) or (jnp.issubdtype(dtype, jnp.integer) and dtype.itemsize < 4):
         return to_device(values, jnp.int32)
     return to_device(values)  # native byte order: JAX refuses big-endian data

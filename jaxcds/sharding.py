@@ -30,7 +30,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from jaxcds import errors
 from jaxcds._arrays import native_order, to_device
-from jaxcds._args import refuse_non_real
+from jaxcds._args import number_array, refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, replace, static_field
 from jaxcds.structures.base import Int, MeshStructure, integer_array, one_pass_queries
 
@@ -79,21 +79,13 @@ def _is_numeric(dtype) -> bool:
 
 
 def _host_rows(x, where: str) -> np.ndarray:
-    """``x`` as a numpy array of a dtype JAX holds, in native byte order (read by value: JAX
-    refuses big-endian arrays), or :class:`~jaxcds.errors.ArgumentError` naming ``where``:
-    ragged nested lists, masked arrays (the mask would be dropped), strings, objects, dates,
-    records (JAX's TypeError "not a valid JAX array type" before)."""
-    if isinstance(x, np.ma.MaskedArray):
-        raise errors.ArgumentError(f"{where}: a masked array (its mask would be ignored); pass "
-                                   "x.filled(value) or the kept rows")
-    try:
-        a = np.asarray(x)
-    except (TypeError, ValueError) as exc:  # ragged nested lists
-        raise errors.ArgumentError(f"{where}: not an array of numbers: {exc}") from None
-    if not _is_numeric(a.dtype):
-        raise errors.ArgumentError(f"{where}: dtype {a.dtype} is not numeric (JAX holds booleans, "
-                                   "integers, floats and complex numbers)")
-    return native_order(a)
+    """``x`` as a numpy array of a dtype JAX holds (booleans, integers, floats, complex numbers),
+    in native byte order (read by value: JAX refuses big-endian arrays), or
+    :class:`~jaxcds.errors.ArgumentError` naming ``where``: ragged nested lists, masked arrays
+    (the mask would be dropped), strings, objects, dates, records (JAX's TypeError "not a valid
+    JAX array type" before). :func:`~jaxcds._args.number_array` checks."""
+    a = number_array(x, where, error=errors.ArgumentError, bools=True, complex_ok=True)
+    return native_order(np.asarray(a))
 
 
 def _fill_value(value, dtype: np.dtype, where: str):
@@ -130,7 +122,7 @@ def shard_rows(x, mesh: Optional[Mesh], value=0) -> jax.Array:
         integers past the 32-bit dtype JAX holds them in (x64 off); ``value`` a number that dtype
         does not hold; ``mesh`` not a Mesh."""
     mesh = _mesh_arg(mesh, "shard_rows")
-    x = _host_rows(x, "shard_rows: x")
+    x = _host_rows(x, "shard_rows: rows x")
     if x.ndim == 0:  # _pad_rows read shape[0]: IndexError
         raise errors.ArgumentError("shard_rows: a 0-d value has no rows to split; give an array "
                                    "of at least one axis (or device_put it replicated)")
@@ -366,9 +358,6 @@ def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatte
                 if isinstance(s, MeshStructure) else type(s).__name__)
         raise errors.ArgumentError(f"sharded_vertex_normals: expected a structure from "
                                    f"shard_structure, got {what}")
-    if isinstance(positions, np.ma.MaskedArray):
-        raise errors.ArgumentError("sharded_vertex_normals: positions are a masked array (its "
-                                   "mask would be ignored); pass positions.filled(...)")
     refuse_non_real(positions, "sharded_vertex_normals: positions")
     positions = to_device(positions, copy=True)  # the caller's array: no shared buffer
     n, d = s.num_vertices, s.num_devices

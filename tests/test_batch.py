@@ -223,7 +223,7 @@ def test_per_mesh_reductions_read_host_values_by_value():
     np.testing.assert_allclose(np.asarray(b.per_mesh_mean(v.astype(">f8"))), want / nv, rtol=1e-6)
     np.testing.assert_array_equal(np.asarray(b.per_mesh_sum(np.full(b.num_vertices, 200, np.uint8))), 200 * nv)
     np.testing.assert_array_equal(np.asarray(b.per_mesh_sum(np.ones(b.num_vertices, bool))), nv)
-    with pytest.raises(errors.ArgumentError, match="per_mesh_sum: a masked array"):
+    with pytest.raises(errors.ArgumentError, match="per_mesh_sum: values are a masked array"):
         b.per_mesh_sum(np.ma.array(v, mask=v > 3))
     with pytest.raises(errors.ArgumentError, match="per_mesh_mean: values must be real numbers"):
         b.per_mesh_mean(v.astype(str))

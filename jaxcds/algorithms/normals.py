@@ -24,7 +24,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._arrays import native_order, to_device
-from jaxcds._args import refuse_non_real
+from jaxcds._args import number_array, refuse_non_real
 
 __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_normals", "corner_sums",
            "surface_faces_padded", "faces_with_dummy_corner", "within_range"]
@@ -118,7 +118,7 @@ def within_range(positions):
     Raises:
       MeshError: ``positions`` are not real numbers."""
     # host values checked before the transfer (strings cannot be placed on a device)
-    refuse_non_real(positions, "within_range: positions", bools=True)
+    positions = number_array(positions, "within_range: positions", bools=True)
     if not isinstance(positions, jax.Array):
         # the dtype JAX computes in (float64 is float32 unless x64 is on): its range decides
         positions = to_device(positions)
@@ -146,9 +146,8 @@ def face_list_vertex_normals(positions, faces):
       InvalidIndexError: ``faces`` are not integers (a float index would be truncated).
     """
     # nested lists as arrays (jit would take a list for a pytree of scalars)
-    positions = positions if isinstance(positions, jax.Array) else np.asarray(positions)
+    positions = number_array(positions, "face_list_vertex_normals: positions", bools=True)
     faces = faces if isinstance(faces, jax.Array) else np.asarray(faces)
-    refuse_non_real(positions, "face_list_vertex_normals: positions", bools=True)
     if not jnp.issubdtype(faces.dtype, jnp.integer):
         raise errors.InvalidIndexError(
             f"face_list_vertex_normals: faces must be integers, got dtype {faces.dtype}")

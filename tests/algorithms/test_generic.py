@@ -231,6 +231,15 @@ def test_face_list_normals_and_within_range_read_host_arrays_by_value():
     assert within_range(np.arange(6, dtype=np.int32).reshape(2, 3)).dtype == jnp.float32
     with pytest.raises(errors.MeshError, match="within_range: positions must be real numbers"):
         within_range(np.array([["a", "b", "c"]]))
+    # masked positions: the mask was dropped silently (the sharded normals refused them)
+    masked = np.ma.masked_array(p, p > 0.5)
+    with pytest.raises(errors.MeshError, match="face_list_vertex_normals: positions are a masked array"):
+        face_list_vertex_normals(masked, f)
+    with pytest.raises(errors.MeshError, match="within_range: positions are a masked array"):
+        within_range(masked)
+    s = HalfEdge.from_faces(f, num_vertices=len(v))
+    with pytest.raises(errors.MeshError, match="positions are a masked array"):
+        vertex_normals(s, np.ma.masked_array(np.asarray(v, np.float32), False))
 
 
 @pytest.mark.parametrize("structure", CDS_FAMILY)
