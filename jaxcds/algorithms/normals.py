@@ -116,7 +116,7 @@ def within_range(positions):
     on); lists and big-endian arrays are read by value.
 
     Raises:
-      MeshError: ``positions`` are not real numbers."""
+      MeshError: ``positions`` are not real numbers, or are a masked array."""
     # host values checked before the transfer (strings cannot be placed on a device)
     positions = number_array(positions, "within_range: positions", bools=True)
     if not isinstance(positions, jax.Array):
@@ -142,7 +142,7 @@ def face_list_vertex_normals(positions, faces):
     of the same shape, was read by jit's cache as native bytes: wrong normals).
 
     Raises:
-      MeshError: ``positions`` are not real numbers.
+      MeshError: ``positions`` are not real numbers, or are a masked array.
       InvalidIndexError: ``faces`` are not integers (a float index would be truncated).
     """
     # nested lists as arrays (jit would take a list for a pytree of scalars)
@@ -181,7 +181,8 @@ def vertex_normals(s, positions, method: str = "scatter"):
 
     Raises:
       MeshError: ``positions`` is not ``(num_vertices, 3)`` (checked at trace time), or not
-        real numbers (strings, objects, complex numbers: the imaginary part would be dropped).
+        real numbers (strings, objects, complex numbers: the imaginary part would be dropped), or a
+        masked array (the mask would be dropped).
       ArgumentError: an unknown ``method``.
     """
     refuse_non_real(positions, "positions", bools=True)
