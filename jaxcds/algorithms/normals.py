@@ -169,7 +169,8 @@ def vertex_normals(s, positions, method: str = "scatter"):
     ``positions`` are in the structure's vertex order (``positions[s.vertex_order]`` when the
     structure permuted vertices). Border darts contribute nothing, nor do the fans that closed
     holes (``s.dummy_vertex_mask()``, the CDS family): a border vertex gets the open mesh's
-    normal, a dummy vertex a zero one. Differentiable.
+    normal, a dummy vertex a zero one. Differentiable in forward and reverse mode, to any order
+    (``jax.grad``, ``jvp``, ``jacfwd``, ``hessian``), by either method.
 
     Integer, float16 and bfloat16 positions are taken as float32. In float32, coordinates beyond about 1e17 or under
     1e-17 in magnitude overflow or underflow in the face cross products (NaN or zero normals):
@@ -253,24 +254,22 @@ def surface_faces_padded(s):
 
 # The gather route turns around vertices with a while_loop (its trip count is the largest degree,
 # known only at run time), and while_loop has no reverse-mode derivative. Both routes compute the
-# same function of the positions, so its VJP is the scatter route's VJP.
-@jax.custom_vjp
+# same function of the positions, so its derivative is the scatter route's: given as a custom
+# JVP (the scatter route's tangent), which JAX transposes for reverse mode. A custom VJP gave
+# reverse mode only: jax.jvp / jacfwd / hessian of the gather normals raised JAX's TypeError
+# "can't apply forward-mode autodiff (jvp) to a custom_vjp function" (sweep 14).
+@jax.custom_jvp
 def _gather_normals(s, positions):
     return normalize(_gather_sums(s, positions))
 
 
-def _gather_fwd(s, positions):
-    return _gather_normals(s, positions), (s, positions)
-
-
-def _gather_bwd(res, g):
-    s, positions = res
-    _, vjp = jax.vjp(lambda p: normalize(_scatter_sums(s, p)), positions)
-    zero_s = jax.tree_util.tree_map(lambda x: np.zeros(x.shape, jax.dtypes.float0), s)
-    return zero_s, vjp(g)[0]
-
-
-_gather_normals.defvjp(_gather_fwd, _gather_bwd)
+@_gather_normals.defjvp
+def _gather_jvp(primals, tangents):
+    s, positions = primals
+    dp = tangents[1]  # the structure's integer arrays have no tangent (float0)
+    _, dn = jax.jvp(lambda p: normalize(_scatter_sums(s, p)), (positions,), (dp,))
+    # the primal through _gather_normals itself: a derivative of this rule (hessian) uses it again
+    return _gather_normals(s, positions), dn
 
 
 def _gather_sums(s, positions):

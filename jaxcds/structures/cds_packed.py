@@ -280,6 +280,21 @@ def packed_class(base):
     return _CLASSES[base]
 
 
+def __getattr__(name: str):
+    """``PackedCDS6n``... and their views by name, made on first use (PEP 562): pickle finds a
+    class by module attribute, and these are made by :func:`packed_class`, not defined here
+    (a packed CDS batch raised PicklingError "attribute lookup PackedCDS6n ... failed", also in
+    a fresh process that had made no packed class yet; sweep 14)."""
+    from jaxcds.structures.cds import CDS4n, CDS5n, CDS5nO1, CDS6n
+
+    for base in (CDS6n, CDS5n, CDS4n, CDS5nO1):
+        if name == f"Packed{base.__name__}":
+            return packed_class(base)
+        if name == f"_View{base.__name__}":
+            return packed_class(base)._view_cls
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def concatenate_cds(cls, parts: Sequence) -> object:
     """Join CDS structures of class ``cls`` (one per mesh) into one :func:`packed_class` structure
     over the disjoint union: mesh ``i``'s vertex ``u`` is ``o_i + u`` (``o_i`` = vertices of the

@@ -410,6 +410,21 @@ def packed_class(base):
     return _CLASSES[base]
 
 
+def __getattr__(name: str):
+    """``PackedLR``, ``PackedLRBits`` and their views by name, made on first use (PEP 562):
+    pickle finds a class by module attribute, and these are made by :func:`packed_class`, not
+    defined here (a packed LR batch raised PicklingError "attribute lookup PackedLR ... failed";
+    sweep 14)."""
+    from jaxcds.structures.lr import LR, LRBits
+
+    for base in (LR, LRBits):
+        if name == f"Packed{base.__name__}":
+            return packed_class(base)
+        if name == f"_View{base.__name__}":
+            return packed_class(base)._view_cls
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def concatenate_lr(cls, parts: Sequence) -> object:
     """Join LR (or LRBits) structures, one per mesh, into one :func:`packed_class` structure.
 
