@@ -66,7 +66,7 @@ from jaxcds import errors
 from jaxcds._arrays import to_device, traced_for_cpu
 from jaxcds._args import number_array, refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, load_mesh, validate
+from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, id_arg
 
 __all__ = ["PackedBatch", "pack", "concatenate", "shift_ids", "shift_darts", "OPERATOR_KINDS",
@@ -516,6 +516,11 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
     get the union ``vertex_order`` (each mesh's order shifted by its vertex offset):
     :func:`pack_positions` applies it.
 
+    ``check=False`` (``halfedge``, ``corner-table``; the other builders always validate): trusted
+    meshes, not validated. Only their face ids are checked (O(F), ``InvalidIndexError`` naming
+    the mesh and the face) and border sides that do not chain into loops (the mesh's defect,
+    named); on other defects the batch's answers are unspecified, never a crash.
+
     Raises:
       MeshError: a defective mesh; the message names the mesh index and the defect.
       UnsupportedTopologyError: the structure refuses a mesh, or has no ``concatenate``.
@@ -591,8 +596,19 @@ def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBat
                 except errors.MeshError as exc:
                     raise type(exc)(f"pack: mesh {i} ({m.source}): {exc}") from exc
             raise
+    else:  # trusted: ids only (one beyond its own mesh would reach into the next one's vertices)
+        for i, m in enumerate(ms):
+            trusted_faces(m.faces, m.num_vertices, f"pack: mesh {i} ({m.source})")
     cls = HalfEdge if structure == "halfedge" else CornerTable
-    s = cls.from_faces(u.faces, u.num_vertices)
+    try:
+        s = cls.from_faces(u.faces, u.num_vertices)
+    except errors.MeshError:  # border sides that do not chain (from_faces): name the mesh
+        for i, m in enumerate(ms):
+            try:
+                validate(m, structure=structure, unreferenced_ok=True)
+            except errors.MeshError as exc:
+                raise type(exc)(f"pack: mesh {i} ({m.source}): {exc}") from exc
+        raise
     nf = np.array([m.num_faces for m in ms], np.int64)
     if structure == "halfedge":
         # border darts of mesh i: one per border side of its faces, in face order (the builder

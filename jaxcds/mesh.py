@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import operator
 import os
 import re
 import stat
@@ -876,7 +877,6 @@ def _check_ply_ascii_rows(data: bytes, buf: np.ndarray, ends: np.ndarray, want: 
             problem = ~has_count | (cnt != np.floor(cnt)) | (cnt < least) | (n_row != p + 1 + cnt + q)
             if problem.any():
                 bad = int(np.flatnonzero(problem)[0])
-                r = row0 + bad
                 c = cnt[bad]
                 if not has_count[bad]:
                     why = f"has {int(n_row[bad])} values, no list count"
@@ -1290,6 +1290,31 @@ def _check_indices(f: np.ndarray, num_vertices: int, source: str) -> None:
         raise errors.InvalidIndexError(
             f"{source}: face {fi} refers to vertex {int(f[fi, k])}, outside [0, {num_vertices}) "
             f"({bad[0].size} bad indices in all)")
+
+
+def trusted_faces(faces: Any, num_vertices: Any, source: str) -> np.ndarray:
+    """``faces`` as the unvalidated builders take them (``HalfEdge.from_faces``,
+    ``CornerTable.from_faces``, ``pack(..., check=False)``): C-contiguous int32 ``(F, 3)`` with
+    every id in ``[0, num_vertices)``. The one check of those routes, O(F) (a min and a max):
+    their numba kernels index arrays by vertex id unchecked, and an id out of range read and
+    wrote outside them (a segfault). Other defects are not looked for (:func:`validate` does).
+
+    Raises:
+      InvalidIndexError: an id outside ``[0, num_vertices)`` (naming the face and the id).
+      UnreadableMeshError: ``faces`` not an ``(F, 3)`` array of integers.
+      ArgumentError: ``num_vertices`` not an integer >= 0.
+    """
+    try:
+        nv = -1 if isinstance(num_vertices, (bool, np.bool_)) else operator.index(num_vertices)
+    except TypeError:
+        nv = -1
+    if not 0 <= nv <= np.iinfo(np.int32).max:
+        raise errors.ArgumentError(f"{source}: num_vertices must be an integer in [0, 2^31), got "
+                                   f"{num_vertices!r}")
+    f = faces if _canonical(faces, np.int32, 3) else _int32_faces(faces, nv, source)
+    if f.size and (f.min() < 0 or f.max() >= nv):
+        _check_indices(f, nv, source)
+    return f
 
 
 def _weld(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:

@@ -124,6 +124,21 @@ def octahedron():
     return v, f
 
 
+def crash_probe(code: str, timeout: float = 300) -> dict:
+    """Run ``code`` in a child interpreter (a numba kernel reading out of bounds kills the
+    process, not the test run) and return the JSON object its last stdout line prints; a
+    non-zero exit (a negative one is a signal: a crash) fails the test with the child's stderr."""
+    import json
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                       timeout=timeout)
+    assert r.returncode == 0, f"child exited {r.returncode}: {r.stderr[-3000:]}"
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
 # ---------------------------------------------------------------- CPU cost per test
 # `JAXCDS_CPU_TIMES=/tmp/cpu.txt make test` appends "<cpu seconds> <test id>" per test: CPU time
 # (XLA compiles on several threads) is the budget that matters on a shared 2-core CI machine,

@@ -23,7 +23,7 @@ from jaxcds.mesh import TriMesh, close_boundaries, load_mesh
 from jaxcds.structures import CornerTable, HalfEdge, registry
 from jaxcds.verify import verify
 
-from conftest import CDS_FAMILY, load_shared, octahedron
+from conftest import CDS_FAMILY, crash_probe, load_shared, octahedron
 
 
 def open_meshes():
@@ -827,3 +827,68 @@ def test_pack_positions_refuses_a_dtype_that_is_not_floating():
         np.testing.assert_allclose(np.asarray(p, np.float32), want, rtol=1e-2, atol=1e-2)
     n = np.asarray(vertex_normals(b, B.pack_positions(b, ms, dtype=jnp.bfloat16)))
     assert n.dtype == np.float32 and np.isfinite(n).all()
+
+
+# (sweep 14b) pack(..., check=False): the union builders skip validation. A face id outside its
+# mesh crashed the numba builders (negative or past the union) or, inside the union, joined
+# two meshes silently; border sides that do not chain wrote out of range. Probed in a child.
+_PACK_TRUSTED_CHILD = r"""
+import json
+import numpy as np
+from jaxcds import batch as B, errors
+from jaxcds.mesh import TriMesh
+
+tet = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], np.int32)
+bad = {"negative": ([[0, 1, 2], [0, 2, -1]], 4), "past_union": ([[0, 1, 2], [0, 2, 1 << 30]], 4),
+       "into_next_mesh": ([[0, 1, 2], [0, 2, 5]], 4),  # vertex 1 of the next mesh in the union
+       "pinched": ([[0, 1, 2], [0, 3, 4]], 5), "flipped": ([[0, 1, 2], [0, 1, 3]], 4)}
+out = {}
+for kind in ("halfedge", "corner-table"):
+    for name, (f, nv) in bad.items():
+        meshes = [TriMesh(np.zeros((4, 3)), tet), TriMesh(np.zeros((nv, 3)), np.array(f, np.int32)),
+                  TriMesh(np.zeros((4, 3)), tet)]
+        try:
+            B.pack(meshes, kind, check=False)
+            out[kind + ":" + name] = ["built", ""]
+        except errors.JaxcdsError as exc:
+            out[kind + ":" + name] = [type(exc).__name__, str(exc)]
+print(json.dumps(out))
+"""
+
+
+def test_pack_unchecked_refuses_ids_out_of_range_and_unchained_borders():
+    out = crash_probe(_PACK_TRUSTED_CHILD)
+    for kind in ("halfedge", "corner-table"):
+        for name, vertex in (("negative", -1), ("past_union", 1 << 30), ("into_next_mesh", 5)):
+            cls, msg = out[f"{kind}:{name}"]
+            assert cls == "InvalidIndexError", (kind, name, cls, msg)
+            assert msg.startswith(f"pack: mesh 1 (arrays): face 1 refers to vertex {vertex}, "
+                                  "outside [0, 4)"), msg
+        for name, cls in (("pinched", "NonManifoldVertexError"),
+                          ("flipped", "InconsistentOrientationError")):
+            assert out[f"{kind}:{name}"][0] == cls, out[f"{kind}:{name}"]
+            assert out[f"{kind}:{name}"][1].startswith("pack: mesh 1 (arrays): "), out[f"{kind}:{name}"]
+
+
+@pytest.mark.parametrize("name", ["cds6n", "lr-bits"])
+def test_packed_compact_batches_pickle_and_compare(name):
+    """A packed CDS or LR batch could not be pickled (its union class is made at run time by
+    ``packed_class``: PicklingError "attribute lookup PackedCDS6n on
+    jaxcds.structures.cds_packed failed"), and ``==`` on two packs raised JAX's ambiguous truth
+    value. Now the class is found by name (made on first use, so a fresh process can unpickle),
+    the copy is equal to the original and answers as it does."""
+    import copy
+    import importlib
+    import pickle
+
+    ms = [icosphere(1), random_planar_triangulation(12, seed=1)]
+    b = B.pack(ms, name)
+    for c in (pickle.loads(pickle.dumps(b)), copy.deepcopy(b)):
+        assert type(c.structure) is type(b.structure) and c == b and c == B.pack(ms, name)
+        np.testing.assert_array_equal(np.asarray(c.target(c.all_darts())), np.asarray(b.target(b.all_darts())))
+    assert "Array" not in repr(b.structure) and len(repr(b.structure)) < 200
+    mod = importlib.import_module(type(b.structure).__module__)
+    base = type(b.structure)._base  # the per-mesh class (CDS6n, LRBits)
+    assert mod.__getattr__(f"Packed{base.__name__}") is type(b.structure)
+    with pytest.raises(AttributeError):
+        mod.__getattr__("PackedNothing")

@@ -755,3 +755,25 @@ def test_load_mesh_names_ragged_vertex_lists():
     """np.iscomplexobj ran on the raw list first: a ValueError, untyped."""
     with pytest.raises(errors.UnreadableMeshError, match="vertices/faces are not numeric arrays"):
         load_mesh([[1.0, 0.0, 0.0], [0.0, 1.0]], [[0, 1, 2]])
+
+
+def test_trusted_faces_checks_ids_only():
+    """(sweep 14b) The one check of the unvalidated builders: ids in range, canonical int32."""
+    from jaxcds.mesh import trusted_faces
+
+    f = np.array([[0, 1, 2], [0, 2, 1]], np.int32)  # a duplicate pair: not looked for here
+    assert trusted_faces(f, 3, "t") is f  # canonical: no copy
+    got = trusted_faces(np.array([[0, 1, 2]], ">i8"), 3, "t")
+    assert got.dtype == np.int32 and got.flags.c_contiguous
+    with pytest.raises(errors.InvalidIndexError, match=r"^t: face 1 refers to vertex 3, outside \[0, 3\)"):
+        trusted_faces(np.array([[0, 1, 2], [0, 2, 3]]), 3, "t")
+    with pytest.raises(errors.InvalidIndexError, match=r"^t: face 0 refers to vertex -1"):
+        trusted_faces([[-1, 1, 2]], 3, "t")
+    with pytest.raises(errors.InvalidIndexError, match=r"face 0 refers to vertex 4294967296"):
+        trusted_faces(np.array([[0, 1, 2**32]]), 3, "t")  # would wrap to 0 in int32
+    with pytest.raises(errors.UnreadableMeshError, match=r"shape \(F, 3\)"):
+        trusted_faces(np.zeros((2, 4), np.int32), 5, "t")
+    for nv in (-1, 2.5, True, None, 2**31):
+        with pytest.raises(errors.ArgumentError, match="num_vertices"):
+            trusted_faces(f, nv, "t")
+    assert trusted_faces(f, np.int64(3), "t") is f

@@ -418,7 +418,6 @@ def cycles_to_csr(s, succ, vertex_ids, size: int):
     ids, each starting at its head; ``is_permutation`` False flags a broken successor map.
     """
     E = s.num_darts
-    e = _darts(s)
     active = succ < E
     na = jnp.sum(active).astype(jnp.int32)
     lane_of_dart = (jnp.cumsum(active) - 1).astype(jnp.int32)
@@ -621,7 +620,6 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     pos_s = pos if order is None else pos[vids]
     vids_j = to_device(vids)
     t = {}
-    cpu = {}
     marks = [(time.perf_counter(), time.process_time())]
 
     def clock():

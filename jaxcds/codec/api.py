@@ -23,7 +23,8 @@ from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n
 from jaxcds.codec.encode import encode_faces
 from jaxcds.codec.words import Words, to_mixed
 from jaxcds.construct.schnyder import prepare_mesh
-from jaxcds.mesh import TriMesh, boundary_loops, close_boundaries, load_mesh, topology, validate
+from jaxcds.mesh import (TriMesh, boundary_loops, close_boundaries, load_mesh, topology,
+                         trusted_faces, validate)
 
 __all__ = ["EncodedMesh", "encode_mesh", "decode", "write_cds", "read_cds", "cds_info",
            "encode_file", "decode_file", "write_mesh_atomic"]
@@ -61,7 +62,9 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
       maximal: use the maximal Schnyder wood (Lemma 3). Any wood encodes and decodes to a mesh;
         decoding into CDS6n / CDS5n / CDS4n needs the maximal wood's words (EncodingError
         otherwise: the Thm 7 face map and the 5n tables are decoded for it).
-      check: validate the mesh first (typed :class:`MeshError` on defects).
+      check: validate the mesh first (typed :class:`MeshError` on defects). ``False``: trusted
+        input, only its face ids are checked (O(F)); other defects are refused by the Schnyder
+        wood or give words of unspecified meaning, never a crash.
       close: close boundaries with dummy vertices (``close_boundaries``) instead of refusing.
 
     Raises:
@@ -77,7 +80,9 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
         mesh, _ = prepare_mesh(mesh, structure="the 4n-bit encoding (Schnyder woods)")
     elif check:
         validate(mesh, connected=True, structure="the 4n-bit encoding")
-    elif close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
+    else:  # the hole closing and the wood index arrays by vertex id: ids in range first
+        trusted_faces(mesh.faces, mesh.num_vertices, f"encode_mesh: {mesh.source}")
+    if not check and close and (mesh.dummy_vertices is None) and boundary_loops(mesh):
         mesh = close_boundaries(mesh)
     # the wood's out table and rotations, then the words in one DFS pass (encode_faces): the
     # colour labels of a full SchnyderWood are not needed to encode (same words)

@@ -17,10 +17,10 @@ import jax.numpy as jnp
 import numba
 import numpy as np
 
-from jaxcds import _mappings
+from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, Twins, load_mesh, validate
+from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure
 from jaxcds.structures.halfedge import _match_twins, halfedge_arrays
 
@@ -97,6 +97,8 @@ class CornerTable(MeshStructure):
 
     @classmethod
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "CornerTable":
+        """Build from a closed manifold mesh, validated first (typed errors); ``check=False``:
+        trusted input, not validated (the checks of :meth:`from_faces` only)."""
         _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         twins = None
@@ -109,8 +111,16 @@ class CornerTable(MeshStructure):
         """Build from an ``(F, 3)`` face array of a closed manifold (not re-validated).
         ``twins``: the :class:`jaxcds.mesh.Twins` that validation returned for these faces
         (``validate(..., return_twins=True)``); then no twin is matched again, only ``O`` is
-        derived from them (one pass)."""
-        f = np.ascontiguousarray(faces, dtype=np.int32)
+        derived from them (one pass).
+
+        Trusted input: only the vertex ids are checked (O(F): ``InvalidIndexError`` naming the
+        face), that there is a face (``EmptyMeshError``), and border sides that do not chain
+        into loops (``MeshError``). Other defects give a table whose answers are unspecified,
+        never a crash: use :meth:`from_mesh` for untrusted input."""
+        f = trusted_faces(faces, num_vertices, "CornerTable.from_faces")
+        if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
+            raise errors.EmptyMeshError(f"CornerTable.from_faces: no faces ({int(num_vertices)} "
+                                        "vertices); nothing to build")
         nf = f.shape[0]
         closed = False
         if twins is not None and twins.opp.shape[0] == 3 * nf:
@@ -121,7 +131,8 @@ class CornerTable(MeshStructure):
         if closed:
             vert = f.reshape(-1)
         else:  # a dart without twin: the half-edge route (border half-edges), as it always did
-            _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices))
+            _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices),
+                                                     source="CornerTable.from_faces")
             O = _opposites(opp, nf)
         # a vertex in no face: the protocol's "absent", one past the corners
         vedge = np.where(np.asarray(vedge) < 0, 3 * nf, vedge).astype(np.int32)

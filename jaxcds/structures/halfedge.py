@@ -20,7 +20,7 @@ from jaxcds import _mesh_kernels as _kernels
 from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, load_mesh, validate
+from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure
 
 __all__ = ["HalfEdge", "halfedge_arrays"]
@@ -53,7 +53,8 @@ class HalfEdge(MeshStructure):
     # -------------------------------------------------------------- construction
     @classmethod
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "HalfEdge":
-        """Build from a validated mesh (borders allowed, several components allowed)."""
+        """Build from a validated mesh (borders allowed, several components allowed).
+        ``check=False``: trusted input, not validated (the checks of :meth:`from_faces` only)."""
         _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         twins = None
@@ -65,9 +66,19 @@ class HalfEdge(MeshStructure):
     def from_faces(cls, faces, num_vertices: int, *, twins=None) -> "HalfEdge":
         """Build from an ``(F, 3)`` ccw face array of a manifold, consistently oriented mesh
         (not re-validated here: use :meth:`from_mesh` for untrusted input). ``twins``: the
-        :class:`jaxcds.mesh.Twins` validation returned for these faces (no second matching)."""
-        f = np.ascontiguousarray(faces, dtype=np.int32)
-        nxt, opp, vert, vedge, bprev = halfedge_arrays(f, int(num_vertices), twins=twins)
+        :class:`jaxcds.mesh.Twins` validation returned for these faces (no second matching).
+
+        Trusted input: only the vertex ids are checked (O(F): ``InvalidIndexError`` naming the
+        face), that there is a face (``EmptyMeshError``), and border sides that do not chain
+        into loops (``MeshError`` naming the defect). Other defects (non-manifold edges,
+        duplicated or degenerate faces, flipped faces whose borders still chain) give a
+        structure whose answers are unspecified, never a crash."""
+        f = trusted_faces(faces, num_vertices, "HalfEdge.from_faces")
+        if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
+            raise errors.EmptyMeshError(f"HalfEdge.from_faces: no faces ({int(num_vertices)} "
+                                        "vertices); nothing to build")
+        nxt, opp, vert, vedge, bprev = halfedge_arrays(f, int(num_vertices), twins=twins,
+                                                       source="HalfEdge.from_faces")
         return cls(next_=to_device(nxt), opposite=to_device(opp), vertex=to_device(vert),
                    vertex_edge=to_device(vedge), border_prev=to_device(bprev),
                    num_vertices=int(num_vertices), num_faces=int(f.shape[0]))
@@ -154,19 +165,37 @@ class HalfEdge(MeshStructure):
 
 
 # ------------------------------------------------------------------ numba builder
-def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None):
+def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None, *,
+                    source: str = "halfedge_arrays"):
     """``(next, opposite, vertex, vertex_edge, border_prev)`` int32 arrays for a face list.
 
     Linear time: darts are bucketed by their smaller endpoint (a counting sort), and each dart
     finds its twin inside its bucket, whose size is the vertex degree -- or the twins come from
     validation (``twins``, :class:`jaxcds.mesh.Twins` of these faces).
+
+    Raises (the unvalidated route's checks, ``source`` names the caller):
+      InvalidIndexError: a face id outside ``[0, num_vertices)``.
+      MeshError: border sides that do not chain into loops (a pinched vertex, flipped faces...):
+        the mesh's first defect as :func:`jaxcds.mesh.validate` names it.
     """
-    f = np.ascontiguousarray(faces, dtype=np.int32)
+    f = trusted_faces(faces, num_vertices, source)
     if twins is not None and twins.opp.shape[0] == 3 * f.shape[0]:
         opp = twins.opp.copy()  # _link writes the border half-edges into it
     else:
         opp = _match_twins(f, int(num_vertices))
-    return _link(f, opp, int(num_vertices), f.shape[0])
+    out = _link(f, opp, int(num_vertices), f.shape[0])
+    if out[-1] >= 0:
+        _broken_borders(f, int(num_vertices), int(out[-1]), source)
+    return out[:-1]
+
+
+def _broken_borders(f: np.ndarray, num_vertices: int, vertex: int, source: str):
+    """Raise the defect behind a border chain that :func:`_link` could not close at ``vertex``
+    (the unvalidated route; the validation runs on this failure only)."""
+    mesh = TriMesh(vertices=np.zeros((num_vertices, 3)), faces=f, source=source)
+    validate(mesh, unreferenced_ok=True)  # raises the first defect, named
+    raise errors.MeshError(f"{source}: the border sides at vertex {vertex} do not chain into "
+                           "loops (a non-manifold or inconsistently oriented mesh there)")
 
 
 # ``_match_twins(faces, num_vertices)`` -> ``opp[d]``: the twin of dart ``d`` among the face darts,
@@ -188,7 +217,7 @@ def _link(faces, opp, num_vertices, nf):
     nxt = np.empty(h, dtype=np.int32)
     opposite = np.empty(h, dtype=np.int32)
     vert = np.empty(h, dtype=np.int32)
-    bprev = np.empty(nb, dtype=np.int32)
+    bprev = np.full(nb, -1, dtype=np.int32)
     vedge = np.full(num_vertices, -1, dtype=np.int32)
     border_out = np.full(num_vertices, -1, dtype=np.int64)
     for d in range(n3):
@@ -213,12 +242,25 @@ def _link(faces, opp, num_vertices, nf):
             j += 1
     for d in range(n3):
         opposite[d] = opp[d]
+    # ``bad``: a vertex where the border darts do not chain (-1: none). On a manifold,
+    # consistently oriented mesh, one border dart leaves each border vertex and ``next`` is a
+    # permutation of the border darts; on unvalidated input a vertex may have none (``-1``
+    # would index ``bprev`` out of range) or two (a ``bprev`` slot never written)
+    bad = -1
     for j in range(n3, h):
         # next border dart leaves the target of j, which is origin of its twin
         t = vert[opposite[j]]
         nxt[j] = border_out[t]
-        bprev[nxt[j] - n3] = j
+        if nxt[j] < 0:
+            nxt[j] = j
+            if bad < 0:
+                bad = t
+        elif bprev[nxt[j] - n3] >= 0:
+            if bad < 0:
+                bad = t
+        else:
+            bprev[nxt[j] - n3] = j
     for v in range(num_vertices):
         if vedge[v] < 0:  # a vertex in no face: the protocol's "absent", one past the darts
             vedge[v] = h
-    return nxt, opposite, vert, vedge, bprev
+    return nxt, opposite, vert, vedge, bprev, bad

@@ -596,7 +596,9 @@ class LR(_LRNavigation):
     def from_corner_table(cls, ct: CornerTable, *, dummy=None, seeds=4, check: bool = True,
                           wart_skipping: bool = True, ring_sweeps: int = 0) -> "LR":
         """Ring and tables from a :class:`CornerTable` (the paper's input, Sec. 8.1);
-        ``dummy``: mask of dummy vertices (shown as borders)."""
+        ``dummy``: mask of dummy vertices (shown as borders). The table is trusted (a closed
+        manifold): only its ids are checked (:func:`_check_table`)."""
+        _check_table(ct, "LR.from_corner_table")
         return _from_corner_table(cls, ct, dummy=dummy, seeds=seeds, k=None, check=check,
                                   wart_skipping=wart_skipping, ring_sweeps=ring_sweeps)
 
@@ -690,7 +692,9 @@ class LRBits(_LRNavigation):
     def from_corner_table(cls, ct: CornerTable, *, k: int = 64, dummy=None, seeds=1,
                           check: bool = True, wart_skipping: bool = True) -> "LRBits":
         """HYBRID-RING-EXPANDER of period ``k`` (Sec. 6.1; 0 = depth-first) and the 16-bit tables
-        from a :class:`CornerTable`; ``dummy``: mask of dummy vertices (shown as borders)."""
+        from a :class:`CornerTable`; ``dummy``: mask of dummy vertices (shown as borders). The
+        table is trusted (a closed manifold): only its ids are checked (:func:`_check_table`)."""
+        _check_table(ct, "LRBits.from_corner_table")
         ks = _check_k(k)
         if len(ks) != 1:
             raise errors.ArgumentError(f"LRBits.from_corner_table takes one period k, got {k!r}")
@@ -700,6 +704,29 @@ class LRBits(_LRNavigation):
 
 
 # --------------------------------------------------------------------------------- construction
+def _check_table(ct: CornerTable, where: str) -> None:
+    """The ids of a corner table handed to the LR builders: ``c.v`` in ``[0, n)`` and ``c.o`` in
+    ``[0, 3F)`` (O(F)). RING-EXPANDER's numba kernels read them unchecked: a table built by
+    ``CornerTable.from_faces`` on a mesh with borders has ``c.o`` past the corners there (the
+    half-edge's border darts), which read outside the arrays (a segfault). Other defects of a
+    trusted table give a typed refusal from the ring or tables of unspecified meaning."""
+    V, O = np.asarray(ct.V), np.asarray(ct.O)
+    nc, nv = 3 * ct.num_faces, ct.num_vertices
+    if V.shape != (nc,) or O.shape != (nc,):
+        raise errors.ArgumentError(f"{where}: V and O must have 3F = {nc} entries, got "
+                                   f"{V.shape} and {O.shape}")
+    if nc and (O.min() < 0 or O.max() >= nc):
+        c = int(np.flatnonzero((O < 0) | (O >= nc))[0])
+        raise errors.UnsupportedTopologyError(
+            f"{where}: corner {c} (vertex {int(V[c])}, face {c // 3}) has no opposite corner "
+            f"(c.o = {int(O[c])}, outside [0, {nc})): the table has a border; LR needs a closed "
+            "mesh (LR.from_mesh closes holes with dummy vertices)")
+    if nc and (V.min() < 0 or V.max() >= nv):
+        c = int(np.flatnonzero((V < 0) | (V >= nv))[0])
+        raise errors.InvalidIndexError(f"{where}: corner {c} (face {c // 3}) has vertex "
+                                       f"{int(V[c])}, outside [0, {nv})")
+
+
 _AUTO_K = (16, 32, 64, 128, 256, 512, 1024, 0)
 
 

@@ -68,7 +68,7 @@ import numpy as np
 from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, load_mesh, validate
+from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct.bp import unbalanced_at
@@ -211,7 +211,7 @@ def rotation_system_from_faces(faces: np.ndarray, num_vertices: int):
     from jaxcds.structures.halfedge import halfedge_arrays
 
     f = np.ascontiguousarray(faces, np.int32)
-    nxt, opp, vert, _vedge, bprev = halfedge_arrays(f, int(num_vertices))
+    nxt, opp, vert, _vedge, bprev = halfedge_arrays(f, int(num_vertices), source="pemb")
     nf3 = 3 * f.shape[0]
     prev = np.empty_like(nxt)
     prev[:nf3] = nxt[nxt[:nf3]]
@@ -276,7 +276,10 @@ class PEMB(MeshStructure):
         ``B`` nests deeply, and only 5-8% of ``mate`` / 47-54% of ``vertex`` searches end within
         64 bits; with a BFS tree 55-93% do (100K random points, ``B`` 73%, ``B*`` 55% of the
         matches in the query's own word), which the two-stage searches of
-        :class:`~jaxcds.structures.succinct.BalancedParens` answer without the min-max tree."""
+        :class:`~jaxcds.structures.succinct.BalancedParens` answer without the min-max tree.
+
+        ``check=False`` skips the validation and the genus test (trusted input, the checks of
+        :meth:`from_faces` only: answers unspecified on a defective mesh, never a crash)."""
         _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         if check:
@@ -295,8 +298,16 @@ class PEMB(MeshStructure):
 
     @classmethod
     def from_faces(cls, faces, num_vertices: int, *, tree: str = "bfs") -> "PEMB":
-        f = np.ascontiguousarray(faces, np.int32)
+        """Build from an ``(F, 3)`` ccw face array, not validated (:meth:`from_mesh` is the
+        checked route). Checked here, O(F): ids in range (``InvalidIndexError``), at least one
+        face (``EmptyMeshError``), border sides that chain into loops; a walk that breaks on a
+        non-planar or disconnected input is ``UnsupportedTopologyError``. Other defects give
+        answers that are unspecified, never a crash."""
+        f = trusted_faces(faces, num_vertices, "PEMB.from_faces")
         nf = int(f.shape[0])
+        if nf == 0:  # the walk's first dart would not exist
+            raise errors.EmptyMeshError(f"PEMB.from_faces: no faces ({int(num_vertices)} "
+                                        "vertices); nothing to build")
         opp, ccw, vert, is_border = rotation_system_from_faces(f, num_vertices)
         if is_border.any():
             b = int(np.argmax(is_border))

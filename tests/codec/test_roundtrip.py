@@ -109,3 +109,34 @@ def test_codec_api_arguments_are_typed():
     with pytest.raises(errors.EncodingError, match="num_vertices must be an integer, got 20.0"):
         Words(20.0, w.bits, mixed=True)
     assert decode(Words(np.int32(20), w.bits, mixed=True)).shape == (36, 3)
+
+
+# (sweep 14b) encode_mesh(check=False) closed the holes of an unvalidated mesh: a face id past
+# the vertices was a raw IndexError of numpy, a large negative one a segfault. Probed in a child.
+_ENCODE_TRUSTED_CHILD = r"""
+import json
+import numpy as np
+from jaxcds import errors
+from jaxcds.codec import encode_mesh
+from jaxcds.mesh import TriMesh
+
+out = {}
+for name, bad in (("past", 7), ("negative", -1), ("negative_huge", -(1 << 30))):
+    m = TriMesh(np.zeros((4, 3)), np.array([[0, 1, 2], [0, 2, bad]], np.int32))
+    try:
+        encode_mesh(m, check=False)
+        out[name] = ["encoded", ""]
+    except errors.JaxcdsError as exc:
+        out[name] = [type(exc).__name__, str(exc)]
+print(json.dumps(out))
+"""
+
+
+def test_encode_mesh_unchecked_refuses_ids_out_of_range():
+    from conftest import crash_probe
+
+    out = crash_probe(_ENCODE_TRUSTED_CHILD)
+    for name, bad in (("past", 7), ("negative", -1), ("negative_huge", -(1 << 30))):
+        assert out[name][0] == "InvalidIndexError", out
+        assert out[name][1].startswith(f"encode_mesh: arrays: face 1 refers to vertex {bad}, "
+                                       "outside [0, 4)"), out

@@ -592,3 +592,39 @@ def test_seed_and_period_arguments_are_checked_by_name():
     with pytest.raises(errors.ArgumentError, match="dummy"):
         build_lr(grid, seeds=[3 * fan])
     assert verify(build_lr(m, seeds=[3, 9]), m).mismatches == 0
+
+
+# (sweep 14b) LR / LRBits.from_corner_table take a trusted table: one that
+# CornerTable.from_faces built on a mesh with a border side (its ``c.o`` there is a border dart,
+# past the corners) crashed RING-EXPANDER (a segfault). Probed in a child.
+_LR_TABLE_CHILD = r"""
+import json
+import numpy as np
+from jaxcds import errors
+from jaxcds.structures import CornerTable
+from jaxcds.structures.lr import LR, LRBits
+
+tet = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
+cases = {"duplicate_face": (tet + [[0, 2, 1]], 4), "degenerate": ([[0, 0, 0]], 1)}
+out = {}
+for name, (f, nv) in cases.items():
+    ct = CornerTable.from_faces(np.array(f, np.int32), nv)
+    for cls in (LR, LRBits):
+        try:
+            cls.from_corner_table(ct, check=False)
+            out[cls.__name__ + ":" + name] = ["built", ""]
+        except errors.JaxcdsError as exc:
+            out[cls.__name__ + ":" + name] = [type(exc).__name__, str(exc)]
+print(json.dumps(out))
+"""
+
+
+def test_lr_from_corner_table_refuses_a_table_with_borders():
+    from conftest import crash_probe
+
+    out = crash_probe(_LR_TABLE_CHILD)
+    for cls in ("LR", "LRBits"):
+        for name in ("duplicate_face", "degenerate"):
+            got, msg = out[f"{cls}:{name}"]
+            assert got == "UnsupportedTopologyError", (cls, name, got, msg)
+            assert msg.startswith(f"{cls}.from_corner_table: corner ") and "has no opposite" in msg

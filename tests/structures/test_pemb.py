@@ -169,3 +169,42 @@ def test_from_faces_takes_the_stack_tree():
     assert not np.array_equal(s.A.to_numpy(), b.A.to_numpy())
     with pytest.raises(errors.ArgumentError, match="unknown spanning tree 'bfss'"):
         PEMB.from_faces(mesh.faces, mesh.num_vertices, tree="bfss")
+
+
+# (sweep 14b) PEMB.from_faces and from_mesh(check=False) skip validation: a face id out of range
+# and a mesh without faces crashed the builders (segfault, SIGBUS), and a non-manifold edge read
+# border_prev slots that were never written (a raw IndexError at a garbage index). Probed in a
+# child.
+_PEMB_TRUSTED_CHILD = r"""
+import json
+import numpy as np
+from jaxcds import errors
+from jaxcds.mesh import TriMesh
+from jaxcds.structures.pemb import PEMB
+
+cases = {"id_big": ([[0, 1, 2], [0, 2, 7]], 4), "id_negative": ([[0, 1, 2], [0, 2, -1]], 4),
+         "no_faces": (np.zeros((0, 3), np.int32), 4), "nm_edge": ([[0, 1, 2], [1, 0, 3], [0, 1, 4]], 5)}
+out = {}
+for name, (f, nv) in cases.items():
+    for route, build in (("faces", lambda f, nv: PEMB.from_faces(f, nv)),
+                         ("mesh", lambda f, nv: PEMB.from_mesh(TriMesh(np.zeros((nv, 3)), f), check=False))):
+        try:
+            build(np.asarray(f, np.int32), nv)
+            out[route + ":" + name] = ["built", ""]
+        except errors.JaxcdsError as exc:
+            out[route + ":" + name] = [type(exc).__name__, str(exc)]
+print(json.dumps(out))
+"""
+
+
+def test_pemb_unchecked_routes_cannot_crash():
+    from conftest import crash_probe
+
+    out = crash_probe(_PEMB_TRUSTED_CHILD)
+    for route in ("faces", "mesh"):
+        assert out[f"{route}:id_big"][0] == "InvalidIndexError", out
+        assert out[f"{route}:id_big"][1].startswith("PEMB.from_faces: face 1 refers to vertex 7"), out
+        assert out[f"{route}:id_negative"][0] == "InvalidIndexError", out
+        assert out[f"{route}:no_faces"][0] == "EmptyMeshError", out
+        assert out[f"{route}:nm_edge"][0] == "NonManifoldEdgeError", out
+        assert "edge (0, 1)" in out[f"{route}:nm_edge"][1]

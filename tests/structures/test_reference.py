@@ -11,7 +11,8 @@ from jaxcds import errors
 from jaxcds.mesh import close_boundaries, load_mesh, split_nonmanifold_vertices
 from jaxcds.structures import CornerTable, HalfEdge
 
-from conftest import CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, load_shared, mesh_params, octahedron
+from conftest import (CLOSED_GENUS0, HIGHER_GENUS, HOLED_GENUS0, crash_probe, load_shared, mesh_params,
+                      octahedron)
 
 
 def oracle(faces):
@@ -113,3 +114,60 @@ def test_structures_are_pytrees_and_jit_without_retracing():
     np.testing.assert_array_equal(jax.vmap(he.twin)(e), he.twin(e))
     with pytest.raises(Exception):
         he.num_faces = 3  # frozen
+
+
+# ----------------------------------------------------------------- the unvalidated from_faces
+# (sweep 14b) ``from_faces`` skips validation for speed; ids out of range made the numba
+# builders read and write outside their arrays (a segfault, or a silent write), and border sides
+# that do not chain into loops wrote ``border_prev`` out of range (-1 - 3F) or left slots of
+# ``np.empty`` garbage that pemb then read. Probed in a child: without the checks it crashes.
+_TRUSTED_CHILD = r"""
+import json, sys
+import numpy as np
+from jaxcds import errors
+from jaxcds.structures import CornerTable, HalfEdge
+from jaxcds.structures.halfedge import halfedge_arrays
+
+cases = {
+    "id_big": ([[0, 1, 2], [0, 2, 7]], 4),
+    "id_huge": ([[0, 1, 2], [0, 2, 1 << 30]], 4),
+    "id_negative": ([[0, 1, 2], [0, 2, -1]], 4),
+    "id_neg_huge": ([[0, 1, 2], [0, 2, -(1 << 30)]], 4),
+    "pinched": ([[0, 1, 2], [0, 3, 4]], 5),
+    "flipped": ([[0, 1, 2], [0, 1, 3]], 4),
+    "nm_edge": ([[0, 1, 2], [1, 0, 3], [0, 1, 4]], 5),
+    "no_faces": (np.zeros((0, 3), np.int32), 4),
+    "nv_negative": ([[0, 1, 2]], -1),
+}
+builders = {"he": HalfEdge.from_faces, "ct": CornerTable.from_faces,
+            "arrays": lambda f, n: halfedge_arrays(np.asarray(f, np.int32), n)}
+out = {}
+for b, build in builders.items():
+    for name, (f, nv) in cases.items():
+        try:
+            build(np.asarray(f, np.int32), nv)
+            out[b + ":" + name] = ["built", ""]
+        except errors.JaxcdsError as exc:
+            out[b + ":" + name] = [type(exc).__name__, str(exc)]
+print(json.dumps(out))
+"""
+
+
+def test_from_faces_trusted_input_cannot_crash():
+    out = crash_probe(_TRUSTED_CHILD)
+    for b, where in (("he", "HalfEdge.from_faces"), ("ct", "CornerTable.from_faces"),
+                     ("arrays", "halfedge_arrays")):
+        for name, vertex in (("id_big", "7"), ("id_huge", str(1 << 30)), ("id_negative", "-1"),
+                             ("id_neg_huge", str(-(1 << 30)))):
+            cls, msg = out[f"{b}:{name}"]
+            assert cls == "InvalidIndexError", (b, name, cls, msg)
+            assert msg.startswith(f"{where}: face 1 refers to vertex {vertex}, outside [0, 4)"), msg
+        # border sides that do not chain: the defect named as validate names it
+        assert out[f"{b}:pinched"][0] == "NonManifoldVertexError", out[f"{b}:pinched"]
+        assert "vertex 0" in out[f"{b}:pinched"][1]
+        assert out[f"{b}:flipped"][0] == "InconsistentOrientationError", out[f"{b}:flipped"]
+        assert "edge (0, 1)" in out[f"{b}:flipped"][1]
+        assert out[f"{b}:nm_edge"][0] == "NonManifoldEdgeError", out[f"{b}:nm_edge"]
+        assert out[f"{b}:nv_negative"][0] == "ArgumentError", out[f"{b}:nv_negative"]
+    for b in ("he", "ct"):  # a structure without darts: every query's gather failed raw
+        assert out[f"{b}:no_faces"][0] == "EmptyMeshError", out[f"{b}:no_faces"]
