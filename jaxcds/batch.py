@@ -748,7 +748,7 @@ def _chunked_sums(b: "PackedBatch", positions):
             loc = jnp.where(ok[:, None], r, 0)
             if dm is not None:  # the fans that closed holes (see normals.surface_faces_padded)
                 ok = ok & ~faces_with_dummy_corner(dm, loc)
-            fn = jnp.where(ok[:, None], face_normals(p, loc), 0.0)
+            fn = face_normals(p, loc, ok)  # masked corners: no 0 * NaN in the derivative
             acc = corner_sums(fn, loc, vcap, acc)
         old = jax.lax.dynamic_slice_in_dim(out, w, vcap)
         return jax.lax.dynamic_update_slice_in_dim(out, jnp.where(mine[:, None], acc, old), w, 0)

@@ -892,3 +892,32 @@ def test_packed_compact_batches_pickle_and_compare(name):
     assert mod.__getattr__(f"Packed{base.__name__}") is type(b.structure)
     with pytest.raises(AttributeError):
         mod.__getattr__("PackedNothing")
+
+
+@pytest.mark.parametrize("chunked", [True, False])
+def test_a_non_finite_dummy_position_carries_no_gradient(chunked, monkeypatch):
+    """Sweep 15a: a hole's fan was masked after its cross products, so a NaN or inf position
+    at a CDS dummy vertex (zero normal by design) made every gradient on its border NaN
+    (0 * NaN in the cross product's derivative), chunked or over the whole union. Now the
+    gradients equal those with the dummy at its centroid; the other meshes' never changed."""
+    from jaxcds.mesh import validate_and_close
+
+    monkeypatch.setattr(B, "NORMALS_CHUNK_VERTICES", 40)
+    ms = [random_planar_triangulation(20, seed=1), load_shared("grid.off"),
+          random_planar_triangulation(35, seed=2)]
+    b = B.pack(ms, "cds4n")
+    assert b.chunk_starts is not None
+    if not chunked:
+        b = replace(b, chunk_starts=None, chunk_caps=())
+    pos = np.asarray(B.pack_positions(b, ms))
+    dummy = np.asarray(b.dummy_vertex_mask())
+    assert dummy.sum() == 1 and validate_and_close(ms[1]).num_vertices == ms[1].num_vertices + 1
+    w = jnp.asarray(np.random.default_rng(0).normal(size=pos.shape), jnp.float32)
+    grad = jax.jit(jax.grad(lambda p: jnp.sum(vertex_normals(b, p) * w)))
+    clean = np.asarray(grad(jnp.asarray(pos)))
+    for bad in (np.nan, np.inf):
+        q = pos.copy()
+        q[dummy] = bad
+        g = np.asarray(grad(jnp.asarray(q)))
+        np.testing.assert_array_equal(g[dummy], 0.0)
+        np.testing.assert_allclose(g, clean, rtol=1e-5, atol=1e-6)

@@ -74,9 +74,20 @@ def _normalize_jvp(axis, eps, primals, tangents):
     return u, jnp.where(nonzero, du / norm, 0.0)
 
 
-def face_normals(positions, faces):
-    """Unnormalised face normals ``(p1 - p0) x (p2 - p0)``: length = twice the face area."""
+def face_normals(positions, faces, valid=None):
+    """Unnormalised face normals ``(p1 - p0) x (p2 - p0)``: length = twice the face area.
+
+    ``valid`` (``(F,)`` bool, optional): rows where it is False (padding, the fans that closed
+    holes, LR's border slots) come out zero, and so does their derivative. Their corners are
+    masked before the cross product, not the products after it: ``where`` passes a masked row
+    a zero cotangent, but the cross product's derivative multiplies it by the corners'
+    positions, and ``0 * NaN`` is NaN. Masked afterwards, a NaN or inf position at a CDS
+    dummy vertex made the gradients of its whole hole's border NaN, and a NaN vertex reached
+    vertices across a hole through LR's border rows (sweep 15a), where the face list's
+    gradients are finite."""
     p = positions[faces]
+    if valid is not None:
+        p = jnp.where(valid[:, None, None], p, 0)
     return jnp.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
 
 
@@ -227,10 +238,7 @@ def _scatter_sums(s, positions):
             return sums
     # any order and padding rows will do for a sum: structures with slotted faces skip compaction
     fv, valid = surface_faces_padded(s)
-    fn = face_normals(positions, fv)
-    if valid is not None:
-        fn = jnp.where(valid[:, None], fn, 0.0)
-    return corner_sums(fn, fv, s.num_vertices)
+    return corner_sums(face_normals(positions, fv, valid), fv, s.num_vertices)
 
 
 def faces_with_dummy_corner(dummy, faces):

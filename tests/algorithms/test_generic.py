@@ -399,3 +399,60 @@ def test_a_nan_coordinate_gives_nan_normals_not_zero_ones():
         np.testing.assert_allclose(n[rest], good[rest], atol=1e-6)
     np.testing.assert_array_equal(np.asarray(normalize(jnp.zeros((2, 3)))), 0.0)
     assert np.isnan(np.asarray(normalize(jnp.asarray([[np.nan, 0.0, 0.0]])))).all()
+
+
+def _square_with_a_hole(n=30):
+    """``delaunay_square(n)`` without the faces around its most central vertex: two border
+    loops (the CDS family closes each with a dummy vertex and a fan; LR keeps border slots)."""
+    from jaxcds.generators import delaunay_square
+
+    m = delaunay_square(n)
+    c = np.argmin(np.linalg.norm(m.vertices[:, :2] - 0.5, axis=1))
+    f = m.faces[~(m.faces == c).any(axis=1)]
+    used = np.unique(f)
+    new = np.full(m.num_vertices, -1)
+    new[used] = np.arange(used.size)
+    return load_mesh(m.vertices[used], new[f])
+
+
+@pytest.mark.parametrize("structure", ["cds4n", "lr"])
+def test_a_non_finite_position_leaves_gradients_outside_its_rings_finite(structure):
+    """Sweep 15a: the masked rows (a CDS hole's fan, LR's border slots, padding) were zeroed
+    after their cross products; the zero cotangent ``where`` gives them met the corners'
+    positions in the cross product's derivative (0 * NaN): a NaN or inf at a CDS dummy vertex
+    (zero normal by design) made the gradient of its whole border NaN, and a NaN vertex reached
+    a vertex across LR's hole. Now, for a NaN or inf at any vertex, the vertices with a
+    non-finite gradient are the face list's (the open mesh's faces), and a dummy's position
+    carries no derivative at all: the gradient equals the one with the dummy at its centroid."""
+    from conftest import as_accepted
+    from jaxcds.structures import registry
+
+    m = as_accepted(_square_with_a_hole(), structure)
+    s = registry.build(structure, m)
+    base = close_boundaries(m) if s.num_vertices > m.num_vertices else m
+    order = np.arange(s.num_vertices) if s.vertex_order is None else np.asarray(s.vertex_order)
+    dummy = np.zeros(s.num_vertices, bool) if s.dummy_vertex_mask() is None else np.asarray(s.dummy_vertex_mask())
+    faces = np.argsort(order)[m.faces]
+    faces = jnp.asarray(faces[~dummy[faces].any(axis=1)])  # the open mesh's own faces
+    p = np.asarray(base.vertices[order], np.float32)
+    w = jnp.asarray(np.random.default_rng(0).normal(size=p.shape), jnp.float32)
+    grads = {k: jax.jit(jax.vmap(jax.grad(lambda q, f=f: jnp.sum(f(q) * w)))) for k, f in (
+        ("scatter", lambda q: vertex_normals(s, q)),
+        ("gather", lambda q: vertex_normals(s, q, method="gather")),
+        ("faces", lambda q: face_list_vertex_normals(q, faces)))}
+    for bad in (np.nan, np.inf):
+        ps = np.repeat(p[None], s.num_vertices, axis=0)  # ps[v]: vertex v's x is bad
+        ps[np.arange(s.num_vertices), np.arange(s.num_vertices), 0] = bad
+        want = ~np.isfinite(np.asarray(grads["faces"](jnp.asarray(ps)))).all(axis=2)
+        for method in ("scatter", "gather"):
+            got = ~np.isfinite(np.asarray(grads[method](jnp.asarray(ps)))).all(axis=2)
+            np.testing.assert_array_equal(got, want, err_msg=f"{method}, {bad}")
+    if dummy.any():
+        clean = np.asarray(grads["scatter"](jnp.asarray(p[None])))[0]
+        for bad in (np.nan, np.inf):
+            q = p.copy()
+            q[dummy] = bad
+            for method in ("scatter", "gather"):
+                g = np.asarray(grads[method](jnp.asarray(q[None])))[0]
+                np.testing.assert_array_equal(g[dummy], 0.0)
+                np.testing.assert_allclose(g, clean, rtol=1e-5, atol=1e-6)
