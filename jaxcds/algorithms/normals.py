@@ -111,12 +111,13 @@ def corner_sums(face_values, faces, num_vertices: int, acc=None):
 
 
 def within_range(positions):
-    """``positions`` times a power of two (exact) when their largest magnitude is so large or so
-    small that a face's cross product would overflow or underflow in their dtype (float32:
+    """``positions`` times a power of two (exact) when their largest finite magnitude is so large
+    or so small that a face's cross product would overflow or underflow in their dtype (float32:
     beyond about 7e16 or under 1e-17; an icosphere at 1e20 gives NaN normals, at 1e-25 zero
-    ones); unchanged otherwise. Unit normals do not depend on the scale, so
-    ``vertex_normals(s, within_range(p))`` is the normals of ``p`` at any scale, and the factor
-    carries no derivative. NaN coordinates pass unchanged (NaN out).
+    ones), bringing it just under 2^50 in float32 (2^498 in float64); unchanged otherwise. Unit
+    normals do not depend on the scale, so ``vertex_normals(s, within_range(p))`` is the normals
+    of ``p`` at any scale, and the factor carries no derivative. NaN and inf coordinates pass
+    unchanged (NaN out at their one-ring) and do not decide the factor.
 
     Not applied inside :func:`vertex_normals`: the extra reduction in the same program cost the
     CDS normals 5-20% at 200K vertices (races of 2026-12-01), for inputs that float32 cannot
@@ -137,12 +138,26 @@ def within_range(positions):
         positions = positions.astype(jnp.float32)
     fi = jnp.finfo(positions.dtype)
     hi, lo = float(np.sqrt(fi.max)) / 256, float(np.sqrt(fi.tiny)) * 256
-    m = jax.lax.stop_gradient(jnp.max(jnp.abs(positions)))
+    # Where to: the largest coordinate just under 2^t, 64 times under `hi` (room for the
+    # differences and the sums of cross products over a vertex's faces), so the mesh's small
+    # features keep the most room above underflow. Brought into [0.5, 1) instead, a unit-size
+    # face in a mesh whose largest coordinate is 1e20 or 1e30 underflowed: 36 of 42 normals
+    # zero where the raw positions gave 6 non-finite ones (sweep 15a). float32: t = 50.
+    t = int(np.round(np.log2(hi))) - 6
+    # the largest *finite* magnitude: a NaN or inf coordinate (NaN normals at its one-ring
+    # anyway) neither hides nor drives the rescaling of the others
+    finite = jnp.where(jnp.isfinite(positions), jnp.abs(positions), 0)
+    m = jax.lax.stop_gradient(jnp.max(finite))
     far = (m > hi) | ((m < lo) & (m > 0))
-    # a product by 2^-e (1 when near), not ldexp (its derivative in x is not 2^-e on jax 0.10)
-    # nor a cond (its result is a buffer of its own: CDS normals ran 10-20% slower at 200K)
-    scale = jnp.where(far, jnp.ldexp(jnp.ones((), positions.dtype), -jnp.frexp(m)[1]), 1)
-    return positions * jax.lax.stop_gradient(scale).astype(positions.dtype)
+    k = jnp.where(far, t - jnp.frexp(m)[1], 0)  # m * 2^k in [2^(t-1), 2^t)
+    # a product by powers of two (1 when near), not ldexp (its derivative in x is not 2^k on
+    # jax 0.10) nor a cond (its result is a buffer of its own: CDS normals ran 10-20% slower at
+    # 200K); two factors, as 2^k alone overflows the dtype for the smallest inputs (k up to 198)
+    one = jnp.ones((), positions.dtype)
+    half = k // 2
+    s1 = jax.lax.stop_gradient(jnp.ldexp(one, half))
+    s2 = jax.lax.stop_gradient(jnp.ldexp(one, k - half))
+    return positions * s1 * s2
 
 
 def face_list_vertex_normals(positions, faces):

@@ -11,6 +11,7 @@ import trimesh
 from jaxcds import errors
 from jaxcds.algorithms import adjacent, face_list_vertex_normals, one_ring, vertex_degrees, vertex_normals
 from jaxcds.algorithms.normals import normalize
+from jaxcds.generators import icosphere
 from jaxcds.mesh import close_boundaries, load_mesh
 from jaxcds.structures import CornerTable, HalfEdge
 
@@ -198,8 +199,8 @@ def test_normals_and_gradients_at_extreme_coordinate_scales(scale):
     p = jnp.asarray(np.asarray(v) * scale, jnp.float32)
     far = not 1e-17 < scale < 1e17
     prep = within_range if far else (lambda q: q)
-    if far:  # a power of two: the largest coordinate in [0.5, 1)
-        assert 0.5 <= float(jnp.abs(within_range(p)).max()) < 1
+    if far:  # a power of two: the largest coordinate in [2^49, 2^50)
+        assert 2.0**49 <= float(jnp.abs(within_range(p)).max()) < 2.0**50
     np.testing.assert_allclose(np.asarray(vertex_normals(he, prep(p))), unit, atol=1e-6)
     np.testing.assert_allclose(np.asarray(vertex_normals(he, prep(p), method="gather")), unit, atol=1e-6)
     np.testing.assert_allclose(np.asarray(face_list_vertex_normals(prep(p), jnp.asarray(f))), unit, atol=1e-6)
@@ -207,6 +208,43 @@ def test_normals_and_gradients_at_extreme_coordinate_scales(scale):
     g1 = jax.grad(lambda q: jnp.sum(vertex_normals(he, q)[:, 2]))(jnp.asarray(v, jnp.float32))
     assert np.isfinite(np.asarray(g)).all()
     np.testing.assert_allclose(np.asarray(g) * scale, np.asarray(g1), rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize("far", [1e20, 1e30, 1e-25])
+def test_within_range_keeps_small_features_of_mixed_scale_meshes(far):
+    """Sweep 15a: within_range brought the largest coordinate into [0.5, 1), so the unit-size
+    faces of a mesh with one vertex at 1e20 or 1e30 underflowed (36 of 42 normals zero, worse
+    than the raw positions); a NaN coordinate made it skip the rescaling altogether. Now the
+    largest finite coordinate goes just under 2^50: every normal is finite and nonzero, and
+    those away from the far vertex equal float64's."""
+    from jaxcds.algorithms.normals import within_range
+
+    m = icosphere(1)
+    v, f = np.asarray(m.vertices, np.float64) * (1e-25 if far < 1 else 1.0), np.asarray(m.faces)
+    v[0] *= far if far > 1 else 1e3  # one vertex far out (or, at 1e-25, a mesh far too small)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    want = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(want, f[:, k], fn / np.abs(fn).max())
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    # vertex 0's one-ring: faces spanning both scales, which float32 cannot resolve (its unit
+    # offsets vanish next to 1e20); the rest of the mesh must keep float64's normals
+    away = np.setdiff1d(np.arange(len(v)), np.unique(f[(f == 0).any(axis=1)]))
+    p = within_range(v.astype(np.float32))
+    got = np.asarray(face_list_vertex_normals(p, f))
+    assert np.isfinite(got).all() and (np.abs(got).sum(axis=1) > 0.5).all()
+    np.testing.assert_allclose(got[away], want[away], atol=2e-5)
+    he = HalfEdge.from_faces(f, len(v))
+    np.testing.assert_allclose(np.asarray(vertex_normals(he, p))[away], want[away], atol=2e-5)
+    g = jax.grad(lambda q: jnp.sum(vertex_normals(he, within_range(q))[:, 2]))(jnp.asarray(v, jnp.float32))
+    assert np.isfinite(np.asarray(g)).all()
+    nan = v.astype(np.float32)
+    nan[5, 1] = np.nan  # NaN out at vertex 5's one-ring only; the rest still rescaled
+    got = np.asarray(face_list_vertex_normals(within_range(nan), f))
+    ring = np.unique(f[(f == 5).any(axis=1)])
+    rest = np.setdiff1d(away, ring)
+    assert np.isnan(got[ring]).all(axis=1).all()
+    np.testing.assert_allclose(got[rest], want[rest], atol=2e-5)
 
 
 def test_face_list_normals_and_within_range_read_host_arrays_by_value():
