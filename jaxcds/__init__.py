@@ -5,11 +5,40 @@ batched and jittable; per-vertex reductions (degrees, normals) run on every stru
 normals are differentiable with respect to positions.
 """
 
-from jaxcds import errors
-from jaxcds.mesh import TriMesh, close_boundaries, load_mesh, topology, validate
-from jaxcds.structures import CornerTable, HalfEdge, MeshStructure
-from jaxcds.structures.registry import build
-from jaxcds.algorithms import adjacent, one_ring, vertex_degrees, vertex_normals
+
+def _numba_cache_fallback() -> None:
+    """The kernels are ``@numba.njit(cache=True)``: numba raised ``RuntimeError: cannot cache
+    function ...: no locator available`` on importing them (so ``import jaxcds`` and every
+    ``jaxcds`` command failed with a traceback) when neither the package's ``__pycache__`` nor
+    the user's cache folder (``~/.cache/numba``) can be written: an install owned by root run by
+    a user without a writable home (a container's ``--user`` with ``HOME=/``). The kernels are
+    then cached in a private temporary folder, removed at exit (compiled again by each process).
+    A ``NUMBA_CACHE_DIR`` the user set is left to numba."""
+    import numba
+    from numba.core import caching
+
+    if numba.config.CACHE_DIR:
+        return
+    try:
+        caching.FunctionCache(_numba_cache_fallback)  # the locators numba tries for this package
+    except Exception as exc:  # noqa: BLE001 - a numba whose internals moved: leave it be
+        if not isinstance(exc, RuntimeError):
+            return
+        import atexit
+        import shutil
+        import tempfile
+
+        numba.config.CACHE_DIR = tempfile.mkdtemp(prefix="jaxcds-numba-")
+        atexit.register(shutil.rmtree, numba.config.CACHE_DIR, True)
+
+
+_numba_cache_fallback()
+
+from jaxcds import errors  # noqa: E402
+from jaxcds.mesh import TriMesh, close_boundaries, load_mesh, topology, validate  # noqa: E402
+from jaxcds.structures import CornerTable, HalfEdge, MeshStructure  # noqa: E402
+from jaxcds.structures.registry import build  # noqa: E402
+from jaxcds.algorithms import adjacent, one_ring, vertex_degrees, vertex_normals  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -45,8 +45,10 @@ def _emit(args, report: dict) -> None:
         print(f"{k:>24}: {v}")
 
 
-def _check_output(path: str, suffixes: tuple, what: str) -> None:
-    """Refuse a bad output path *before* any work: wrong suffix, missing folder, or a folder."""
+def _check_output(path: str, suffixes: tuple, what: str, source: str) -> None:
+    """Refuse a bad output path *before* any work: wrong suffix, missing folder, a folder, or
+    the input file ``source`` itself (``polylla IN.off -o IN.off`` replaced the triangulation
+    with its polygon mesh and exited 0: the input was lost)."""
     ext = os.path.splitext(path)[1].lower()
     if ext not in suffixes:
         raise errors.OutputError(f"output {path!r}: unknown suffix {ext!r} for {what} "
@@ -54,6 +56,13 @@ def _check_output(path: str, suffixes: tuple, what: str) -> None:
     from jaxcds.codec.fileformat import check_writable
 
     check_writable(path)
+    try:
+        same = os.path.samefile(path, source)
+    except OSError:  # either one missing (or unreadable): the reader names the input's problem
+        same = False
+    if same:
+        raise errors.OutputError(f"output {path!r} is the input file {source!r}: writing it would "
+                                 "replace the input; give another output path")
 
 
 def _writing(path: str):
@@ -85,7 +94,7 @@ def cmd_encode(args) -> int:
     from jaxcds.codec.api import write_cds
     from jaxcds.mesh import load_mesh
 
-    _check_output(args.output, (".cds",), "a .cds file")
+    _check_output(args.output, (".cds",), "a .cds file", args.mesh)
     t0 = time.perf_counter()
     mesh = load_mesh(args.mesh)
     with _writing(args.output):
@@ -129,10 +138,12 @@ def cmd_decode(args) -> int:
     with ``--verify`` also ``checked`` and ``mismatches`` (operator check vs the half-edge)."""
     from jaxcds.codec.api import decode_file
 
-    _check_output(args.output, _MESH_SUFFIXES, "a mesh")
+    _check_output(args.output, _MESH_SUFFIXES, "a mesh", args.input)
     structure = None if args.structure == "none" else args.structure
     if args.verify and structure is None:
         raise errors.JaxcdsError("--verify needs a decoded structure (--structure cds6n|cds5n|cds4n)")
+    if structure is not None:
+        _cli().require_jax()
     t0 = time.perf_counter()
     with _writing(args.output):
         rep = decode_file(args.input, args.output, structure=structure, verify=args.verify)
@@ -176,7 +187,8 @@ def cmd_polylla(args) -> int:
     from jaxcds.algorithms import polylla
 
     if args.output is not None:
-        _check_output(args.output, (".off",), "the polygon mesh")
+        _check_output(args.output, (".off",), "the polygon mesh", args.input)
+    _cli().require_jax()
     t0 = time.perf_counter()
     with _writing(args.output or ""):
         rep = polylla.run(args.input, args.output, structure=args.structure,

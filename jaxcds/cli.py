@@ -13,7 +13,7 @@ import os
 import sys
 import time
 from importlib import resources
-from typing import Callable, Optional, Sequence
+from typing import Optional, Sequence
 
 from jaxcds import errors
 
@@ -40,6 +40,22 @@ def _json_default(x):
     if isinstance(x, np.ndarray):
         return x.tolist()
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+def require_jax() -> None:
+    """Start JAX's backend before the work of a command that computes with JAX (``build``,
+    ``demo``, ``decode`` into a structure, ``polylla``). An unusable ``JAX_PLATFORMS`` (``cuda``
+    on a machine without a GPU plugin, a misspelt platform) raised an ``AssertionError`` or a
+    ``RuntimeError`` traceback from inside the first array operation."""
+    import jax
+
+    try:
+        jax.devices()
+    except (RuntimeError, AssertionError) as exc:
+        why = str(exc).split("(set JAX_PLATFORMS")[0].strip().rstrip(".") or "no backend started"
+        raise errors.JaxcdsError(
+            f"JAX cannot start (JAX_PLATFORMS={os.environ.get('JAX_PLATFORMS', '')!r}): {why}; "
+            "unset JAX_PLATFORMS or name a platform this machine has (cpu, ...)") from None
 
 
 # ------------------------------------------------------------------------------ info
@@ -71,7 +87,7 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
     ``ring_sweeps``: the LR ring search (``lr`` / ``lr-bits`` only, see
     :func:`jaxcds.structures.lr.build_lr`). ``return_structure``: ``(dict, structure, mesh)``,
     the mesh being the one built on (holes closed for a structure that needs a closed mesh)."""
-    from jaxcds.mesh import close_boundaries, load_mesh
+    from jaxcds.mesh import load_mesh
     from jaxcds.structures import registry
 
     mesh = load_mesh(mesh)
@@ -136,6 +152,7 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
 
 
 def cmd_build(args) -> int:
+    require_jax()
     out = build_report(args.structure, args.mesh, verify=args.verify,
                        ring_sweeps=args.ring_sweeps)
     if args.json:
@@ -177,6 +194,7 @@ def cmd_demo(args) -> int:
     from jaxcds.mesh import load_mesh, topology
     from jaxcds.structures import registry
 
+    require_jax()
     path = default_mesh_path() if args.mesh is None else args.mesh
     mesh = load_mesh(path)
     topo = topology(mesh)

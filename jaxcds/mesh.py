@@ -135,8 +135,12 @@ def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
 
 
 def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
-    if not os.path.exists(path):
-        raise errors.UnreadableMeshError(f"{path}: no such file")
+    try:
+        os.stat(path)
+    except (OSError, ValueError):
+        # missing, a loop of symbolic links (os.path.exists called it 'no such file'), a folder on
+        # the way that cannot be searched, a NUL in the name: the shared reader names each
+        read_regular_file(path)
     if os.path.isdir(path):
         raise errors.UnreadableMeshError(f"{path}: is a directory, not a mesh file")
     suffix = os.path.splitext(path)[1].lower()

@@ -151,3 +151,72 @@ def test_bench_console_script_finds_the_harness_from_the_repository_root(tmp_pat
     bad = subprocess.run([sys.executable, "-P", "-c", code], cwd=tmp_path, capture_output=True,
                          text=True, env=env, timeout=300)
     assert bad.returncode != 0 and "benchmarks/ of the source tree" in bad.stderr, bad.stderr[-2000:]
+
+
+def test_an_install_numba_cannot_cache_in_still_runs(tmp_path):
+    """Sweep 15b: with neither the package's ``__pycache__`` nor ``~/.cache/numba`` writable (a
+    root-owned install run as a container's ``--user`` with ``HOME=/``), ``@numba.njit(cache=True)``
+    raised 'no locator available' on import: every command was a traceback. numba's two
+    locators are made to fail here as they do there; the kernels then cache in a temporary
+    folder, removed at exit."""
+    import os
+
+    mods = ["jaxcds.mesh", "jaxcds.generators", "jaxcds.codec.api", "jaxcds.codec.structures",
+            "jaxcds.construct.lr_pack", "jaxcds.construct.ring_search", "jaxcds.structures.cds",
+            "jaxcds.structures.pemb_packed", "jaxcds.algorithms.polylla_reference",
+            "jaxcds.algorithms.polylla_cycles"]
+    code = ("import importlib, sys, numba\n"
+            "from numba.core import caching\n"
+            "for cls in (caching.InTreeCacheLocator, caching.UserWideCacheLocator):\n"
+            "    cls.from_function = classmethod(lambda cls, py_func, py_file: None)\n"
+            f"for m in {mods!r}:\n"
+            "    importlib.import_module(m)\n"
+            "print(numba.config.CACHE_DIR)\n"
+            "from jaxcds.cli import main\n"
+            f"raise SystemExit(main(['info', {str(tmp_path / 'missing.off')!r}]))\n")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                       timeout=300)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert "missing.off: no such file" in r.stderr
+    cache = r.stdout.strip()
+    assert os.path.basename(cache).startswith("jaxcds-numba-") and not os.path.exists(cache)
+
+
+def test_an_unusable_jax_platforms_is_one_line(tmp_path):
+    """Sweep 15b: ``JAX_PLATFORMS=bogus`` (or ``cuda`` without a GPU plugin: an AssertionError)
+    made build / demo / decode into a structure / polylla a JAX traceback from the first array
+    operation. Each command is called in one child (the failed backend is not cached)."""
+    import os
+
+    cube, out = mesh_path("cube.off"), str(tmp_path / "o.off")
+    cds = str(tmp_path / "c.cds")
+    assert main(["encode", cube, "-o", cds]) == 0  # the codec runs without JAX
+    calls = [["build", cube], ["demo", cube], ["decode", cds, "-o", out],
+             ["polylla", mesh_path("2triangles.off")]]
+    code = ("import sys\nfrom jaxcds.cli import main\n"
+            f"print([main(a) for a in {calls!r}])\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                       env={**os.environ, "JAX_PLATFORMS": "bogus"})
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr[-3000:]
+    assert r.stdout.strip().splitlines()[-1] == "[2, 2, 2, 2]"
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 4 and all("JAX cannot start (JAX_PLATFORMS='bogus')" in x for x in lines)
+    assert os.listdir(tmp_path) == ["c.cds"]
+
+
+def test_a_loop_of_symbolic_links_is_named(capsys, tmp_path):
+    """Sweep 15b: a mesh path that is a loop of symbolic links was reported 'no such file'
+    (os.path.exists is false for it); the .cds reader already said what it is. A dangling
+    link is still 'no such file'."""
+    import os
+
+    os.symlink(tmp_path / "b.off", tmp_path / "a.off")
+    os.symlink(tmp_path / "a.off", tmp_path / "b.off")
+    os.symlink(tmp_path / "nowhere.off", tmp_path / "dangling.off")
+    for argv in (["info", str(tmp_path / "a.off")], ["build", str(tmp_path / "a.off"), "--json"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "a.off: cannot read: Too many levels of symbolic links" in err, err
+    assert main(["info", str(tmp_path / "dangling.off")]) == 2
+    assert "dangling.off: no such file" in capsys.readouterr().err

@@ -175,3 +175,27 @@ def test_bad_headers_are_named_not_tracebacks(name, capsys, tmp_path):
         (tmp_path / ele).write_text(ele_text)
     out = str(tmp_path / "o.off")
     _refused(capsys, ["polylla", str(tmp_path / name), "-o", out], out, message)
+
+
+def test_the_input_file_as_output_is_refused_and_left(capsys, tmp_path):
+    """Sweep 15b: ``polylla IN.off -o IN.off`` replaced the triangulation with its polygon mesh
+    and exited 0 (the input lost; a second run then refused 'face 0 has 4 vertices'); ``decode
+    F -o F`` of a .cds file named .off likewise. Also through a hard link and a relative path."""
+    tri = tmp_path / "t.off"
+    text = "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n"
+    tri.write_text(text)
+    os.link(tri, tmp_path / "hard.off")
+    cds = tmp_path / "c.off"
+    cds.write_bytes(b"\x89CDS\r\n\x1a\n")  # refused before it is read
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        for argv in (["polylla", str(tri), "-o", str(tri)], ["polylla", str(tri), "-o", "hard.off"],
+                     ["polylla", "t.off", "-o", str(tri), "--json"], ["decode", "c.off", "-o", str(cds)]):
+            assert main(argv) == 2, argv
+            err = capsys.readouterr().err
+            assert "is the input file" in err and "Traceback" not in err, err
+    finally:
+        os.chdir(cwd)
+    assert tri.read_text() == text and cds.read_bytes() == b"\x89CDS\r\n\x1a\n"
+    assert sorted(os.listdir(tmp_path)) == ["c.off", "hard.off", "t.off"]
