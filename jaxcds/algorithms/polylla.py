@@ -612,6 +612,7 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     """
     from jaxcds.polylla_io import length_scale
 
+    _refuse_closed_holes(s)
     # as given, the reference's own lengths; scaled by a power of two only where its squares
     # would overflow or the coordinates are tiny (length_scale)
     pos = length_scale(_checked_positions(positions, s.num_vertices))
@@ -801,6 +802,26 @@ def _reference_run(s, nav, pos, vids, cs_s, rows, row_ids, seed, frontier, clock
                        triangles=int(s.num_faces), timings=t, seed_edges=seeds)
 
 
+#: the registered structures that keep a triangulation's border as it is (Polylla's input)
+BORDER_STRUCTURES = ("halfedge", "pemb", "lr", "lr-bits")
+
+
+def _refuse_closed_holes(s) -> None:
+    """:class:`PolyllaError` for a structure that closed the triangulation's holes with dummy
+    vertices (the CDS family, Sec. 4.5): its fan triangles are no input triangles and its border
+    darts are gone, so the regions would run across the holes. Refused by name; before, the
+    error was "60 positions for a structure of 61 vertices", and positions for the closed mesh
+    gave polygons through the dummies (sweep 16a)."""
+    dummy = s.dummy_vertex_mask()
+    if dummy is None or not bool(np.any(np.asarray(dummy))):
+        return
+    raise errors.PolyllaError(
+        f"Polylla needs the triangulation's border: this {getattr(s, 'name', type(s).__name__)} "
+        f"closed its holes ({int(np.sum(np.asarray(dummy)))} dummy vertices, CDS Sec. 4.5), "
+        f"whose fan triangles are not the input's; build one of {', '.join(BORDER_STRUCTURES)}, "
+        "which keep the border")
+
+
 def _checked_positions(positions, num_vertices: int) -> np.ndarray:
     """The ``(V, 2)`` float64 x, y of ``positions`` (``(V, 2)`` or ``(V, 3)`` real numbers, all
     finite), or :class:`PolyllaError` naming the dtype, the shape or the first vertex with a NaN
@@ -979,7 +1000,18 @@ def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
     if structure not in registry.names():
         raise errors.PolyllaError(
             f"unknown structure {structure!r} for Polylla; available: {', '.join(registry.names())}")
-    return registry.build(structure, mesh)
+    try:
+        s = registry.build(structure, mesh)
+    except errors.UnsupportedTopologyError as exc:
+        if structure in BORDER_STRUCTURES:
+            raise
+        # a structure for closed meshes (corner-table) advised close_boundaries, which Polylla
+        # cannot use: its regions need the border
+        raise errors.UnsupportedTopologyError(
+            f"Polylla on {structure}: {str(exc).split('; call ')[0]}; Polylla needs the "
+            f"triangulation's border: build one of {', '.join(BORDER_STRUCTURES)}") from None
+    _refuse_closed_holes(s)
+    return s
 
 
 def _components_of(tri):

@@ -494,3 +494,41 @@ def test_a_non_finite_position_leaves_gradients_outside_its_rings_finite(structu
                 g = np.asarray(grads[method](jnp.asarray(q[None])))[0]
                 np.testing.assert_array_equal(g[dummy], 0.0)
                 np.testing.assert_allclose(g, clean, rtol=1e-5, atol=1e-6)
+
+
+def _cycle(ring):
+    """A ccw ring as a rotation-free key (its rotation starting at the smallest id)."""
+    k = ring.index(min(ring)) if ring else 0
+    return tuple(ring[k:] + ring[:k])
+
+
+@pytest.mark.parametrize("structure", ["cds6n", "cds5n-o1"])
+def test_one_ring_of_a_border_vertex_leaves_the_dummy_out(structure):
+    """A CDS closes a hole with a dummy vertex (Sec. 4.5): one_ring walked the closed surface, so
+    every border vertex's ring held the dummy and its degree counted it, one more than
+    vertex_degrees (sweep 16a). Rings are now the input mesh's: the half-edge's ccw cycle, the
+    dummy left out, from the neighbour after the hole to the one before it; a dummy's is empty."""
+    from jaxcds.structures import registry
+
+    m = _flat_strip(nx=4, ny=2)
+    he, s = HalfEdge.from_mesh(m), registry.build(structure, m)
+    order = np.arange(s.num_vertices) if s.vertex_order is None else np.asarray(s.vertex_order)
+    dummy = np.asarray(s.dummy_vertex_mask())
+    label = np.argsort(order)[: m.num_vertices]  # input vertex -> structure label
+    want_deg = np.asarray(vertex_degrees(he))
+    width = int(want_deg.max())
+    ring_he, _ = (np.asarray(x) for x in one_ring(he, np.arange(m.num_vertices), width))
+    ring, deg = (np.asarray(x) for x in one_ring(s, label, width))
+    np.testing.assert_array_equal(deg, want_deg)
+    np.testing.assert_array_equal(deg, np.asarray(vertex_degrees(s))[label])
+    for i in range(m.num_vertices):
+        got = order[ring[i, : deg[i]]].tolist()
+        assert _cycle(got) == _cycle(ring_he[i, : want_deg[i]].tolist()), i
+        assert (ring[i, deg[i]:] == s.num_vertices).all()
+    # a border vertex's ring is the open path: its first and last neighbours are on the border
+    tm = trimesh.Trimesh(m.vertices, m.faces, process=False)
+    border = set(tm.edges[trimesh.grouping.group_rows(tm.edges_sorted, require_count=1)].ravel().tolist())
+    for i in sorted(border):
+        got = order[ring[i, : deg[i]]]
+        assert {int(got[0]), int(got[-1])} <= border and adjacent(he, i, int(got[0]))
+    assert np.asarray(one_ring(s, np.flatnonzero(dummy), width)[1]).tolist() == [0]

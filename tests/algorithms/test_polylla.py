@@ -1005,3 +1005,41 @@ def test_a_hand_made_triangulation_refuses_what_is_not_one(points, faces, match)
     with pytest.raises(errors.PolyllaError, match=match):
         io.Triangulation2D(points=tri.points if points is None else points(tri.points),
                            faces=tri.faces if faces is None else faces(tri.faces))
+
+
+
+def _square_triangulation():
+    from jaxcds.generators import delaunay_square
+
+    m = delaunay_square(30, 3)
+    return m, io.Triangulation2D(points=m.vertices[:, :2], faces=m.faces.astype(np.int32), source="sq")
+
+
+@pytest.mark.parametrize("structure", ["lr", "lr-bits"])
+def test_laced_rings_give_the_half_edges_polygons(structure):
+    """Sweep 16a, Polylla x registry: LR keeps borders (and renumbers vertices), so Polylla runs
+    on it unchanged and gives the half-edge's polygons, in both modes (untested before)."""
+    _, tri = _square_triangulation()
+    he, s = P.build_structure(tri, "halfedge"), P.build_structure(tri, structure)
+    for mode in ("reference", "canonical"):
+        want = P.polylla(he, tri.points, corners=tri.input_faces, mode=mode)
+        assert P.polylla(s, tri.points, corners=tri.input_faces, mode=mode).polygons() == want.polygons()
+
+
+def test_structures_without_the_border_are_refused_by_name():
+    """The CDS family closes the hole with a dummy vertex: Polylla on it was refused as "30
+    positions for a structure of 31 vertices", and given the closed mesh's positions ran on the
+    closed surface (polygons through the dummy); the corner table advised close_boundaries,
+    which Polylla cannot use. Each is now refused naming the border (sweep 16a)."""
+    from jaxcds.mesh import close_boundaries
+
+    m, tri = _square_triangulation()
+    with pytest.raises(errors.PolyllaError, match=r"border: this cds6n closed its holes \(1 dummy"):
+        P.run(tri, structure="cds6n")
+    s = registry.build("cds5n-o1", m)
+    for pos in (tri.points, close_boundaries(m).vertices):  # the dummy's position too
+        with pytest.raises(errors.PolyllaError, match="halfedge, pemb, lr, lr-bits"):
+            P.polylla(s, pos, mode="canonical")
+    with pytest.raises(errors.UnsupportedTopologyError, match="Polylla on corner-table") as exc:
+        P.run(tri, structure="corner-table")
+    assert "close_boundaries" not in str(exc.value) and "halfedge, pemb, lr, lr-bits" in str(exc.value)
