@@ -235,7 +235,14 @@ _WHOLE_MESH_ROUTES = frozenset({"vertex_degrees", "all_edge_targets", "target_ta
 
 def _forward(op):
     def method(self, x):
-        return getattr(self.structure, op)(x)
+        inner = self.structure
+        if op in inner.table_queries and inner.takes_table(op, jnp.size(x)):
+            # a whole-mesh table route (CDS Target / Origin from every edge's target, a batch
+            # of 1/16 of the darts or more) reads whole arrays, as _WHOLE_MESH_ROUTES do: on
+            # the padded ones 70 of 240 targets of a sharded CDS6n icosphere were wrong (PAD
+            # read as a vertex; verify, one_ring), sweep 16a
+            return getattr(self.unpadded(), op)(x)
+        return getattr(inner, op)(x)
 
     method.__name__ = op
     return method

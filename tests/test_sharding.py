@@ -113,6 +113,12 @@ def test_whole_mesh_routes_and_narrow_leaves_sharded(report):
     assert report["lr-bits"]["degrees_equal"] and report["lr-bits"]["twin_mismatches"] == 0
 
 
+def test_table_routes_sharded(report):
+    # Target of every dart of a sharded CDS4n takes the whole-mesh table route (a batch of 1/16
+    # of the darts or more): it ran on the padded arrays and read padding as targets (sweep 16a)
+    assert report["cds4n"]["table_target_mismatches"] == 0, report["cds4n"]
+
+
 def test_pemb_is_not_split_by_rows(report):
     assert report["pemb_refused"].startswith("UnsupportedTopologyError: pemb cannot be split by rows")
 
@@ -408,6 +414,11 @@ def _child(full: bool) -> dict:
     # unpadded arrays: on the padded ones an uneven split (301 rows over 4 devices) crashed
     out["cds4n"]["degrees_equal"] = bool(np.array_equal(np.asarray(vertex_degrees(ss4)),
                                                         np.asarray(vertex_degrees(s4))))
+    # a batch large enough for the table route (Target of every edge at once) reads the unpadded
+    # arrays: on the padded ones a sharded CDS answered PAD for some targets (sweep 16a)
+    every = s4.all_darts()
+    out["cds4n"]["table_target_mismatches"] = int(np.sum(
+        np.asarray(jax.jit(lambda t, d: t.target(d))(ss4, every)) != np.asarray(s4.target(every))))
     # lr-bits has int16 leaves: padded with their largest value (PAD = 2^29 overflowed them)
     sb = registry.build("lr-bits", grid)
     sbs = S.shard_structure(sb, mesh)
