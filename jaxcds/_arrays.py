@@ -16,7 +16,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["to_device", "native_order", "traced_for_cpu"]
+__all__ = ["to_device", "native_order", "traced_for_cpu", "Tracer"]
+
+try:  # public in jax <= 0.10; imported once, so a move fails at import, not per call
+    from jax.core import Tracer
+except ImportError:  # pragma: no cover - newer jax without the alias
+    from jax._src.core import Tracer
 
 
 def to_device(x, dtype=None, *, copy: bool = False) -> jax.Array:

@@ -18,11 +18,7 @@ import jax
 import numpy as np
 
 from jaxcds import errors
-
-try:  # public in jax <= 0.10 (as in structures.base)
-    from jax.core import Tracer as _Tracer
-except ImportError:  # pragma: no cover - newer jax without the alias
-    from jax._src.core import Tracer as _Tracer
+from jaxcds._arrays import Tracer as _Tracer
 
 __all__ = ["pytree_dataclass", "static_field", "replace"]
 

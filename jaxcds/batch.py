@@ -590,11 +590,7 @@ def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBat
         try:
             validate(u, closed=closed, structure=structure)
         except errors.MeshError:
-            for i, m in enumerate(ms):
-                try:
-                    validate(m, closed=closed, structure=structure)
-                except errors.MeshError as exc:
-                    raise type(exc)(f"pack: mesh {i} ({m.source}): {exc}") from exc
+            _raise_for_mesh(ms, closed=closed, structure=structure)
             raise
     else:  # trusted: ids only (one beyond its own mesh would reach into the next one's vertices)
         for i, m in enumerate(ms):
@@ -603,11 +599,7 @@ def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBat
     try:
         s = cls.from_faces(u.faces, u.num_vertices)
     except errors.MeshError:  # border sides that do not chain (from_faces): name the mesh
-        for i, m in enumerate(ms):
-            try:
-                validate(m, structure=structure, unreferenced_ok=True)
-            except errors.MeshError as exc:
-                raise type(exc)(f"pack: mesh {i} ({m.source}): {exc}") from exc
+        _raise_for_mesh(ms, structure=structure, unreferenced_ok=True)
         raise
     nf = np.array([m.num_faces for m in ms], np.int64)
     if structure == "halfedge":
@@ -623,6 +615,16 @@ def _pack_union(ms: Sequence[TriMesh], structure: str, check: bool) -> PackedBat
             nx = np.zeros(len(ms), np.int64)
         return _assemble(s, [m.num_vertices for m in ms], nf, 3 * nf, nx)
     return _assemble(s, [m.num_vertices for m in ms], nf, 3 * nf, np.zeros(len(ms), np.int64))
+
+
+def _raise_for_mesh(ms: Sequence[TriMesh], **checks) -> None:
+    """The first mesh of ``ms`` that ``validate(mesh, **checks)`` refuses, its error re-raised
+    naming the mesh (a union failed: which part); returns if every mesh passes."""
+    for i, m in enumerate(ms):
+        try:
+            validate(m, **checks)
+        except errors.MeshError as exc:
+            raise type(exc)(f"pack: mesh {i} ({m.source}): {exc}") from exc
 
 
 #: vertices per chunk of the chunked normal sums (:meth:`PackedBatch.normal_sums`): a chunk's

@@ -813,11 +813,12 @@ def _refuse_closed_holes(s) -> None:
     error was "60 positions for a structure of 61 vertices", and positions for the closed mesh
     gave polygons through the dummies (sweep 16a)."""
     dummy = s.dummy_vertex_mask()
-    if dummy is None or not bool(np.any(np.asarray(dummy))):
+    count = 0 if dummy is None else int(np.count_nonzero(np.asarray(dummy)))
+    if count == 0:
         return
     raise errors.PolyllaError(
         f"Polylla needs the triangulation's border: this {getattr(s, 'name', type(s).__name__)} "
-        f"closed its holes ({int(np.sum(np.asarray(dummy)))} dummy vertices, CDS Sec. 4.5), "
+        f"closed its holes ({count} dummy vertices, CDS Sec. 4.5), "
         f"whose fan triangles are not the input's; build one of {', '.join(BORDER_STRUCTURES)}, "
         "which keep the border")
 

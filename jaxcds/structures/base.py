@@ -49,12 +49,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._arrays import Tracer as _Tracer
 from jaxcds._arrays import to_device, traced_for_cpu
-
-try:  # public in jax <= 0.10; imported, not looked up per call, so a move fails at import
-    from jax.core import Tracer as _Tracer
-except ImportError:  # pragma: no cover - newer jax without the alias
-    from jax._src.core import Tracer as _Tracer
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
            "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries",

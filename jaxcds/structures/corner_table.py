@@ -22,7 +22,7 @@ from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure
-from jaxcds.structures.halfedge import _match_twins, halfedge_arrays
+from jaxcds.structures.halfedge import _halfedge_arrays, _match_twins
 
 __all__ = ["CornerTable"]
 
@@ -131,8 +131,8 @@ class CornerTable(MeshStructure):
         if closed:
             vert = f.reshape(-1)
         else:  # a dart without twin: the half-edge route (border half-edges), as it always did
-            _, opp, vert, vedge, _ = halfedge_arrays(f, int(num_vertices),
-                                                     source="CornerTable.from_faces")
+            _, opp, vert, vedge, _ = _halfedge_arrays(f, int(num_vertices), None,
+                                                      "CornerTable.from_faces")
             O = _opposites(opp, nf)
         # a vertex in no face: the protocol's "absent", one past the corners
         vedge = np.where(np.asarray(vedge) < 0, 3 * nf, vedge).astype(np.int32)

@@ -77,8 +77,8 @@ class HalfEdge(MeshStructure):
         if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
             raise errors.EmptyMeshError(f"HalfEdge.from_faces: no faces ({int(num_vertices)} "
                                         "vertices); nothing to build")
-        nxt, opp, vert, vedge, bprev = halfedge_arrays(f, int(num_vertices), twins=twins,
-                                                       source="HalfEdge.from_faces")
+        nxt, opp, vert, vedge, bprev = _halfedge_arrays(f, int(num_vertices), twins,
+                                                        "HalfEdge.from_faces")
         return cls(next_=to_device(nxt), opposite=to_device(opp), vertex=to_device(vert),
                    vertex_edge=to_device(vedge), border_prev=to_device(bprev),
                    num_vertices=int(num_vertices), num_faces=int(f.shape[0]))
@@ -178,7 +178,13 @@ def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None, *,
       MeshError: border sides that do not chain into loops (a pinched vertex, flipped faces...):
         the mesh's first defect as :func:`jaxcds.mesh.validate` names it.
     """
-    f = trusted_faces(faces, num_vertices, source)
+    return _halfedge_arrays(trusted_faces(faces, num_vertices, source), int(num_vertices), twins,
+                            source)
+
+
+def _halfedge_arrays(f: np.ndarray, num_vertices: int, twins, source: str):
+    """:func:`halfedge_arrays` on faces :func:`~jaxcds.mesh.trusted_faces` already returned
+    (the builders check them once, before their own empty-mesh test)."""
     if twins is not None and twins.opp.shape[0] == 3 * f.shape[0]:
         opp = twins.opp.copy()  # _link writes the border half-edges into it
     else:
