@@ -124,16 +124,33 @@ def octahedron():
     return v, f
 
 
+_PROBE_PRELUDE = """
+import json
+from jaxcds import errors
+out = {}
+
+def record(key, build, *args):
+    # out[key]: ["built", ""] if build(*args) returns, else the typed error's class and message
+    try:
+        build(*args)
+        out[key] = ["built", ""]
+    except errors.JaxcdsError as exc:
+        out[key] = [type(exc).__name__, str(exc)]
+"""
+
+
 def crash_probe(code: str, timeout: float = 300) -> dict:
     """Run ``code`` in a child interpreter (a numba kernel reading out of bounds kills the
-    process, not the test run) and return the JSON object its last stdout line prints; a
-    non-zero exit (a negative one is a signal: a crash) fails the test with the child's stderr."""
+    process, not the test run) and return the ``out`` dict it fills with ``record(key, build,
+    *args)`` (defined for it, with ``json`` and ``errors``); a non-zero exit (a negative one is
+    a signal: a crash) fails the test with the child's stderr."""
     import json
     import subprocess
     import sys
 
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+    child = _PROBE_PRELUDE + code + "\nprint(json.dumps(out))\n"
+    r = subprocess.run([sys.executable, "-c", child], env=env, capture_output=True, text=True,
                        timeout=timeout)
     assert r.returncode == 0, f"child exited {r.returncode}: {r.stderr[-3000:]}"
     return json.loads(r.stdout.strip().splitlines()[-1])
