@@ -11,7 +11,7 @@ folder, then ``os.replace``), so a failed run never leaves a partial file behind
   (``docs/cds-format.md``); meshes with holes are closed with one dummy vertex per hole.
 * ``jaxcds decode FILE.cds -o MESH.off|.obj|.ply|.stl [--structure cds6n|cds5n|cds4n|none]`` --
   decode (Sec. 3.2, Fig. 10-13) and write the mesh in its original vertex order.
-* ``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb] [--mode reference|canonical]`` -- Polylla polygonal mesh
+* ``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb|lr|lr-bits] [--mode reference|canonical]`` -- Polylla polygonal mesh
   (Salinas-Fernández et al. 2022; IMR 2023 slides) of a Triangle ``.node``/``.ele`` (``.neigh``
   optional), a 2-D OFF triangulation or a point list.
 """
@@ -177,7 +177,7 @@ def cmd_decode(args) -> int:
 
 # ------------------------------------------------------------------------------ polylla
 def cmd_polylla(args) -> int:
-    """``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb] [--mode reference|canonical]``.
+    """``jaxcds polylla INPUT [-o OUT.off] [--structure halfedge|pemb|lr|lr-bits] [--mode reference|canonical]``.
 
     JSON keys (from :func:`jaxcds.algorithms.polylla.run`): ``polygons``, ``barrier_edge_tips``,
     ``repaired_polygons``, ``regions``, ``frontier_edges``, ``vertices``, ``triangles``,
@@ -199,6 +199,13 @@ def cmd_polylla(args) -> int:
 
 
 # ------------------------------------------------------------------------------ parser
+def _polylla_structures():
+    """The structures Polylla runs on (those that keep a triangulation's border as it is;
+    :data:`jaxcds.algorithms.polylla.BORDER_STRUCTURES`), read without importing JAX-heavy
+    modules at parser time: the names are checked against it by a test."""
+    return ("halfedge", "pemb", "lr", "lr-bits")
+
+
 def add_commands(sub) -> None:
     """Add ``encode``, ``decode`` and ``polylla`` to the ``jaxcds`` sub-parsers."""
     e = sub.add_parser("encode", help="compress a genus-0 mesh into a .cds file (4n-3 bits "
@@ -226,9 +233,10 @@ def add_commands(sub) -> None:
     p.add_argument("input", help="Triangle .node/.ele (.neigh optional) or their stem, a 2-D OFF "
                                  "triangulation, or a point list (.xy/.txt/.csv/.npy, Delaunay)")
     p.add_argument("-o", "--output", help="polygon mesh to write (.off)")
-    p.add_argument("--structure", "-s", default="halfedge", choices=["halfedge", "pemb"],
-                   help="half-edge structure to run on: the array half-edge (default) or pemb "
-                        "(succinct planar embedding); the polygons are identical")
+    p.add_argument("--structure", "-s", default="halfedge", choices=list(_polylla_structures()),
+                   help="structure to run on: the array half-edge (default), pemb (succinct "
+                        "planar embedding), lr or lr-bits (Laced Ring; a border needs no closing); "
+                        "the polygons are identical")
     p.add_argument("--no-tables", action="store_true",
                    help="navigate the structure as it is, without per-run navigation tables "
                         "(pemb: a parenthesis search per operator; slower, smaller peak memory)")

@@ -114,6 +114,31 @@ def test_pemb_writes_the_same_file(capsys, tmp_path, halfedge_run, flags):
     assert out.read_bytes() == ref_bytes
 
 
+def test_structure_choices_are_polyllas_border_structures():
+    """``-s`` offers every structure Polylla runs on (it offered halfedge and pemb only, while
+    lr / lr-bits give the same polygons); the parser keeps its own list so that ``jaxcds --help``
+    imports no JAX module, and this ties the two."""
+    from jaxcds import _cli_extra
+    from jaxcds.cli import _parser
+
+    assert _cli_extra._polylla_structures() == P.BORDER_STRUCTURES
+    for name in P.BORDER_STRUCTURES:
+        assert _parser().parse_args(["polylla", "x.node", "-s", name]).structure == name
+    with pytest.raises(SystemExit):
+        _parser().parse_args(["polylla", "x.node", "-s", "cds6n"])
+
+
+@pytest.mark.slow  # lr / lr-bits compile every phase for their own shapes (~20 s CPU each)
+@pytest.mark.parametrize("structure", ["lr", "lr-bits"])
+def test_laced_rings_write_the_same_file(capsys, tmp_path, halfedge_run, structure):
+    _, ref_bytes = halfedge_run
+    out = tmp_path / f"{structure}.off"
+    d = run_json(capsys, ["polylla", _need("points50.1.node"), "-o", str(out), "-s", structure,
+                          "--json"])
+    assert d["structure"] == structure and d["polygons"] == 17
+    assert out.read_bytes() == ref_bytes
+
+
 def test_no_tables_flag_reaches_the_run(capsys, tmp_path, halfedge_run):
     """``--no-tables`` on the half-edge (whose arrays are its tables): same file, reported."""
     _, ref_bytes = halfedge_run

@@ -266,17 +266,37 @@ def rows_text(row: str, a: np.ndarray, chunk: int = 1 << 18) -> str:
                    for part in (a[i:i + chunk] for i in range(0, a.shape[0], chunk)))
 
 
+def _output_mode(path: str) -> int:
+    """Permission bits for a file written over ``path``: those of the file already there (an
+    executable or group-writable output keeps them), else the usual ``0666 & ~umask``
+    (``mkstemp`` creates its file ``0600``)."""
+    import stat
+
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to a temporary file next to ``path``, fsync, then rename over ``path``:
-    readers never see a partial file, and a failed write leaves nothing behind.
+    readers never see a partial file, and a failed write leaves nothing behind. A file already
+    at ``path`` keeps its permission bits; a symbolic link at ``path`` keeps pointing at the
+    file it names, which is the one replaced.
 
     Raises:
       OutputError: the folder is missing, a folder is in the way, or the OS refuses the write
         (permission, full disk), naming ``path``."""
     path = check_writable(path)
-    d = os.path.dirname(os.path.abspath(path))
+    # through a symbolic link, the file it names is replaced (as ``>`` in a shell writes through
+    # it): renamed over the link itself, the link became a plain file and its target kept the old
+    # contents
+    target = os.path.realpath(path) if os.path.islink(path) else path
+    d = os.path.dirname(os.path.abspath(target))
     try:
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=d)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(target), dir=d)
     except OSError as exc:
         raise errors.OutputError(f"cannot write {path!r}: {exc.strerror or exc}") from None
     try:
@@ -284,10 +304,8 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
-        umask = os.umask(0)  # mkstemp creates the file 0600: give it the usual 0666 & ~umask
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
+        os.chmod(tmp, _output_mode(target))
+        os.replace(tmp, target)
     except BaseException as exc:
         try:
             os.unlink(tmp)

@@ -475,3 +475,41 @@ def test_geometry_past_float32_is_refused_not_written_as_inf(tmp_path):
     assert list(tmp_path.iterdir()) == []
     write_cds(tmp_path / "nogeo.cds", big, geometry=False)
     assert read_cds(tmp_path / "nogeo.cds")[0].num_vertices == 12
+
+
+def test_an_output_in_place_keeps_its_mode_and_links(tmp_path):
+    """Stop 44's sweep left: ``-o`` onto an existing file replaced it with default permissions
+    (0666 & ~umask), and onto a symbolic link replaced the link by a plain file, the file it
+    named keeping its old contents. The file in place keeps its permission bits; the link keeps
+    pointing at its file, which gets the new contents."""
+    import stat
+
+    old = tmp_path / "old.bin"
+    old.write_bytes(b"old")
+    os.chmod(old, 0o640)
+    ff.atomic_write_bytes(old, b"new")
+    assert old.read_bytes() == b"new" and stat.S_IMODE(os.stat(old).st_mode) == 0o640
+    os.chmod(old, 0o751)
+    ff.atomic_write_bytes(old, b"newer")
+    assert stat.S_IMODE(os.stat(old).st_mode) == 0o751
+
+    (tmp_path / "sub").mkdir()
+    real = tmp_path / "sub" / "real.off"
+    real.write_bytes(b"old")
+    os.chmod(real, 0o600)
+    link = tmp_path / "link.off"
+    link.symlink_to(real)
+    ff.atomic_write_bytes(link, b"through")
+    assert os.path.islink(link) and os.readlink(link) == str(real)
+    assert real.read_bytes() == b"through" and stat.S_IMODE(os.stat(real).st_mode) == 0o600
+    # a dangling link: the file it names is created, with the usual mode
+    dangling = tmp_path / "dangling.off"
+    dangling.symlink_to(tmp_path / "sub" / "made.off")
+    ff.atomic_write_bytes(dangling, b"made")
+    assert os.path.islink(dangling) and (tmp_path / "sub" / "made.off").read_bytes() == b"made"
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(os.stat(tmp_path / "sub" / "made.off").st_mode) == 0o666 & ~umask
+    # no temporary file left in either folder
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling.off", "link.off", "old.bin", "sub"]
+    assert sorted(p.name for p in (tmp_path / "sub").iterdir()) == ["made.off", "real.off"]
