@@ -103,7 +103,15 @@ def id_arg(x, what: str) -> Int:
     if isinstance(x, jax.Array) and (isinstance(x, _Tracer) or x.dtype.itemsize <= 4):
         if not jnp.issubdtype(x.dtype, jnp.integer):
             raise errors.InvalidIndexError(f"{what} must be integers, got dtype {x.dtype}")
-        return x if x.dtype == jnp.int32 else x.astype(jnp.int32)
+        if x.dtype == jnp.int32 or jnp.can_cast(x.dtype, jnp.int32):
+            return x if x.dtype == jnp.int32 else x.astype(jnp.int32)
+        # traced uint32 / int64 / uint64 (x64 on): clamped as the host route clamps, so an id
+        # past int32 reads as out of range instead of wrapping onto a valid id
+        top = jnp.asarray(np.iinfo(np.int32).max, x.dtype)
+        if jnp.issubdtype(x.dtype, jnp.unsignedinteger):
+            return jnp.minimum(x, top).astype(jnp.int32)
+        low = jnp.asarray(np.iinfo(np.int32).min, x.dtype)
+        return jnp.where(x < low, -1, jnp.minimum(x, top)).astype(jnp.int32)
     a = integer_array(x, what)
     if a.size == 0:
         return to_device(np.zeros(a.shape, np.int32))

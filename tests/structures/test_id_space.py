@@ -93,6 +93,30 @@ def test_operators_read_ids_of_any_integer_kind_and_refuse_the_rest(kind):
             s.twin(bad)
 
 
+@pytest.mark.parametrize("kind", ["halfedge", "cds5n-o1"])
+def test_wide_ids_under_jit_with_x64_read_as_absent(x64, kind):
+    """Under ``jit`` with x64 on, int64 / uint32 / uint64 ids reach the operators as tracers of
+    their own dtype: they were cast to int32, so ``2**32 + 3`` wrapped onto dart 3 (valid; its
+    twin answered) where the eager call reads it as absent. Clamped as the host route clamps."""
+    import jax
+
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    s = registry.build(kind, icosphere(1))
+    valid = jax.jit(lambda d: s.dart_valid(d))
+    d = int(np.asarray(s.all_darts())[3])  # a valid dart (the CDS id space has holes)
+    for dtype, big in ((np.int64, 2**32 + d), (np.int64, -(2**32) + d), (np.uint64, 2**32 + d),
+                       (np.uint32, 2**31 + d)):
+        ids = np.array([d, big], dtype)
+        assert jnp.asarray(ids).dtype == dtype  # x64 keeps the dtype
+        assert np.asarray(valid(ids)).tolist() == [True, False], dtype
+        assert np.asarray(s.dart_valid(ids)).tolist() == [True, False], dtype  # eager, as before
+    # within int32 every kind still answers as int32 ids do
+    want = np.asarray(s.twin(np.arange(6, dtype=np.int32)))
+    np.testing.assert_array_equal(np.asarray(jax.jit(lambda d: s.twin(d))(np.arange(6, dtype=np.int64))), want)
+
+
 @pytest.mark.parametrize("kind", ["halfedge", "corner-table", "cds5n-o1", "lr", "pemb"])
 def test_dart_valid_checks_its_ids(kind):
     """dart_valid was left out of the checked operators: 3.5 was read as dart 3 (True). Ids past
