@@ -1859,13 +1859,25 @@ def split_components(mesh: TriMesh) -> list[TriMesh]:
     ncomp, face_label = _components(mesh)
     if ncomp == 1:
         return [mesh]
+    # One stable sort of the faces and one of the used vertices by component, then a slice of
+    # each per component: a mask and a remap over the whole mesh per component made this
+    # O(c (V + F)) (11.6 s for 32,000 tetrahedra, 15x per 4x). Same meshes: faces in input
+    # order, vertices in increasing id, unreferenced vertices dropped.
+    f = mesh.faces
+    order = np.argsort(face_label, kind="stable")
+    fstart = np.searchsorted(face_label[order], np.arange(ncomp + 1))
+    vlabel = np.full(mesh.num_vertices, -1, dtype=np.int64)
+    vlabel[f.ravel()] = np.repeat(face_label, 3)  # a vertex lies in one component only
+    used = np.flatnonzero(vlabel >= 0)
+    vorder = used[np.argsort(vlabel[used], kind="stable")]
+    vstart = np.searchsorted(vlabel[vorder], np.arange(ncomp + 1))
+    local = np.full(mesh.num_vertices, -1, dtype=np.int64)
+    local[vorder] = np.arange(vorder.size) - np.repeat(vstart[:-1], np.diff(vstart))
+    local_faces = local[f].astype(np.int32)
     out = []
     for c in range(ncomp):
-        f = mesh.faces[face_label == c]
-        used = np.unique(f)
-        remap = np.full(mesh.num_vertices, -1, dtype=np.int64)
-        remap[used] = np.arange(used.size)
-        out.append(TriMesh(vertices=mesh.vertices[used], faces=remap[f].astype(np.int32),
+        out.append(TriMesh(vertices=mesh.vertices[vorder[vstart[c]:vstart[c + 1]]],
+                           faces=local_faces[order[fstart[c]:fstart[c + 1]]],
                            source=f"{mesh.source}[component {c}]"))
     return out
 
