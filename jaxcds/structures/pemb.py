@@ -207,11 +207,19 @@ def encode_rotation_system(opp, ccw, vert, num_vertices: int, start: int = 0, tr
 
 def rotation_system_from_faces(faces: np.ndarray, num_vertices: int):
     """``(opp, ccw, vert, is_border)`` for the darts of a triangle mesh, numbered as the
-    HalfEdge numbers them (``3f + k`` inner, then border darts)."""
-    from jaxcds.structures.halfedge import halfedge_arrays
+    HalfEdge numbers them (``3f + k`` inner, then border darts). The face ids are checked
+    (:func:`~jaxcds.mesh.trusted_faces`)."""
+    from jaxcds.mesh import trusted_faces
 
-    f = np.ascontiguousarray(faces, np.int32)
-    nxt, opp, vert, _vedge, bprev = halfedge_arrays(f, int(num_vertices), source="pemb")
+    return _rotation_system(trusted_faces(faces, num_vertices, "pemb"), num_vertices)
+
+
+def _rotation_system(f: np.ndarray, num_vertices: int):
+    """:func:`rotation_system_from_faces` on faces ``trusted_faces`` returned already
+    (``PEMB.from_faces`` checks them once, before its own empty-mesh test)."""
+    from jaxcds.structures.halfedge import _halfedge_arrays
+
+    nxt, opp, vert, _vedge, bprev = _halfedge_arrays(f, int(num_vertices), None, "pemb")
     nf3 = 3 * f.shape[0]
     prev = np.empty_like(nxt)
     prev[:nf3] = nxt[nxt[:nf3]]
@@ -308,7 +316,7 @@ class PEMB(MeshStructure):
         if nf == 0:  # the walk's first dart would not exist
             raise errors.EmptyMeshError(f"PEMB.from_faces: no faces ({int(num_vertices)} "
                                         "vertices); nothing to build")
-        opp, ccw, vert, is_border = rotation_system_from_faces(f, num_vertices)
+        opp, ccw, vert, is_border = _rotation_system(f, num_vertices)
         if is_border.any():
             b = int(np.argmax(is_border))
             start = int(ccw[b])  # first dart after the border corner: the walk starts outside
