@@ -5,6 +5,8 @@
 #
 #   OUT=/tmp/gpu bash benchmarks/gpu_lease.sh                        # the leased run (5M vertices)
 #   V=20000 Q=100000 MESHES=20 OUT=/tmp/gpu bash benchmarks/gpu_lease.sh   # a smoke run on CPU
+#   MATCH=1 BATCH=0 STRUCTURES=pemb ... : also race pemb's matches searched vs sorted
+#     (benchmarks/race_pemb_match.py; MATCH_V vertices, MATCH_MESHES meshes, T3 seconds)
 #
 # Runs from the repository root with the machine's own python3 (jax there may be newer than the
 # range pyproject.toml pins: the versions are printed first and kept in env.txt).
@@ -27,6 +29,12 @@ timeout "$T1" $PY benchmarks/bench_gpu.py --vertices "$V" --queries "$Q" --deadl
   --structures "$STRUCTURES" --repeats 5 --out "$OUT" 2> "$OUT/bench_gpu.log"
 echo "bench_gpu rc=$? in $(( $(date +%s) - t0 )) s"
 grep -E "Error|skipped" "$OUT/bench_gpu.log" | cut -c1-300 | head -20
+if [ "${MATCH:-0}" = 1 ]; then  # pemb's matches searched vs sorted (bp.MATCH_BY_SORT), single and packed
+  t0=$(date +%s)
+  timeout "${T3:-180}" $PY benchmarks/race_pemb_match.py --vertices "${MATCH_V:-1000000}" \
+    --meshes "${MATCH_MESHES:-300}" --rounds 5 --json "$OUT/race_pemb_match.json" > "$OUT/race_pemb_match.log" 2>&1
+  echo "race_pemb_match rc=$? in $(( $(date +%s) - t0 )) s"; tail -12 "$OUT/race_pemb_match.log"
+fi
 [ "$BATCH" = 1 ] || exit 0
 t0=$(date +%s)
 timeout "$T2" $PY benchmarks/bench_batch.py --meshes "$MESHES" --no-check \

@@ -705,6 +705,36 @@ def test_pack_and_pack_positions_take_lists_only_and_real_positions():
 
 
 # ---------------------------------------------------------------------- chunked normal sums
+def test_packed_pemb_chunk_tables_by_sort(monkeypatch):
+    """MATCH_BY_SORT (the sort route, the GPU candidate): a packed pemb's rows derived chunk by
+    chunk, each chunk's matches by one sort over its windows (the last chunk's windows start
+    inside earlier meshes: their positions are left out), give the face list's normals."""
+    from jaxcds.structures import pemb_packed
+    from jaxcds.structures.succinct import bp as bp_mod
+
+    calls = []
+    by_level = bp_mod.matches_by_level
+    monkeypatch.setattr(bp_mod, "MATCH_BY_SORT", True)
+    monkeypatch.setattr(bp_mod, "matches_by_level", lambda *a: calls.append(1) or by_level(*a))
+    monkeypatch.setattr(B, "NORMALS_CHUNK_VERTICES", 60)
+    monkeypatch.setattr(pemb_packed, "CHUNKED_ROWS_FROM", 2)
+    # sizes no other test packs (a fresh trace reads the switch)
+    ms = [random_planar_triangulation(n, seed=s) for s, n in enumerate((23, 37, 14, 93, 9, 44))]
+    ms[1:1] = [load_shared("grid.off"), load_shared("2triangles.off")]
+    ms.append(_annulus(random_planar_triangulation(31, seed=9)))
+    b = B.pack(ms, "pemb")
+    assert b.chunk_starts is not None and b.chunk_starts.shape[0] >= 5
+    pos = B.pack_positions(b, ms)
+    got = np.asarray(vertex_normals(b, pos))
+    assert calls  # traced through the sort route
+    order = np.asarray(b.vertex_order)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(order.size)
+    voff = np.concatenate([[0], np.cumsum([m.num_vertices for m in ms])[:-1]])
+    faces = jnp.asarray(inv[np.concatenate([m.faces + o for m, o in zip(ms, voff)])])
+    np.testing.assert_allclose(got, np.asarray(face_list_vertex_normals(pos, faces)), atol=1e-5)
+
+
 def test_chunk_plan_groups_whole_meshes():
     """Consecutive whole meshes up to the chunk size; a larger mesh alone; starts of every
     column (vertices, then each row block) and the largest chunk per column."""

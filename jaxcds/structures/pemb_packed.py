@@ -57,6 +57,7 @@ from jaxcds.structures.base import Int, parts_of_one_class
 from jaxcds.structures.lr_packed import _chunk_plan, _segment_ids, _window_segment_ids
 from jaxcds.structures.pemb import PEMB, TableOperators, chain_ends
 from jaxcds.structures.succinct import BalancedParens, BitVector
+from jaxcds.structures.succinct import bp as _bp
 
 __all__ = ["PackedPEMB", "PackedPEMBTables", "concatenate_pemb"]
 
@@ -277,13 +278,17 @@ class PackedPEMB(PEMB):
         """``(match, open & mine)`` over the chunk's parenthesis windows (``B``'s, then
         ``B*``'s; chunk indices): :meth:`~BalancedParens.match_all` of those positions only (a
         search from each ``(`` of the chunk, its ``)`` written by a scatter). Entries of other
-        meshes (a window that starts before the chunk) are unspecified."""
+        meshes (a window that starts before the chunk) are unspecified. With
+        :data:`~jaxcds.structures.succinct.bp.MATCH_BY_SORT`, one sort by level over the
+        window's own positions (each mesh's ``B`` and ``B*`` are balanced blocks)."""
         P, ntp, tcap = self.P, self.num_tree_parens, w.caps[3]
         size = tcap + w.caps[4]
         r = jnp.arange(size, dtype=jnp.int32)
         q = jnp.where(r < tcap, w.tree + r, ntp + w.dual + r - tcap)
         mine = jnp.where(r < tcap, (q >= lo[3]) & (q < hi[3]),
                          (q - ntp >= lo[4]) & (q - ntp < hi[4]))
+        if _bp.MATCH_BY_SORT:  # one sort by level over the window (the GPU candidate)
+            return _bp.matches_by_level(P.is_open(q), mine), P.is_open(q) & mine
         op = P.is_open(q) & mine
         match = w.local(P.closes_of(q, op))
         return match.at[jnp.where(op, match, size)].set(r, mode="drop"), op

@@ -14,6 +14,7 @@ from hypothesis import given, settings, strategies as st
 
 from jaxcds import errors
 from jaxcds.structures.succinct import BalancedParens, BitVector, excess_oracle
+from jaxcds.structures.succinct.bp import matches_by_level as by_level
 
 # Each length is one XLA compilation of every operation; the quick set keeps the word and block
 # boundaries (32, 256 bits), the slow set adds the others.
@@ -173,3 +174,44 @@ def test_support_is_small():
     bp = BalancedParens.from_bits(b)
     # rank directory (1/8) + min-max tree (about 2 ints per 256 bits) + padding
     assert bp.bits_support / bp.size < 0.45, bp.bits_support / bp.size
+
+
+@settings(max_examples=5, deadline=None)
+@given(pairs=st.lists(st.integers(0, 300), min_size=1, max_size=4), seed=st.integers(0, 2**31),
+       deep=st.booleans())
+def test_matches_by_level_equal_the_stack(pairs, seed, deep):
+    """The sort route (bp.matches_by_level, the GPU candidate of MATCH_BY_SORT): every match of
+    a concatenation of balanced blocks == a stack's; with ``member``, blocks interleaved with
+    stray parentheses (a packed pemb chunk window that starts inside another mesh) give the
+    members' matches; odd lengths included."""
+    matches_by_level = by_level
+    blocks = [_balanced(seed + k, p, deep) for k, p in enumerate(pairs)]
+    b = np.concatenate(blocks)
+    if b.size:
+        np.testing.assert_array_equal(np.asarray(matches_by_level(jnp.asarray(b == 1))), _bp_oracle(b)[0])
+    rng = np.random.default_rng(seed)
+    parts, member = [], []
+    for blk in blocks:  # strays before every block (unbalanced on their own)
+        stray = rng.integers(0, 2, int(rng.integers(0, 4))).astype(np.uint8)
+        parts += [stray, blk]
+        member += [np.zeros(stray.size, bool), np.ones(blk.size, bool)]
+    x, member = np.concatenate(parts), np.concatenate(member)
+    got = np.asarray(matches_by_level(jnp.asarray(x == 1), jnp.asarray(member)))
+    pos = np.flatnonzero(member)
+    want = pos[_bp_oracle(x[member])[0]] if pos.size else pos  # the members' own matches, as positions of x
+    np.testing.assert_array_equal(got[member], want)
+
+
+def test_match_all_takes_the_sort_route_when_asked(monkeypatch):
+    """MATCH_BY_SORT switches BalancedParens.match_all to the sort (read at trace time: eager
+    calls here); same answers as the searches."""
+    from jaxcds.structures.succinct import bp as bp_mod
+
+    b = np.concatenate([_balanced(3, 700, True), _balanced(4, 500, False)])
+    P = BalancedParens.from_bits(b)
+    searched = np.asarray(P.match_all())
+    calls = []
+    monkeypatch.setattr(bp_mod, "MATCH_BY_SORT", True)
+    monkeypatch.setattr(bp_mod, "matches_by_level", lambda *a: calls.append(1) or by_level(*a))
+    np.testing.assert_array_equal(np.asarray(P.match_all()), searched)
+    assert calls == [1]

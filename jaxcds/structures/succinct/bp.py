@@ -51,13 +51,56 @@ from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.succinct.bitvector import (BLOCK_BITS, BLOCK_WORDS, COMPACT_CHUNK, UNROLL_FROM,
                                                   BitVector, _low_mask, compacted, popcount)
 
-__all__ = ["BalancedParens", "excess_oracle", "unbalanced_at", "CHUNK_MIN", "COMPACT_CHUNK"]
+__all__ = ["BalancedParens", "excess_oracle", "unbalanced_at", "matches_by_level", "CHUNK_MIN",
+           "COMPACT_CHUNK", "MATCH_BY_SORT"]
 
 _INF = np.int32(1 << 30)
 UNROLL = 1
 #: unrolling of the 8-word block scan on batches of at least ``UNROLL_FROM`` lanes (True: fully;
 #: smaller batches: by 2, a smaller program)
 SCAN_UNROLL = True
+
+#: how the whole-sequence matches are found (:meth:`BalancedParens.match_all`, the packed pemb's
+#: chunk tables): ``False``, the two-stage searches; ``True``, one stable sort of the
+#: parentheses by level (:func:`matches_by_level`: no search, no data-dependent loop). Read at
+#: trace time (``jax.clear_caches()`` after changing it). On XLA:CPU the sort measured 4.1x
+#: slower than the searches (RESULTS.md, stop 44: 2,157 against 524 ns per vertex at 100K), so
+#: the searches are the default; XLA's GPU sort is a radix sort and the searches are loops
+#: there, so the sort is the GPU candidate, raced by ``benchmarks/race_pemb_match.py``
+#: (``benchmarks/gpu_lease.sh`` with ``MATCH=1``), not yet measured on one.
+MATCH_BY_SORT = False
+
+
+def matches_by_level(is_open, member=None) -> jnp.ndarray:
+    """``(k,)`` int32: the match of every parenthesis of a balanced sequence given as its
+    ``(k,)`` bool ``is_open`` (indices are positions in it), by sorting instead of searching.
+
+    Why it works: a ``(`` at excess ``d`` before it and its ``)`` (excess ``d`` after it) share
+    the *level* ``d``, and within one level of a balanced sequence the parentheses alternate
+    ``( ) ( ) ...`` in position order (between a ``(`` at level ``d`` and its ``)`` the excess
+    stays above ``d``). So a stable sort of the positions by level lists every pair side by
+    side: one ``cumsum``, one sort, two scatters.
+
+    ``member``: ``(k,)`` bool, the positions that form the balanced sequence (a concatenation of
+    balanced blocks, as a packed pemb's chunk window holds); the others are left out of the
+    levels and sorted last, and their entries are unspecified."""
+    k = is_open.shape[0]
+    i32 = jnp.int32
+    step = jnp.where(is_open, 1, -1).astype(i32)
+    if member is not None:
+        step = jnp.where(member, step, 0)
+    after = jnp.cumsum(step)
+    level = jnp.where(is_open, after - 1, after)
+    if member is not None:
+        level = jnp.where(member, level, jnp.iinfo(i32).max)
+    pos = jnp.arange(k, dtype=i32)
+    if k % 2:  # an even count to pair (the extra key sorts last, among unspecified entries)
+        level = jnp.concatenate([level, jnp.full((1,), jnp.iinfo(i32).max, i32)])
+        pos = jnp.concatenate([pos, jnp.full((1,), k, i32)])
+    _, order = jax.lax.sort((level, pos), num_keys=1, is_stable=True)
+    a, b = order[0::2], order[1::2]
+    out = jnp.zeros((k,), i32)
+    return out.at[a].set(b, mode="drop").at[b].set(a, mode="drop")
 
 
 def _chunk_min_table() -> np.ndarray:
@@ -450,10 +493,13 @@ class BalancedParens:
         stage misses a pair exactly when its ``)`` is more than one word past its ``(``'s word,
         the same condition seen from either end, so only those ``(`` take the min-max tree route
         (compacted, :func:`compacted`). Used by structures that build a per-phase table of all
-        matches (pemb's :meth:`~jaxcds.structures.pemb.PEMB.with_tables`)."""
+        matches (pemb's :meth:`~jaxcds.structures.pemb.PEMB.with_tables`). With
+        :data:`MATCH_BY_SORT`, one sort by level instead (:func:`matches_by_level`)."""
         n = self.size
         i = jnp.arange(n, dtype=jnp.int32)
         op = self.is_open(i)
+        if MATCH_BY_SORT:
+            return matches_by_level(op)
         close = self.closes_of(i, op, chunk=chunk)
         # every ')' is the match of exactly one '(': one scatter fills them all
         return close.at[jnp.where(op, close, n)].set(i, mode="drop")
