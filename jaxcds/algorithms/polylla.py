@@ -1031,28 +1031,27 @@ def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool,
     input ids and ordered as one run's (canonical: sorted; reference: by seed half-edge id, the
     pieces' rows keeping their input indices). Returns ``(PolyllaMesh, build seconds)``."""
     from jaxcds import polylla_io
+    from jaxcds.mesh import component_pieces
 
     ncomp, label = parts
     _checked_mesh(tri, structure, check)  # the whole input, as one structure would check it
     cw = None if tri.clockwise is None else np.asarray(tri.clockwise, bool)
     offs, idx, seeds, t, t_build = [np.zeros(1, np.int64)], [], [], {}, 0.0
     counts = dict(barrier_edge_tips=0, repaired_polygons=0, regions=0, frontier_edges=0)
-    for c in range(ncomp):
-        sel = label == c
-        used = np.unique(tri.faces[sel])
-        remap = np.full(tri.num_vertices, -1, np.int64)
-        remap[used] = np.arange(used.size)
-        part_cw = None if cw is None else cw[sel]
+    # each piece's rows, vertices and renumbered faces by slices of one sort (a mask and a remap
+    # over the whole input per piece was O(pieces x size), as split_components' was)
+    pieces = component_pieces(np.asarray(tri.faces), tri.num_vertices, ncomp, label)
+    for c, (rows, used, faces) in enumerate(pieces):
+        part_cw = None if cw is None else cw[rows]
         flipped = 0 if part_cw is None else int(part_cw.sum())
         sub = polylla_io.Triangulation2D(
-            points=tri.points[used], faces=remap[tri.faces[sel]].astype(np.int32),
-            source=f"{tri.source}[component {c}]", flipped=flipped,
-            clockwise=part_cw if flipped else None)
+            points=tri.points[used], faces=faces, source=f"{tri.source}[component {c}]",
+            flipped=flipped, clockwise=part_cw if flipped else None)
         t0 = time.perf_counter()
         s = build_structure(sub, structure, check=False)  # a piece of a valid input
         t_build += time.perf_counter() - t0
         m = polylla(s, sub.points, corners=sub.input_faces, clockwise=tri.all_clockwise,
-                    tables=tables, canonical=False, mode=mode, row_ids=np.nonzero(sel)[0])
+                    tables=tables, canonical=False, mode=mode, row_ids=rows)
         offs.append(m.offsets[1:] + offs[-1][-1])
         idx.append(used[m.indices].astype(np.int32))
         seeds.append(m.seed_edges)

@@ -501,14 +501,21 @@ def test_clockwise_input_gives_the_reference_output():
     assert (sorted(map(sorted, ccw.polygons())) != sorted(map(sorted, mesh.polygons())))
 
 
-@pytest.mark.parametrize("clockwise", [False, True])
-def test_pemb_runs_each_piece_of_a_disconnected_input(clockwise):
+@pytest.mark.parametrize("clockwise,shuffled", [(False, False), (True, False), (False, True)])
+def test_pemb_runs_each_piece_of_a_disconnected_input(clockwise, shuffled):
     """pemb is one connected planar embedding: a triangulation in several pieces (the reference's
     pikachu has three) runs piece by piece and gives the half-edge's polygons, arrays and counts
-    included."""
+    included; ``shuffled``: the pieces' vertex ids and triangle rows interleaved (each piece is
+    cut out by slices of one sort, ``mesh.component_pieces``)."""
     a, b = random_tri(0, 60), tie_lattice(4)
     pts = np.concatenate([a.points, b.points + [2.0, 0.0]])
     faces = np.concatenate([a.faces, b.faces + a.num_vertices])
+    if shuffled:
+        rng = np.random.default_rng(5)
+        perm = rng.permutation(pts.shape[0])  # new id of every vertex
+        inv = np.argsort(perm)
+        pts, faces = pts[inv], perm[faces][rng.permutation(faces.shape[0])]
+        assert np.unique(P._components_of(io._make(pts, faces, "x"))[1][:10]).size == 2
     if clockwise:
         faces = faces[:, ::-1]
     tri = io._make(pts, faces, "pieces")
