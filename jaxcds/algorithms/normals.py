@@ -295,10 +295,36 @@ def _gather_jvp(primals, tangents):
     return _gather_normals(s, positions), dn
 
 
+#: turns of the gather route's first stage, over every vertex at once (most meshes finish in it:
+#: their largest degree is under this); the vertices still turning then go on in stages of doubling
+#: length over compacted buffers (:func:`_gather_sums`)
+GATHER_FIRST_TURNS = 64
+#: a stage with at most this many vertices left turns until they are all done
+GATHER_LAST_STAGE = 16
+
+
 def _gather_sums(s, positions):
-    v = jnp.arange(s.num_vertices, dtype=jnp.int32)
+    """Every vertex's sum of face cross products, turning around it (:func:`_gather_turns`)."""
+    return _gather_turns(s, positions)[0]
+
+
+def _gather_turns(s, positions):
+    """``(sums, lane turns)``: every vertex's sum of face cross products, turning around it (``ccw_vertex_edge``) from
+    ``edge_of_vertex``: the lanes of all vertices advance together, so a turn costs the number of
+    vertices still turning.
+
+    Why in stages: one loop over every vertex runs as many turns as the largest degree, O(n d):
+    quadratic around a hub (sweep 17b: a bipyramid whose poles have degree 16K took 6.1 s on the
+    half-edge, 64K minutes). After ``T`` turns at most ``num_darts / T`` vertices are still
+    turning (each has more than ``T`` darts), so after :data:`GATHER_FIRST_TURNS` turns the
+    unfinished ones are compacted into a buffer of that size and turn ``T`` more times, and so
+    on: O(n log n) at worst. Each vertex adds its faces in the same order either way (the same
+    sums, bit for bit). A mesh whose degrees are all under the first stage's turns skips the
+    later stages (one ``cond``). The lane turns (turns times lanes, over every stage) are the
+    route's work, returned for the tests."""
+    n = s.num_vertices
+    v = jnp.arange(n, dtype=jnp.int32)
     start = s.edge_of_vertex(v)
-    p0 = positions
     dummy = s.dummy_vertex_mask()
     # a structure whose Target walks a fan (CDS6n/5n/4n, Thm 2: O(d)) hands out every dart's
     # target at once (O(n log d)): asked in this loop, the walk made the route O(n d^2) (a
@@ -306,26 +332,68 @@ def _gather_sums(s, positions):
     table = s.target_table() if getattr(s, "target_table", None) is not None else None
     target = s.target if table is None else (lambda e: table[e])
 
-    def cond(state):
-        _, _, done, k = state
-        return jnp.any(~done) & (k < s.num_vertices + 1)
+    def turns(vid, e, first, acc, done, limit):
+        """Up to ``limit`` turns of the lanes ``vid`` (global vertex ids; ``n`` for padding,
+        born done; ``None``: every vertex) until all are done, and the turns run."""
+        p0 = positions if vid is None else positions[jnp.minimum(vid, n - 1)]
 
-    def body(state):
-        e, acc, done, k = state
-        e2 = s.ccw_vertex_edge(e)
-        # the face (v, target(e), target(e2)) is the left face of e: skip border darts
-        t1, t2 = target(e), target(e2)
-        inner = ~s.is_border(e)
-        if dummy is not None:  # and the faces of the hole-closing fans
-            inner = inner & ~dummy[t1] & ~dummy[t2]
-        a = positions[t1] - p0
-        b = positions[t2] - p0
-        contrib = jnp.where((inner & ~done)[:, None], jnp.cross(a, b), 0.0)
-        return e2, acc + contrib, done | (e2 == start), k + 1
+        def cond(state):
+            _, _, done, k = state
+            return jnp.any(~done) & (k < limit)
+
+        def body(state):
+            e, acc, done, k = state
+            e2 = s.ccw_vertex_edge(e)
+            # the face (v, target(e), target(e2)) is the left face of e: skip border darts
+            t1, t2 = target(e), target(e2)
+            inner = ~s.is_border(e)
+            if dummy is not None:  # and the faces of the hole-closing fans
+                inner = inner & ~dummy[t1] & ~dummy[t2]
+            a = positions[t1] - p0
+            b = positions[t2] - p0
+            contrib = jnp.where((inner & ~done)[:, None], jnp.cross(a, b), 0.0)
+            return e2, acc + contrib, done | (e2 == first), k + 1
+
+        e, acc, done, k = jax.lax.while_loop(cond, body, (e, acc, done, jnp.int32(0)))
+        return e, acc, done, k.astype(jnp.float32) * e.shape[0]  # float: n d overflows int32
 
     alone = ~s.dart_valid(start)  # a vertex in no face: no turn, a zero sum
     if dummy is not None:  # a dummy vertex: every face around it is a fan face
         alone = alone | dummy
-    _, acc, _, _ = jax.lax.while_loop(
-        cond, body, (start, jnp.zeros_like(positions), alone, jnp.int32(0)))
-    return acc
+    plan = _gather_stages(n, s.num_darts)
+    first_limit = plan[0] if plan else n + 1  # a small mesh: one stage to the end
+    e, acc, done, work = turns(None, start, start, jnp.zeros_like(positions), alone, first_limit)
+    if not plan:
+        return acc, work
+
+    def later_stages(operand):
+        acc_all, work = operand
+        vid, e_, first, acc_, done_ = v, e, start, acc, done
+        for turned, cap in zip(plan, plan[1:] + [None]):
+            # the lanes still turning after `turned` turns: at most num_darts / turned of them
+            width = min(vid.shape[0], s.num_darts // turned + 1)
+            keep = jnp.nonzero(~done_, size=width, fill_value=vid.shape[0])[0]
+            real = keep < vid.shape[0]
+            k = jnp.minimum(keep, vid.shape[0] - 1)
+            vid = jnp.where(real, vid[k], n)
+            e_, first, acc_, done_ = e_[k], first[k], acc_[k], ~real
+            limit = n + 1 if cap is None else cap - turned
+            e_, acc_, done_, w = turns(vid, e_, first, acc_, done_, limit)
+            acc_all = acc_all.at[vid].set(acc_, mode="drop")  # padding (vid n) dropped
+            work = work + w
+        return acc_all, work
+
+    return jax.lax.cond(jnp.any(~done), later_stages, lambda a: a, (acc, work))
+
+
+def _gather_stages(num_vertices: int, num_darts: int) -> list:
+    """Turn counts after which the gather route compacts the vertices still turning (static):
+    :data:`GATHER_FIRST_TURNS`, then doubling while the buffer shrinks past
+    :data:`GATHER_LAST_STAGE`; empty for a mesh too small to gain from it."""
+    plan, t = [], GATHER_FIRST_TURNS
+    while num_darts // t + 1 < num_vertices and num_darts // t + 1 > GATHER_LAST_STAGE // 2:
+        plan.append(t)
+        t *= 2
+    if num_darts // t + 1 < num_vertices:
+        plan.append(t)  # the last compaction: a small buffer, turned to the end
+    return plan
