@@ -302,6 +302,48 @@ def test_cds_gather_normals_on_vertices_of_high_degree(structure):
                                np.asarray(vertex_normals(s, p)), atol=1e-5)
 
 
+def _bipyramid(k):
+    t = 2 * np.pi * np.arange(k) / k
+    v = np.concatenate([np.c_[np.cos(t), np.sin(t), np.zeros(k)], [[0, 0, 1.0], [0, 0, -1.0]]])
+    a = np.arange(k)
+    f = np.concatenate([np.c_[a, (a + 1) % k, np.full(k, k)], np.c_[(a + 1) % k, a, np.full(k, k + 1)]])
+    return v, f
+
+
+@pytest.mark.parametrize("structure", ["halfedge", "lr", "pemb"])
+def test_adjacent_around_a_hub_finishes_its_long_rotations_compacted(structure, monkeypatch):
+    """A batch of adjacency queries turned in one loop as long as its longest rotation: queries x
+    the largest degree (sweep 17b: 100K queries around a degree-1,000 hub, lr 9-12 s, pemb 79
+    s). After 16 turns the queries still turning go on compacted, 1,024 at a time: the long
+    rotations run on those chunks only (recorded here), and the answers are the edge set's."""
+    from jaxcds.algorithms import adjacency
+    from jaxcds.structures import registry
+    from jaxcds.structures.succinct import bitvector
+
+    seen = []
+    compacted = bitvector.compacted
+
+    def recording(slow, miss, fast, args, chunk=None):
+        seen.append((miss.shape[0], chunk))
+        return compacted(slow, miss, fast, args, chunk)
+
+    monkeypatch.setattr(bitvector, "compacted", recording)
+    v, f = _bipyramid(300)
+    s = registry.build(structure, load_mesh(v, f))
+    rng = np.random.default_rng(1)
+    q = 20_000
+    u, w = rng.integers(0, 302, q), rng.integers(0, 302, q)
+    u[:50] = 300  # the poles asked about: rotations of 300 turns
+    edges = {(int(a), int(b)) for x in f for a, b in ((x[0], x[1]), (x[1], x[2]), (x[2], x[0]))}
+    want = np.array([(int(a), int(b)) in edges or (int(b), int(a)) in edges for a, b in zip(u, w)])
+    if s.vertex_order is not None:
+        inv = np.argsort(np.asarray(s.vertex_order))
+        u, w = inv[u], inv[w]
+    got = np.asarray(adjacency._adjacent.__wrapped__(s, jnp.asarray(u, jnp.int32), jnp.asarray(w, jnp.int32)))
+    np.testing.assert_array_equal(got, want)
+    assert (q, adjacency.ADJACENT_CHUNK) in seen  # (pemb compacts its searches too)
+
+
 @pytest.mark.parametrize("structure", ["halfedge", "cds5n", "lr"])
 def test_gather_normals_around_a_hub_turn_in_stages(structure):
     """The gather route turned every vertex's lane as many times as the largest degree: O(n d),
