@@ -1304,21 +1304,31 @@ class _CDS(MeshStructure):
         return positions[_ids(v)]
 
     # ---- adjacency
-    def _out_targets(self, u):
+    def _out_targets(self, u, table=None):
+        target = self._edge_target if table is None else (lambda e: _take(table, e))
         ts = []
         for c in range(3):
             e = 3 * u + c
-            ts.append(jnp.where(self.edge_valid(e), self._edge_target(jnp.where(self.edge_valid(e), e, 3 * self.v_black)),
+            ts.append(jnp.where(self.edge_valid(e), target(jnp.where(self.edge_valid(e), e, 3 * self.v_black)),
                                 self.num_vertices))
         return ts
 
     def adjacent(self, u: Int, v: Int) -> Int:
         """``Adjacent(u, v)`` (Sec. 1.3, Thm 6): every edge leaves one of its endpoints, so ``u``
         and ``v`` are adjacent iff ``v`` is the target of one of the 3 edges leaving ``u`` or the
-        converse -- 6 Target calls (O(1) each for CDS5n-O(1), O(d) otherwise)."""
+        converse -- 6 Target calls (O(1) each for CDS5n-O(1), O(d) otherwise).
+
+        Where Target walks (Thm 2, O(d)) and the batch asks at least ``n / 16`` pairs, every
+        edge's Target is computed once (:meth:`all_edge_targets`, pointer jumping, O(n log d))
+        and read: the batch's walks ran in lockstep as long as the longest fan, queries x the
+        largest degree (sweep 17b: 100K queries around a degree-1,000 hub, cds5n 4.8 s; a walk's
+        lanes into a hub are many, so compacting them did not help: 12 s)."""
         u, v = _ids(u), _ids(v)
-        tu = self._out_targets(u)
-        tv = self._out_targets(v)
+        walks = type(self)._edge_target is _CDS._edge_target
+        big = max(u.size, v.size) * 16 >= self.num_vertices
+        table = self._edge_target_table() if walks and big else None
+        tu = self._out_targets(u, table)
+        tv = self._out_targets(v, table)
         hit = jnp.zeros(u.shape if u.ndim >= v.ndim else v.shape, bool)
         for t in tu:
             hit = hit | (t == v)
@@ -2052,9 +2062,9 @@ class CDS5nO1(CDS4n):
             flat = _base.computed_in_loop(lambda refs: self._plans(u, refs), self.refs)
         return self._three_targets(u, self.refs, flat)
 
-    def _out_targets(self, u):
+    def _out_targets(self, u, table=None):
         """Targets of the three edges leaving ``u`` (``num_vertices`` where absent): one row for
-        ``u`` and one for each vertex the three cases name."""
+        ``u`` and one for each vertex the three cases name (Thm 6: no table is asked for)."""
         u = _ids(u)
         ts = self._three_targets(u, self.refs[u])
         return [jnp.where(self.edge_valid(3 * u + c), t, self.num_vertices) for c, t in enumerate(ts)]
