@@ -1416,9 +1416,16 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
     if same_dir.size:
         a, b = (int(x) for x in et.edges[same_dir[0]])
         faces_on = np.nonzero(et.dart_edge.reshape(-1, 3) == same_dir[0])[0]
+        # "orient faces consistently" is advice no flipping can follow on a Mobius strip, Klein
+        # bottle or projective plane: there the parity check (as topology's) names the surface
+        fixable = bool(nm.size or degenerate.size) or _orientable(f, et)
+        advice = ("orient faces consistently" if fixable else
+                  "the surface is non-orientable (a Mobius strip, Klein bottle or projective "
+                  "plane): no flipping of faces orients it, and jaxcds structures need an "
+                  "orientable surface")
         found.append(errors.InconsistentOrientationError(
             f"{src}: faces {faces_on.tolist()} both traverse edge ({a}, {b}) in the same direction "
-            f"({same_dir.size} such edges); orient faces consistently"))
+            f"({same_dir.size} such edges); {advice}"))
     if not nm.size and not degenerate.size:
         fans = _fans_per_vertex(f, et, mesh.num_vertices)
         bad_v = np.nonzero(fans > 1)[0]

@@ -110,6 +110,34 @@ def test_inconsistent_orientation():
         validate(load_mesh(OCT_V, f))
     t = topology(load_mesh(OCT_V, f))
     assert t["orientable"] is True and t["consistently_oriented"] is False
+    assert "orient faces consistently" in str(find_defects(load_mesh(OCT_V, f))[0])
+
+
+def _mobius(n=7):
+    """A one-face-wide Mobius strip: a ring of ``n`` quads glued with a half twist."""
+    t = 2 * np.pi * np.arange(n) / n
+    v = np.vstack([np.c_[np.cos(t), np.sin(t), np.full(n, z)] for z in (-0.3, 0.3)])
+    i = np.arange(n)
+    j = (i + 1) % n
+    jt = np.where(i == n - 1, n, 0)  # the last quad's far side swapped: the half twist
+    lo, hi = j + jt, j + n - jt
+    return v, np.vstack([np.c_[i, lo, hi], np.c_[i, hi, i + n]])
+
+
+def _projective_plane():
+    """The 6-vertex projective plane (hemi-icosahedron)."""
+    f = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5], [0, 5, 1],
+                  [1, 2, 4], [2, 3, 5], [3, 4, 1], [4, 5, 2], [5, 1, 3]])
+    return np.random.default_rng(1).normal(size=(6, 3)), f
+
+
+@pytest.mark.parametrize("surface", [_mobius, _projective_plane])
+def test_non_orientable_surface_is_named_not_sent_to_be_reoriented(surface):
+    """No flipping of faces orients a Mobius strip or a projective plane: the error said "orient
+    faces consistently" (sweep 17a), now it names the surface as non-orientable."""
+    with pytest.raises(errors.InconsistentOrientationError, match="non-orientable") as exc:
+        validate(load_mesh(*surface()))
+    assert "orient faces consistently" not in str(exc.value)
 
 
 def test_non_manifold_vertex_bow_tie():
