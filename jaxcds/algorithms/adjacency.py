@@ -133,10 +133,16 @@ def _one_ring(s, v, max_degree):
     # faces form one fan, validated), which takes a slot of the closed ring
     width = max_degree + (dummy is not None)
 
+    # a finished lane stops turning and asks Target of the twin of its first dart, which points
+    # back at the vertex itself: on CDS6n/5n/4n (Thm 2, O(d)) a lane that went on turning walked
+    # the fan of every neighbour it passed, again and again up to max_degree turns (a degree-4,000
+    # hub's one_ring took 6-7 s on cds6n; sweep 17a)
+    parked = s.twin(start)
+
     def step(carry, _):
         e, done = carry
-        t = jnp.where(done, n, s.target(e))
-        e2 = s.ccw_vertex_edge(e)
+        t = jnp.where(done, n, s.target(jnp.where(done, parked, e)))
+        e2 = jnp.where(done, e, s.ccw_vertex_edge(e))
         return (e2, done | (e2 == start)), t
 
     (_, whole), ring = jax.lax.scan(step, (start, alone), None, length=width)

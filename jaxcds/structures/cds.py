@@ -1230,12 +1230,22 @@ class _CDS(MeshStructure):
     def origin(self, d: Int) -> Int:
         d = _ids(d)
         e = d >> 1
-        return jnp.where((d & 1) == 0, e // 3, self._edge_target(e)).astype(jnp.int32)
+        return jnp.where((d & 1) == 0, e // 3, self._edge_target_of(e, (d & 1) == 1)).astype(jnp.int32)
 
     def target(self, d: Int) -> Int:
         d = _ids(d)
         e = d >> 1
-        return jnp.where((d & 1) == 0, self._edge_target(e), e // 3).astype(jnp.int32)
+        return jnp.where((d & 1) == 0, self._edge_target_of(e, (d & 1) == 0), e // 3).astype(jnp.int32)
+
+    def _edge_target_of(self, e, need):
+        """``Target(e)`` where ``need`` (unspecified elsewhere). A select computes both of its
+        sides: with Thm 2's walk every lane walked, so the reversed darts around a hub (whose
+        answer is their edge's source) each walked the hub's whole fan; one_ring of a hub of
+        degree 4,000 took 6-7 s on cds6n (sweep 17a). The lanes that do not need it are handed
+        an id that is no edge, whose walk stops at once (:meth:`_target_walk`)."""
+        if type(self)._edge_target is _CDS._edge_target:
+            e = jnp.where(need, e, -1)
+        return self._edge_target(e)
 
     def twin(self, d: Int) -> Int:
         return _ids(d) ^ 1

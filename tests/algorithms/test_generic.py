@@ -344,6 +344,28 @@ def test_adjacent_around_a_hub_finishes_its_long_rotations_compacted(structure, 
     assert (q, adjacency.ADJACENT_CHUNK) in seen  # (pemb compacts its searches too)
 
 
+def test_cds_one_ring_of_a_hub_walks_only_the_darts_it_needs(monkeypatch):
+    """one_ring of a hub on CDS6n was quadratic (a degree-4,000 hub: 6-7 s; sweep 17a): Target
+    of a reversed dart (its edge's source, no walk) computed Thm 2's walk anyway (a select's two
+    sides), and a finished lane kept turning up to max_degree, walking the fans it passed. Run
+    eagerly, the walks' lanes are counted: only darts leaving their origin walk, once each."""
+    from jaxcds.structures import cds, registry
+
+    walked = []
+    walk = cds._CDS._target_walk
+    monkeypatch.setattr(cds._CDS, "_target_walk",
+                        lambda self, e: walked.append(int(np.sum(np.asarray(e) >= 0))) or walk(self, e))
+    v, f = _bipyramid(40)
+    s = registry.build("cds6n", load_mesh(v, f))
+    assert 41 not in (s.v_red, s.v_blue, s.v_black) and 5 not in (s.v_red, s.v_blue, s.v_black)
+    with jax.disable_jit():  # (eager bucketing recursed under disable_jit before stop 45)
+        ring, deg = one_ring(s, jnp.asarray([41, 5], jnp.int32), 60)
+    assert np.asarray(deg).tolist() == [40, 4]
+    assert set(np.asarray(ring)[0][:40].tolist()) == set(range(40))
+    # 3 edges leave each inner vertex; before: both lanes walked at each of the 60 turns (120)
+    assert sum(walked) <= 8, walked
+
+
 @pytest.mark.parametrize("structure", ["cds6n", "cds4n"])
 def test_cds_adjacent_of_a_large_batch_reads_every_target_once(structure, monkeypatch):
     """CDS6n/5n/4n's Adjacent asks 6 Targets (Thm 2: walks of O(d), in lockstep over a batch:
