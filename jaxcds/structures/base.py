@@ -277,7 +277,12 @@ def _chunked_query(method):
 
 
 def _eager(structure, ids) -> bool:
-    """Whether an operator call runs eagerly: no traced id nor traced structure array."""
+    """Whether an operator call runs eagerly: no traced id nor traced structure array, and jit
+    enabled (under ``jax.disable_jit()`` the bucket's jitted call ran the operator with concrete
+    ids again, which asked for the bucket again: a RecursionError on every CDS, LR and pemb
+    operator; found on stop 45)."""
+    if jax.config.jax_disable_jit:
+        return False
     return not any(isinstance(x, _Tracer) for x in ids) and not any(
         isinstance(leaf, _Tracer) for leaf in jax.tree_util.tree_leaves(structure))
 

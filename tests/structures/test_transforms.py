@@ -63,3 +63,18 @@ def test_pickle_copies_and_tree_round_trips(structure):
         assert type(t) is type(s) and _same_tree(t, s) and t == s
         np.testing.assert_array_equal(np.asarray(t.target(d)), want)
     assert jax.eval_shape(s.target, jnp.asarray(d)).shape == d.shape
+
+
+@pytest.mark.parametrize("structure", ["cds5n", "lr", "pemb"])
+def test_operators_run_under_disable_jit(structure):
+    """``jax.disable_jit()`` (a user stepping through an operator): the eager-bucket route of
+    the CDS, LR and pemb operators (one jitted program per power-of-two batch size) called its
+    jitted program, which ran the operator with concrete ids again and asked for the bucket
+    again: RecursionError on every call (found on stop 45). Same answers as with jit."""
+    s, _ = _two_builds(structure)
+    d = jnp.asarray(np.asarray(s.all_darts())[:5], jnp.int32)
+    want = [np.asarray(s.target(d)), np.asarray(s.next(d))]
+    with jax.disable_jit():
+        got = [np.asarray(s.target(d)), np.asarray(s.next(d))]
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
