@@ -296,11 +296,10 @@ def _gather_jvp(primals, tangents):
 
 
 #: turns of the gather route's first stage, over every vertex at once (most meshes finish in it:
-#: their largest degree is under this); the vertices still turning then go on in stages of doubling
-#: length over compacted buffers (:func:`_gather_sums`)
+#: their largest degree is under this); the vertices still turning then go on compacted,
+#: GATHER_CHUNK lanes at a time (:func:`_gather_turns`)
 GATHER_FIRST_TURNS = 64
-#: a stage with at most this many vertices left turns until they are all done
-GATHER_LAST_STAGE = 16
+GATHER_CHUNK = 1024
 
 
 def _gather_sums(s, positions):
@@ -309,19 +308,22 @@ def _gather_sums(s, positions):
 
 
 def _gather_turns(s, positions):
-    """``(sums, lane turns)``: every vertex's sum of face cross products, turning around it (``ccw_vertex_edge``) from
-    ``edge_of_vertex``: the lanes of all vertices advance together, so a turn costs the number of
-    vertices still turning.
+    """``(sums, lane turns)``: every vertex's sum of face cross products, turning around it
+    (``ccw_vertex_edge``) from ``edge_of_vertex``; the lane turns (over the first stage's lanes
+    and the compacted vertices') are the route's work, returned for the tests.
 
-    Why in stages: one loop over every vertex runs as many turns as the largest degree, O(n d):
-    quadratic around a hub (sweep 17b: a bipyramid whose poles have degree 16K took 6.1 s on the
-    half-edge, 64K minutes). After ``T`` turns at most ``num_darts / T`` vertices are still
-    turning (each has more than ``T`` darts), so after :data:`GATHER_FIRST_TURNS` turns the
-    unfinished ones are compacted into a buffer of that size and turn ``T`` more times, and so
-    on: O(n log n) at worst. Each vertex adds its faces in the same order either way (the same
+    Why in two stages: the lanes of one loop advance together, so one loop over every vertex
+    ran as many turns as the largest degree, O(n d): quadratic around a hub (sweep 17b: a
+    bipyramid whose poles have degree 16K took 6.1 s on the half-edge). After
+    :data:`GATHER_FIRST_TURNS` turns, the vertices still turning (at most ``num_darts / 64``)
+    go on compacted, :data:`GATHER_CHUNK` at a time (:func:`~jaxcds.structures.succinct.
+    bitvector.compacted`; a batch of at most 4,096 vertices goes on whole), each chunk as long as
+    its own largest degree. Each vertex adds its faces in the same order either way (the same
     sums, bit for bit). A mesh whose degrees are all under the first stage's turns skips the
-    later stages (one ``cond``). The lane turns (turns times lanes, over every stage) are the
-    route's work, returned for the tests."""
+    compaction (one ``cond``). Stages of doubling turns over buffers of ``num_darts / turns``
+    lanes did less work around a hub, but compiled the turn once per stage (CI: 3 minutes)."""
+    from jaxcds.structures.succinct.bitvector import compacted
+
     n = s.num_vertices
     v = jnp.arange(n, dtype=jnp.int32)
     start = s.edge_of_vertex(v)
@@ -333,9 +335,9 @@ def _gather_turns(s, positions):
     target = s.target if table is None else (lambda e: table[e])
 
     def turns(vid, e, first, acc, done, limit):
-        """Up to ``limit`` turns of the lanes ``vid`` (global vertex ids; ``n`` for padding,
-        born done; ``None``: every vertex) until all are done, and the turns run."""
-        p0 = positions if vid is None else positions[jnp.minimum(vid, n - 1)]
+        """Up to ``limit`` turns of the lanes ``vid`` (vertex ids; ``None``: every vertex) until
+        all are done, and the turns run."""
+        p0 = positions if vid is None else positions[vid]
 
         def cond(state):
             _, _, done, k = state
@@ -355,45 +357,19 @@ def _gather_turns(s, positions):
             return e2, acc + contrib, done | (e2 == first), k + 1
 
         e, acc, done, k = jax.lax.while_loop(cond, body, (e, acc, done, jnp.int32(0)))
-        return e, acc, done, k.astype(jnp.float32) * e.shape[0]  # float: n d overflows int32
+        return e, acc, done, k
 
     alone = ~s.dart_valid(start)  # a vertex in no face: no turn, a zero sum
     if dummy is not None:  # a dummy vertex: every face around it is a fan face
         alone = alone | dummy
-    plan = _gather_stages(n, s.num_darts)
-    first_limit = plan[0] if plan else n + 1  # a small mesh: one stage to the end
-    e, acc, done, work = turns(None, start, start, jnp.zeros_like(positions), alone, first_limit)
-    if not plan:
-        return acc, work
+    e, acc, done, k0 = turns(None, start, start, jnp.zeros_like(positions), alone, GATHER_FIRST_TURNS)
+    work = k0.astype(jnp.float32) * n  # float: n d overflows int32
 
-    def later_stages(operand):
-        acc_all, work = operand
-        vid, e_, first, acc_, done_ = v, e, start, acc, done
-        for turned, cap in zip(plan, plan[1:] + [None]):
-            # the lanes still turning after `turned` turns: at most num_darts / turned of them
-            width = min(vid.shape[0], s.num_darts // turned + 1)
-            keep = jnp.nonzero(~done_, size=width, fill_value=vid.shape[0])[0]
-            real = keep < vid.shape[0]
-            k = jnp.minimum(keep, vid.shape[0] - 1)
-            vid = jnp.where(real, vid[k], n)
-            e_, first, acc_, done_ = e_[k], first[k], acc_[k], ~real
-            limit = n + 1 if cap is None else cap - turned
-            e_, acc_, done_, w = turns(vid, e_, first, acc_, done_, limit)
-            acc_all = acc_all.at[vid].set(acc_, mode="drop")  # padding (vid n) dropped
-            work = work + w
-        return acc_all, work
+    def rest(vid, e, first, acc, done):  # the compacted lanes, to the end; their turns as a 4th column
+        _, acc, _, k = turns(vid, e, first, acc, done, n + 1)
+        return jnp.concatenate([acc, jnp.broadcast_to(k.astype(acc.dtype), (acc.shape[0], 1))], axis=1)
 
-    return jax.lax.cond(jnp.any(~done), later_stages, lambda a: a, (acc, work))
-
-
-def _gather_stages(num_vertices: int, num_darts: int) -> list:
-    """Turn counts after which the gather route compacts the vertices still turning (static):
-    :data:`GATHER_FIRST_TURNS`, then doubling while the buffer shrinks past
-    :data:`GATHER_LAST_STAGE`; empty for a mesh too small to gain from it."""
-    plan, t = [], GATHER_FIRST_TURNS
-    while num_darts // t + 1 < num_vertices and num_darts // t + 1 > GATHER_LAST_STAGE // 2:
-        plan.append(t)
-        t *= 2
-    if num_darts // t + 1 < num_vertices:
-        plan.append(t)  # the last compaction: a small buffer, turned to the end
-    return plan
+    whole = jnp.concatenate([acc, jnp.zeros((n, 1), acc.dtype)], axis=1)
+    out = jax.lax.cond(jnp.all(done), lambda: whole, lambda: compacted(
+        rest, ~done, whole, (v, e, start, acc, done), chunk=GATHER_CHUNK))
+    return out[:, :3], work + jnp.sum(out[:, 3].astype(jnp.float32))

@@ -310,7 +310,8 @@ def _bipyramid(k):
     return v, f
 
 
-@pytest.mark.parametrize("structure", ["halfedge", "lr", "pemb"])
+@pytest.mark.parametrize("structure", ["halfedge", "lr",
+                                       pytest.param("pemb", marks=pytest.mark.slow)])  # pemb: 22 s
 def test_adjacent_around_a_hub_finishes_its_long_rotations_compacted(structure, monkeypatch):
     """A batch of adjacency queries turned in one loop as long as its longest rotation: queries x
     the largest degree (sweep 17b: 100K queries around a degree-1,000 hub, lr 9-12 s, pemb 79
@@ -395,26 +396,23 @@ def test_cds_adjacent_of_a_large_batch_reads_every_target_once(structure, monkey
     assert walks  # ten pairs walk (Thm 2 as the paper has it)
 
 
-@pytest.mark.parametrize("structure", ["halfedge", "cds5n", "lr"])
+@pytest.mark.parametrize("structure", ["halfedge", *[pytest.param(n, marks=pytest.mark.slow)
+                                                     for n in ("cds5n", "lr")]])  # 7 s each
 def test_gather_normals_around_a_hub_turn_in_stages(structure):
     """The gather route turned every vertex's lane as many times as the largest degree: O(n d),
-    quadratic around a hub (sweep 17b: poles of degree 16K took 6.1 s on the half-edge). The
-    lanes still turning after 64 turns now go on in compacted stages: the lane turns stay
-    within a few per dart (the single loop ran (k + 2) k of them here), and the normals equal
-    the scatter route's; a mesh whose degrees all stay under the first stage's turns takes the
-    one loop (its lane turns: vertices x largest degree)."""
+    quadratic around a hub (sweep 17b: poles of degree 16K took 6.1 s on the half-edge). After
+    64 turns the vertices still turning go on compacted: the lane turns stay within a few per
+    dart (one loop: (k + 2) k = 25M here), and the normals equal the scatter route's; a mesh
+    whose degrees all stay under 64 takes the first stage only (lane turns: vertices x largest
+    degree)."""
     from jaxcds.algorithms import normals as N
     from jaxcds.structures import registry
 
-    k = 3000
-    t = 2 * np.pi * np.arange(k) / k
-    v = np.concatenate([np.c_[np.cos(t), np.sin(t), np.zeros(k)], [[0, 0, 1.0], [0, 0, -1.0]]])
-    a = np.arange(k)
-    f = np.concatenate([np.c_[a, (a + 1) % k, np.full(k, k)], np.c_[(a + 1) % k, a, np.full(k, k + 1)]])
+    v, f = _bipyramid(5000)  # more than 4,096 vertices: compacted in chunks (else whole)
     s = registry.build(structure, load_mesh(v, f))
     p = jnp.asarray(v if s.vertex_order is None else v[np.asarray(s.vertex_order)], jnp.float32)
     sums, work = jax.jit(N._gather_turns)(s, p)
-    assert float(work) <= 20 * s.num_darts, (float(work), s.num_darts)  # one loop: (k + 2) k = 9M
+    assert float(work) <= 20 * s.num_darts, (float(work), s.num_darts)
     np.testing.assert_allclose(np.asarray(N.normalize(sums)), np.asarray(vertex_normals(s, p)), atol=1e-5)
     small = registry.build(structure, icosphere(2))
     q = jnp.asarray(icosphere(2).vertices, jnp.float32)

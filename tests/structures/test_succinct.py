@@ -176,7 +176,7 @@ def test_support_is_small():
     assert bp.bits_support / bp.size < 0.45, bp.bits_support / bp.size
 
 
-@settings(max_examples=5, deadline=None)
+@settings(max_examples=4, deadline=None)
 @given(pairs=st.lists(st.integers(0, 300), min_size=1, max_size=4), seed=st.integers(0, 2**31),
        deep=st.booleans())
 def test_matches_by_level_equal_the_stack(pairs, seed, deep):
@@ -202,6 +202,7 @@ def test_matches_by_level_equal_the_stack(pairs, seed, deep):
     np.testing.assert_array_equal(got[member], want)
 
 
+@pytest.mark.slow  # eager searches: 9 s (the packed route's switch is checked quick, test_batch)
 def test_match_all_takes_the_sort_route_when_asked(monkeypatch):
     """MATCH_BY_SORT switches BalancedParens.match_all to the sort (read at trace time: eager
     calls here); same answers as the searches."""
