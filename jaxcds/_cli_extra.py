@@ -199,15 +199,10 @@ def cmd_polylla(args) -> int:
 
 
 # ------------------------------------------------------------------------------ parser
-def _polylla_structures():
-    """The structures Polylla runs on (those that keep a triangulation's border as it is;
-    :data:`jaxcds.algorithms.polylla.BORDER_STRUCTURES`), read without importing JAX-heavy
-    modules at parser time: the names are checked against it by a test."""
-    return ("halfedge", "pemb", "lr", "lr-bits")
-
-
 def add_commands(sub) -> None:
     """Add ``encode``, ``decode`` and ``polylla`` to the ``jaxcds`` sub-parsers."""
+    from jaxcds.polylla_io import BORDER_STRUCTURES  # the light input module, not the mesher
+
     e = sub.add_parser("encode", help="compress a genus-0 mesh into a .cds file (4n-3 bits "
                                       "of connectivity + float32 geometry)")
     e.add_argument("mesh", help="input mesh (.off, .obj, .ply, .stl), genus 0, holes allowed")
@@ -233,7 +228,7 @@ def add_commands(sub) -> None:
     p.add_argument("input", help="Triangle .node/.ele (.neigh optional) or their stem, a 2-D OFF "
                                  "triangulation, or a point list (.xy/.txt/.csv/.npy, Delaunay)")
     p.add_argument("-o", "--output", help="polygon mesh to write (.off)")
-    p.add_argument("--structure", "-s", default="halfedge", choices=list(_polylla_structures()),
+    p.add_argument("--structure", "-s", default="halfedge", choices=list(BORDER_STRUCTURES),
                    help="structure to run on: the array half-edge (default), pemb (succinct "
                         "planar embedding), lr or lr-bits (Laced Ring; a border needs no closing); "
                         "the polygons are identical")

@@ -24,6 +24,10 @@ import numpy as np
 
 from jaxcds import errors
 
+#: the registered structures that keep a triangulation's border as it is (Polylla's input);
+#: here, beside the inputs, so that the CLI's parser reads it without loading the mesher
+BORDER_STRUCTURES = ("halfedge", "pemb", "lr", "lr-bits")
+
 __all__ = ["Triangulation2D", "read_triangle", "read_off_2d", "from_points", "read_input",
            "write_polygon_off", "read_polygon_off", "orient_ccw", "twice_signed_areas",
            "orientation_signs", "length_scale"]

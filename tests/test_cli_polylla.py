@@ -116,12 +116,11 @@ def test_pemb_writes_the_same_file(capsys, tmp_path, halfedge_run, flags):
 
 def test_structure_choices_are_polyllas_border_structures():
     """``-s`` offers every structure Polylla runs on (it offered halfedge and pemb only, while
-    lr / lr-bits give the same polygons); the parser keeps its own list so that ``jaxcds --help``
-    imports no JAX module, and this ties the two."""
-    from jaxcds import _cli_extra
+    lr / lr-bits give the same polygons); the parser reads Polylla's own list
+    (``polylla_io.BORDER_STRUCTURES``, no JAX import at parser time)."""
     from jaxcds.cli import _parser
 
-    assert _cli_extra._polylla_structures() == P.BORDER_STRUCTURES
+    assert P.BORDER_STRUCTURES == ("halfedge", "pemb", "lr", "lr-bits")
     for name in P.BORDER_STRUCTURES:
         assert _parser().parse_args(["polylla", "x.node", "-s", name]).structure == name
     with pytest.raises(SystemExit):

@@ -84,6 +84,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._args import refuse_non_real
 from jaxcds._arrays import to_device
+from jaxcds.polylla_io import BORDER_STRUCTURES  # (re-exported: the structures Polylla runs on)
 
 __all__ = ["PolyllaMesh", "polylla", "label_phase", "traversal_phase", "barrier_tips",
            "middle_edges", "repair_phase", "cycles_to_csr", "polygons_as_cycles",
@@ -800,10 +801,6 @@ def _reference_run(s, nav, pos, vids, cs_s, rows, row_ids, seed, frontier, clock
     return PolyllaMesh(points=pos, offsets=off, indices=indices, barrier_edge_tips=tips,
                        repaired_polygons=repaired, regions=regions, frontier_edges=n_frontier,
                        triangles=int(s.num_faces), timings=t, seed_edges=seeds)
-
-
-#: the registered structures that keep a triangulation's border as it is (Polylla's input)
-BORDER_STRUCTURES = ("halfedge", "pemb", "lr", "lr-bits")
 
 
 def _refuse_closed_holes(s) -> None:
