@@ -705,6 +705,14 @@ def test_pack_and_pack_positions_take_lists_only_and_real_positions():
 
 
 # ---------------------------------------------------------------------- chunked normal sums
+def _batch_face_list(b, ms):
+    """The input meshes' faces, one union, renumbered as the batch numbers its vertices
+    (``b.vertex_order``): the plain face list a renumbering batch's normals must equal."""
+    inv = np.argsort(np.asarray(b.vertex_order))
+    voff = np.concatenate([[0], np.cumsum([m.num_vertices for m in ms])[:-1]])
+    return jnp.asarray(inv[np.concatenate([m.faces + o for m, o in zip(ms, voff)])])
+
+
 def test_packed_pemb_chunk_tables_by_sort(monkeypatch):
     """MATCH_BY_SORT (the sort route, the GPU candidate): a packed pemb's rows derived chunk by
     chunk, each chunk's matches by one sort over its windows (the last chunk's windows start
@@ -727,11 +735,7 @@ def test_packed_pemb_chunk_tables_by_sort(monkeypatch):
     pos = B.pack_positions(b, ms)
     got = np.asarray(vertex_normals(b, pos))
     assert calls  # traced through the sort route
-    order = np.asarray(b.vertex_order)
-    inv = np.empty_like(order)
-    inv[order] = np.arange(order.size)
-    voff = np.concatenate([[0], np.cumsum([m.num_vertices for m in ms])[:-1]])
-    faces = jnp.asarray(inv[np.concatenate([m.faces + o for m, o in zip(ms, voff)])])
+    faces = _batch_face_list(b, ms)
     np.testing.assert_allclose(got, np.asarray(face_list_vertex_normals(pos, faces)), atol=1e-5)
 
 
@@ -781,11 +785,7 @@ def test_chunked_normals_equal_whole_union_and_per_mesh(name, monkeypatch):
         # each mesh's own pemb would compile its large normals program once per mesh size (35 s
         # of CI): the input faces, renumbered as the batch numbers vertices, through the plain
         # face list instead (the pemb normals of each mesh equal those: test_protocol)
-        order = np.asarray(b.vertex_order)
-        inv = np.empty_like(order)
-        inv[order] = np.arange(order.size)
-        voff = np.concatenate([[0], np.cumsum([m.num_vertices for m in ms])[:-1]])
-        faces = jnp.asarray(inv[np.concatenate([m.faces + o for m, o in zip(ms, voff)])])
+        faces = _batch_face_list(b, ms)
         np.testing.assert_allclose(got, np.asarray(face_list_vertex_normals(pos, faces)), atol=1e-5)
         g0 = np.asarray(jax.grad(lambda p: jnp.sum(face_list_vertex_normals(p, faces) * w))(pos))
     else:

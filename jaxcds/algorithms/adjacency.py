@@ -74,7 +74,7 @@ def adjacent(s, u, v):
 def _adjacent(s, u, v):
     if hasattr(s, "adjacent"):
         return s.adjacent(u, v)
-    from jaxcds.structures.succinct.bitvector import compacted
+    from jaxcds.structures.succinct.bitvector import finish_pending
 
     u, v = jnp.broadcast_arrays(u, v)
     shape = u.shape
@@ -91,9 +91,7 @@ def _adjacent(s, u, v):
     def rest(start, e, v, valid, hit, done):  # the lanes still turning, to the end
         return _turn(s, start, e, hit, done, stop(v, valid), s.num_vertices + 1)[1]
 
-    # (a cond: where every rotation ended in the first turns, the compaction pass is skipped)
-    hit = jax.lax.cond(jnp.all(done), lambda: hit, lambda: compacted(
-        rest, ~done, hit, (start, e, v, valid, hit, done), chunk=ADJACENT_CHUNK))
+    hit = finish_pending(rest, ~done, hit, (start, e, v, valid, hit, done), ADJACENT_CHUNK)
     return (hit & (u != v) & valid).reshape(shape)
 
 

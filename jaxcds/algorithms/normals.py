@@ -317,12 +317,12 @@ def _gather_turns(s, positions):
     bipyramid whose poles have degree 16K took 6.1 s on the half-edge). After
     :data:`GATHER_FIRST_TURNS` turns, the vertices still turning (at most ``num_darts / 64``)
     go on compacted, :data:`GATHER_CHUNK` at a time (:func:`~jaxcds.structures.succinct.
-    bitvector.compacted`; a batch of at most 4,096 vertices goes on whole), each chunk as long as
+    bitvector.finish_pending`; a batch of at most 4,096 vertices goes on whole), each chunk as long as
     its own largest degree. Each vertex adds its faces in the same order either way (the same
     sums, bit for bit). A mesh whose degrees are all under the first stage's turns skips the
-    compaction (one ``cond``). Stages of doubling turns over buffers of ``num_darts / turns``
+    compaction. Stages of doubling turns over buffers of ``num_darts / turns``
     lanes did less work around a hub, but compiled the turn once per stage (CI: 3 minutes)."""
-    from jaxcds.structures.succinct.bitvector import compacted
+    from jaxcds.structures.succinct.bitvector import finish_pending
 
     n = s.num_vertices
     v = jnp.arange(n, dtype=jnp.int32)
@@ -356,8 +356,7 @@ def _gather_turns(s, positions):
             contrib = jnp.where((inner & ~done)[:, None], jnp.cross(a, b), 0.0)
             return e2, acc + contrib, done | (e2 == first), k + 1
 
-        e, acc, done, k = jax.lax.while_loop(cond, body, (e, acc, done, jnp.int32(0)))
-        return e, acc, done, k
+        return jax.lax.while_loop(cond, body, (e, acc, done, jnp.int32(0)))
 
     alone = ~s.dart_valid(start)  # a vertex in no face: no turn, a zero sum
     if dummy is not None:  # a dummy vertex: every face around it is a fan face
@@ -370,6 +369,5 @@ def _gather_turns(s, positions):
         return jnp.concatenate([acc, jnp.broadcast_to(k.astype(acc.dtype), (acc.shape[0], 1))], axis=1)
 
     whole = jnp.concatenate([acc, jnp.zeros((n, 1), acc.dtype)], axis=1)
-    out = jax.lax.cond(jnp.all(done), lambda: whole, lambda: compacted(
-        rest, ~done, whole, (v, e, start, acc, done), chunk=GATHER_CHUNK))
+    out = finish_pending(rest, ~done, whole, (v, e, start, acc, done), GATHER_CHUNK)
     return out[:, :3], work + jnp.sum(out[:, 3].astype(jnp.float32))

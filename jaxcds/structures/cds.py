@@ -1243,9 +1243,15 @@ class _CDS(MeshStructure):
         answer is their edge's source) each walked the hub's whole fan; one_ring of a hub of
         degree 4,000 took 6-7 s on cds6n (sweep 17a). The lanes that do not need it are handed
         an id that is no edge, whose walk stops at once (:meth:`_target_walk`)."""
-        if type(self)._edge_target is _CDS._edge_target:
+        if self._target_walks:
             e = jnp.where(need, e, -1)
         return self._edge_target(e)
+
+    @property
+    def _target_walks(self) -> bool:
+        """Whether ``_edge_target`` is Thm 2's O(d) walk (CDS6n/5n/4n), not an O(1) route
+        (CDS5n-O(1), Thm 6)."""
+        return type(self)._edge_target is _CDS._edge_target
 
     def twin(self, d: Int) -> Int:
         return _ids(d) ^ 1
@@ -1334,9 +1340,8 @@ class _CDS(MeshStructure):
         largest degree (sweep 17b: 100K queries around a degree-1,000 hub, cds5n 4.8 s; a walk's
         lanes into a hub are many, so compacting them did not help: 12 s)."""
         u, v = _ids(u), _ids(v)
-        walks = type(self)._edge_target is _CDS._edge_target
         big = max(u.size, v.size) * 16 >= self.num_vertices
-        table = self._edge_target_table() if walks and big else None
+        table = self._edge_target_table() if self._target_walks and big else None
         tu = self._out_targets(u, table)
         tv = self._out_targets(v, table)
         hit = jnp.zeros(u.shape if u.ndim >= v.ndim else v.shape, bool)

@@ -130,6 +130,15 @@ def compacted(slow, miss, fast, args, chunk: Optional[int] = None):
     return out
 
 
+def finish_pending(slow, pending, fast, args, chunk: int):
+    """:func:`compacted` (``slow`` on the ``pending`` lanes, ``chunk`` at a time, ``fast``
+    elsewhere) behind one ``cond`` that skips it, compaction pass included, when no lane is
+    pending: the second stage of a batched loop whose first stage ran every lane a bounded number
+    of steps and usually finished them all (``adjacent``'s rotations, the gather normals)."""
+    return jax.lax.cond(jnp.any(pending), lambda: compacted(slow, pending, fast, args, chunk),
+                        lambda: fast)
+
+
 @numba.njit(cache=True)
 def _select_samples(b, sample, block_bits):
     """Blocks of the ``(j * sample)``-th one and of the ``(j * sample)``-th zero of ``b``, in one
