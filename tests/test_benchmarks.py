@@ -425,3 +425,28 @@ def test_bench_gpu_checks_every_op_against_the_cpu_backend(tmp_path, capsys):
                            "--structures", "halfedge", "--deadline", "0", "--out", str(tmp_path)]) == 0
     doc = json.loads((tmp_path / "bench_gpu.json").read_text())
     assert [s["impl"] for s in doc["skipped"]] == ["halfedge"]
+
+
+def test_bench_10m_runs_every_step_in_a_child_per_structure(tmp_path, capsys):
+    """bench_10m.py (every structure end to end, one child process each) on a tiny mesh: every
+    step timed with its peak RSS and judged; a child that dies (here killed by --timeout) is
+    reported with its status and step, and the others still run."""
+    from benchmarks import bench_10m
+
+    out = tmp_path / "b.json"
+    assert bench_10m.main(["--vertices", "300", "--queries", "500", "--repeats", "1",
+                           "--structures", "halfedge", "cds5n-o1", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert [r["structure"] for r in doc["rows"]] == ["halfedge", "cds5n-o1"]
+    for r in doc["rows"]:
+        assert r["done"] and r["exit_status"] == 0 and r["vertices"] == 300
+        assert set(r["steps"]) == set(bench_10m.STEPS)
+        assert all(r["steps"][k]["ok"] for k in ("degrees", "normals", "grad", "target"))
+        assert r["steps"]["target"]["ns_per_query"] > 0 and r["nbytes"] > 0
+    table = capsys.readouterr().out
+    assert "| halfedge |" in table and "| cds5n-o1 |" in table and "FAILED" not in table
+    assert bench_10m.main(["--vertices", "100", "--structures", "halfedge", "--timeout", "0.5",
+                           "--json", str(out)]) == 1
+    (r,) = json.loads(out.read_text())["rows"]
+    assert not r["done"] and r["exit_status"] == -9 and "--timeout" in r["failure"]
+    assert "FAILED" in capsys.readouterr().out
