@@ -18,7 +18,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._arrays import to_device
 from jaxcds.mesh import TriMesh
-from jaxcds.structures.base import per_query_routes
+from jaxcds.structures.base import per_query_routes, shared_subexpressions
 from jaxcds.structures.halfedge import HalfEdge
 
 __all__ = ["VerifyReport", "verify", "DART_OPERATORS"]
@@ -63,13 +63,16 @@ def _pair_keys(u: np.ndarray, v: np.ndarray, n: int) -> np.ndarray:
 
 @jax.jit
 def _apply_all(s, e):
-    out = {op: getattr(s, op)(e) for op in DART_OPERATORS}
-    out["origin"] = s.origin(e)
-    out["target"] = s.target(e)
-    out["face"] = s.face(e)
-    out["face_left"] = s.face_left(e)
-    out["face_right"] = s.face_right(e)
-    out["is_border"] = s.is_border(e)
+    # every operator of the same darts: their common first steps traced once (pemb's mate(e)
+    # begins a dozen of them; see shared_subexpressions)
+    with shared_subexpressions():
+        out = {op: getattr(s, op)(e) for op in DART_OPERATORS}
+        out["origin"] = s.origin(e)
+        out["target"] = s.target(e)
+        out["face"] = s.face(e)
+        out["face_left"] = s.face_left(e)
+        out["face_right"] = s.face_right(e)
+        out["is_border"] = s.is_border(e)
     return out
 
 

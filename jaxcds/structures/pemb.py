@@ -69,7 +69,7 @@ from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
-from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.base import Int, MeshStructure, shared_subexpression
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct.bp import unbalanced_at
 
@@ -413,6 +413,7 @@ class PEMB(MeshStructure):
     def num_darts(self) -> int:
         return 2 * self.num_edges
 
+    @shared_subexpression(masks=("where",))
     def mate(self, i: Int, where=None) -> Int:
         """The other half-edge of ``i``'s edge (slides, "Example of Pemb query"). Lanes outside
         ``where`` (a mask, default all) get an unspecified value and skip the slow routes of the
@@ -426,6 +427,7 @@ class PEMB(MeshStructure):
         return self.A.select_near(jnp.where(a == 1, k, k - self.num_tree_parens), a, i, t,
                                   active=where)
 
+    @shared_subexpression
     def vertex(self, i: Int) -> Int:
         """The vertex (preorder id) the half-edge at position ``i`` leaves: the innermost tree node
         open before its ``rank1(A, i)``-th parenthesis of ``B`` (root 0 if none)."""
@@ -455,6 +457,7 @@ class PEMB(MeshStructure):
         root_last = self.prev_p(jnp.zeros(jnp.shape(v), jnp.int32) + self._walk_start(m))
         return jnp.where(root, root_last, self.A.select1(self.P.find_close(q))).astype(jnp.int32)
 
+    @shared_subexpression
     def next_p(self, i: Int) -> Int:
         """pemb ``next``: the next half-edge ccw around ``vertex(i)`` (cyclic)."""
         i = jnp.asarray(i, jnp.int32)
@@ -465,6 +468,7 @@ class PEMB(MeshStructure):
         nxt = jnp.where(tree, self.mate(i, where=tree) + 1, i + 1)
         return jnp.where(nxt >= self._walk_end(m), self._walk_start(m), nxt).astype(jnp.int32)
 
+    @shared_subexpression
     def prev_p(self, i: Int) -> Int:
         """pemb ``prev``: the previous half-edge around ``vertex(i)`` (cw, cyclic). Fixes the
         reference code's border bug: ``prev(first(v)) = last(v)`` for every ``v``."""
@@ -493,6 +497,7 @@ class PEMB(MeshStructure):
         d, _, _ = jax.lax.while_loop(cond, body, (jnp.ones_like(v), self.next_p(f0), jnp.int32(0)))
         return d
 
+    @shared_subexpression
     def get_face(self, i: Int) -> Int:
         """pemb face (dual preorder, root face 0) at the left of the half-edge at ``i`` (slides'
         extra query ``get_face``). The walk crosses a non-tree half-edge from its right to its
