@@ -802,6 +802,8 @@ class _CDS(MeshStructure):
     # walks are while_loops compiled again on every eager call. 2,000-vertex cds5n, 12 eager
     # calls of new sizes 8.7 -> 2.8 s, a warm call 193 -> 0.7 ms (stop 43)
     eager_buckets = True
+    jit_when_eager = frozenset(("face_vertices", "face_vertices_padded", "dart_faces", "vertex_degrees",
+                                "target_table", "all_edge_targets"))
     # a batch of at least 1/16 of the dart ids (3n/8 darts): Target/Origin from every edge's
     # Target, computed once per call by pointer jumping (~5 ns per edge) instead of Thm 2's O(d)
     # walk per query (120-230 ns); at 1/16 the table route took 0.30x the per-query route's time

@@ -41,7 +41,8 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import _chunk_queries, check_id_space, interleave_rows, parts_of_one_class
+from jaxcds.structures.base import (_chunk_queries, _jit_whole_mesh, check_id_space, interleave_rows,
+                                    parts_of_one_class)
 from jaxcds.structures.cds import slot_blocks
 
 __all__ = ["concatenate_cds", "packed_class"]
@@ -258,6 +259,7 @@ for _name, _kind in _ARG.items():
     setattr(_PackedMixin, _name, _make_entry(_name, _kind))
 # the union's chunked queries: each chunk finds its elements' meshes and builds its own view
 _chunk_queries(_PackedMixin)
+_jit_whole_mesh(_PackedMixin)
 
 _FIELDS = ("mesh_vertex_offsets", "mesh_vertex_counts", "mesh_face_offsets", "mesh_roots",
            "mesh_unused_slots")

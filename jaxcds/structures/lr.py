@@ -237,6 +237,7 @@ class _LRNavigation(MeshStructure):
     # eager calls as one jitted program per power-of-two size (base._bucketed): 12 eager calls of
     # new sizes on a 2,000-vertex LR 6.5 -> 2.5 s, a warm call 30 -> 1.1 ms (stop 43)
     eager_buckets = True
+    jit_when_eager = frozenset(("face_vertices", "face_vertices_padded", "dart_faces"))
 
     closed_triangles = True
 

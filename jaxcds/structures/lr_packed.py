@@ -37,7 +37,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass
-from jaxcds.structures.base import (_chunk_queries, interleave_windows, materialize_loop,
+from jaxcds.structures.base import (_chunk_queries, _jit_whole_mesh, interleave_windows, materialize_loop,
                                     parts_of_one_class, take_nonnegative)
 from jaxcds.structures.lr import _slot_triangles
 
@@ -380,6 +380,7 @@ for _name, (_arg, _res) in _OPS.items():
     setattr(_PackedMixin, _name, _make_entry(_name, _arg, _res))
 # the union's chunked queries: each chunk finds its elements' meshes and builds its own view
 _chunk_queries(_PackedMixin)
+_jit_whole_mesh(_PackedMixin)
 
 _FIELDS = ("mesh_vertex_offsets", "mesh_face_offsets", "mesh_dart_offsets", "mesh_sizes",
            "mesh_array_offsets", "mesh_array_lengths", "slot_rank_cumulative")
