@@ -205,9 +205,9 @@ def shared_subexpressions():
     ``target``, ``right_front``, ``face_right`` ... each begin with ``mate(e)``, two parenthesis
     searches, and :func:`jaxcds.verify.verify`'s every-operator program traced it a dozen times.
     XLA's common-subexpression pass merged the copies, so answers and run time do not change;
-    tracing and compilation do (pemb on the bunny: 104K -> 53K lines of HLO, compilation 27 ->
-    16 s). Eager calls (concrete ids) are not shared. Nested blocks share the outer block's
-    results."""
+    tracing and compilation do (pemb on the bunny: 104K -> 44K lines of HLO, tracing 6.6 -> 2.5
+    s, compilation 26.7 -> 12.3 s; stop 46). Eager calls (concrete ids) are not shared. Nested
+    blocks share the outer block's results."""
     saved = _SHARED.memo
     if saved is None:
         _SHARED.memo = {}
