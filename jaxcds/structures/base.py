@@ -367,10 +367,12 @@ def _eager(structure, ids) -> bool:
     enabled (under ``jax.disable_jit()`` the bucket's jitted call ran the operator with concrete
     ids again, which asked for the bucket again: a RecursionError on every CDS, LR and pemb
     operator; found on stop 45)."""
-    if jax.config.jax_disable_jit:
+    if jax.config.jax_disable_jit or any(isinstance(x, _Tracer) for x in ids):
         return False
-    return not any(isinstance(x, _Tracer) for x in ids) and not any(
-        isinstance(leaf, _Tracer) for leaf in jax.tree_util.tree_leaves(structure))
+    leaves = jax.tree_util.tree_leaves(structure)
+    if len(leaves) == 1 and leaves[0] is structure:
+        return False  # not a pytree (a structure's internal views): no jitted program takes it
+    return not any(isinstance(leaf, _Tracer) for leaf in leaves)
 
 
 def _bucketed(run, structure, ids):
@@ -406,27 +408,24 @@ WHOLE_MESH_METHODS = ("face_vertices", "face_vertices_padded", "dart_faces", "ve
                       "target_table", "all_edge_targets")
 
 
-def _jit_when_eager(method):
-    """``method(self)`` run as one jitted program when called eagerly on a class that names it
-    in :attr:`~MeshStructure.jit_when_eager`; as it is elsewhere (traced, or jit disabled)."""
-    jitted = jax.jit(method)
+def _jit_when_eager(method, static_argnames: tuple = ()):
+    """``method(self, ...)`` run as one jitted program when called eagerly (no traced array in
+    the structure or the arguments) on a class that names it in
+    :attr:`~MeshStructure.jit_when_eager`; as it is elsewhere (traced, or jit disabled).
+    ``static_argnames``: keyword arguments that are options, not arrays."""
+    jitted = jax.jit(method, static_argnames=static_argnames)
     name = method.__name__
 
     @functools.wraps(method)
-    def run(self):
-        if name in self.jit_when_eager and _is_pytree(self) and _eager(self, ()):
-            return jitted(self)
-        return method(self)
+    def run(self, *args, **kwargs):
+        arrays = jax.tree_util.tree_leaves(
+            (args, {k: v for k, v in kwargs.items() if k not in static_argnames}))
+        if name in self.jit_when_eager and _eager(self, arrays):
+            return jitted(self, *args, **kwargs)
+        return method(self, *args, **kwargs)
 
     run.jitted_when_eager = True
     return run
-
-
-def _is_pytree(x) -> bool:
-    """Whether ``x`` is a registered pytree (a structure's internal views are plain objects:
-    JAX takes them for one leaf)."""
-    leaves = jax.tree_util.tree_leaves(x)
-    return not (len(leaves) == 1 and leaves[0] is x)
 
 
 def _jit_whole_mesh(cls) -> None:
@@ -464,10 +463,12 @@ class MeshStructure:
     #: structure: its static fields are part of the cache key). Run primitive by primitive, the
     #: CDS kinds' ``face_vertices()``, ``vertex_degrees()`` or ``target_table()`` took 0.12-0.19 s
     #: per call on a 3,000-vertex mesh (dispatch around the pointer-jumping loop; jitted: under
-    #: 1 ms), LR's first ``face_vertices()`` 1.3-1.4 s (jitted: 0.14-0.16 s). Not for pemb, whose
-    #: eager operators and tables are jitted already (a program of its whole ``dart_faces`` took
-    #: 4.6 s to compile against 2.9 s for its parts) nor for the arithmetic half-edge and corner
-    #: table (stop 46).
+    #: 1 ms), LR's first ``face_vertices()`` 1.3-1.4 s (jitted: 0.14-0.16 s). pemb names only
+    #: ``with_tables`` (4-8 s per new mesh shape primitive by primitive, then 1.2 s a call; its
+    #: eager operators are bucketed, and a program of its whole ``dart_faces`` took 4.6 s to
+    #: compile against 2.9 s for its parts); the arithmetic half-edge and corner table none
+    #: (stop 46). Methods other than :data:`WHOLE_MESH_METHODS` are wrapped where they are
+    #: defined (:func:`_jit_when_eager`).
     jit_when_eager: ClassVar[frozenset] = frozenset()
     #: why :func:`jaxcds.sharding.shard_structure` cannot split this class's arrays by rows
     #: (``None``: it can)

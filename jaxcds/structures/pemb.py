@@ -70,18 +70,11 @@ from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
-from jaxcds.structures import base as _base
-from jaxcds.structures.base import Int, MeshStructure, shared_subexpression
+from jaxcds.structures.base import Int, MeshStructure, _jit_when_eager, shared_subexpression
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct.bp import unbalanced_at
 
 __all__ = ["PEMB", "encode_rotation_system", "rotation_system_from_faces", "from_mesh"]
-
-
-@functools.partial(jax.jit, static_argnames=("twin", "origin"))
-def _tables_jitted(s, tables, twin, origin):
-    """:meth:`PEMB.with_tables` as one program (its eager calls)."""
-    return PEMB.with_tables(s, twin=twin, origin=origin, tables=tables)
 
 
 def chain_ends(ptr):
@@ -265,6 +258,7 @@ class PEMB(MeshStructure):
     closed_triangles = False
     # the searches are while_loops: run eagerly, each compiled and kept for every batch size
     eager_buckets = True
+    jit_when_eager = frozenset(("with_tables",))
     # jaxcds.sharding pads arrays by rows; the bit vectors' rank/select/match directories read
     # their own lengths, so padded words changed every answer (found by an adversarial sweep)
     row_sharding_refused = ("pemb cannot be split by rows over devices: its succinct bit "
@@ -571,6 +565,7 @@ class PEMB(MeshStructure):
         return jnp.int32(self.num_darts - 1)  # no dual parentheses (no face but the root)
 
     # -------------------------------------------------------------- per-phase tables
+    @functools.partial(_jit_when_eager, static_argnames=("twin", "origin"))
     def with_tables(self, *, twin: bool = True, origin: bool = True,
                     tables: Optional[dict] = None) -> "PEMBTables":
         """This structure with ``mate`` (``twin``) and/or ``vertex`` (``origin``) tabulated for
@@ -595,8 +590,6 @@ class PEMB(MeshStructure):
         per mesh shape): run primitive by primitive, they took 4-8 s per new shape and 1.2 s
         per call after that, for any mesh size (stop 46)."""
         tables = dict(tables or {})
-        if _base._eager(self, tuple(tables.values())):
-            return _tables_jitted(self, tables, twin=twin, origin=origin)
         A, P = self._word_ranked(tables.get("ra"), tables.get("rp"))
         tw, vb, fe = tables.get("tw"), tables.get("vb"), tables.get("fe")
         twin, origin = twin and tw is None, origin and vb is None
