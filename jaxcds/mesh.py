@@ -1713,10 +1713,15 @@ def topology(mesh: TriMesh) -> dict:
     ncomp, face_label = _components(mesh)
     v, e, nf = mesh.num_vertices, int(et.edges.shape[0]), mesh.num_faces
     chi = v - e + nf
-    loops: list[np.ndarray] = []
-    if manifold:
+    loop_lengths: list[int] = []
+    if manifold and errors.InconsistentOrientationError in kinds:
+        # the border darts' directions mean nothing when the faces disagree on orientation (a
+        # Mobius strip: two border darts leave one vertex), so the loops come from the border
+        # edges undirected; every border vertex of a manifold lies on exactly two of them
+        loop_lengths = _undirected_loop_lengths(et)
+    elif manifold:
         try:
-            loops = boundary_loops(mesh, et)
+            loop_lengths = [int(len(l)) for l in boundary_loops(mesh, et)]
         except errors.MeshError as exc:
             defects.append(exc)
             manifold = False
@@ -1724,7 +1729,7 @@ def topology(mesh: TriMesh) -> dict:
     genus = None
     if manifold and orientable:
         # chi = sum over components (2 - 2 g_i - b_i); report the total genus
-        g2 = 2 * ncomp - chi - len(loops)
+        g2 = 2 * ncomp - chi - len(loop_lengths)
         genus = g2 // 2 if g2 % 2 == 0 and g2 >= 0 else None
     return {
         "source": mesh.source,
@@ -1733,9 +1738,8 @@ def topology(mesh: TriMesh) -> dict:
         "faces": nf,
         "components": ncomp,
         # loops are only defined on a manifold (a bow-tie vertex joins two): None, as genus
-        "boundary_loops": len(loops) if manifold else None,
-        "boundary_loop_lengths": (sorted((int(len(l)) for l in loops), reverse=True)
-                                  if manifold else None),
+        "boundary_loops": len(loop_lengths) if manifold else None,
+        "boundary_loop_lengths": sorted(loop_lengths, reverse=True) if manifold else None,
         "boundary_edges": int(np.sum(et.count == 1)),
         "euler_characteristic": int(chi),
         "genus": genus,
@@ -1748,6 +1752,25 @@ def topology(mesh: TriMesh) -> dict:
         "dummy_vertices": int(np.sum(mesh.dummy_vertices)) if mesh.dummy_vertices is not None else 0,
         "defects": [f"{type(d).__name__}: {d}" for d in defects],
     }
+
+
+def _undirected_loop_lengths(et: EdgeTable) -> list[int]:
+    """Edge counts of the boundary loops, found as the connected components of the border edges
+    (those on one face) taken undirected: the loops of a manifold whatever its faces'
+    orientations. Each border vertex of a manifold lies on exactly two border edges, so every
+    component is one cycle and its edge count is its length."""
+    from scipy.sparse import coo_matrix  # here: scipy's import is slow and rarely needed
+    from scipy.sparse.csgraph import connected_components
+
+    ends = et.edges[et.count == 1].astype(np.int64)
+    if ends.size == 0:
+        return []
+    ids, local = np.unique(ends, return_inverse=True)
+    local = local.reshape(-1, 2)
+    graph = coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])),
+                                    shape=(ids.size, ids.size))
+    _, label = connected_components(graph, directed=False)
+    return [int(c) for c in np.bincount(label[local[:, 0]])]
 
 
 def _clean_topology(mesh: TriMesh, clean: _Clean) -> dict:

@@ -140,6 +140,26 @@ def test_non_orientable_surface_is_named_not_sent_to_be_reoriented(surface):
     assert "orient faces consistently" not in str(exc.value)
 
 
+def test_topology_counts_boundary_loops_whatever_the_orientation():
+    """The boundary loops of a manifold are its border edges' cycles, undirected: a Mobius strip
+    has one (both rims joined by the half twist) and an annulus with a face flipped keeps its two
+    rims and its genus 0. Traced along the border darts, both read "a pinched boundary", not
+    manifold, no loops (two border darts leave one vertex where the orientation flips)."""
+    t = topology(load_mesh(*_mobius(7)))
+    assert (t["manifold"], t["orientable"], t["boundary_loop_lengths"]) == (True, False, [14])
+    assert t["genus"] is None and len(t["defects"]) == 1
+    n = 9
+    ang = 2 * np.pi * np.arange(n) / n
+    v = np.vstack([np.c_[r * np.cos(ang), r * np.sin(ang), np.zeros(n)] for r in (1.0, 2.0)])
+    i, j = np.arange(n), (np.arange(n) + 1) % n
+    f = np.vstack([np.c_[i, j, j + n], np.c_[i, j + n, i + n]])
+    assert topology(load_mesh(v, f))["boundary_loop_lengths"] == [n, n]
+    f[4] = f[4, ::-1]
+    t = topology(load_mesh(v, f))
+    assert t["consistently_oriented"] is False and t["orientable"] is True
+    assert (t["manifold"], t["boundary_loop_lengths"], t["genus"]) == (True, [n, n], 0)
+
+
 def test_non_manifold_vertex_bow_tie():
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0]], float)
     f = np.array([[0, 1, 2], [0, 3, 4]])
