@@ -165,6 +165,10 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             if suffix == ".obj":
                 text = _prepare_obj(text, path)
             else:
+                if re.match(r"\s*[A-Z]*OFF[ \t]+BINARY\b", text[:64]):
+                    raise errors.UnreadableMeshError(
+                        f"{path}: an OFF BINARY file (its header, byte 0); jaxcds reads ASCII OFF "
+                        "only: convert it to ASCII OFF, PLY or OBJ")
                 text = _prepare_off(text)  # first: splitlines() breaks at \v and \f too
                 _check_off_counts(text, path)
             loaded = _trimesh_load(io.StringIO(text), suffix[1:])
@@ -286,6 +290,13 @@ def read_regular_file(path: Any, *, error: type = errors.UnreadableMeshError) ->
 def _decode_text(raw: bytes) -> str:
     if raw.startswith(b"\xef\xbb\xbf"):  # a UTF-8 byte order mark: it hid an OBJ's first line
         raw = raw[3:]
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        # UTF-16 with its byte order mark (Windows editors save so): read as Latin-1, every
+        # other byte was a NUL and nothing parsed
+        try:
+            return raw.decode("utf-16")
+        except UnicodeDecodeError:
+            pass
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:

@@ -674,6 +674,28 @@ def test_a_byte_order_mark_does_not_hide_an_obj_vertex(tmp_path):
     np.testing.assert_array_equal(m.vertices, [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 
 
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be"])
+def test_utf16_text_meshes_with_a_byte_order_mark_load(tmp_path, encoding):
+    """OBJ and OFF saved as UTF-16 (with a byte order mark) were read as Latin-1, a NUL between
+    every two characters: "cannot parse"."""
+    body = "".join("v " + r + "\n" for r in _TET_TEXT.splitlines()) + "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
+    off = "OFF\n4 4 6\n" + _TET_TEXT + "3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n"
+    bom = {"utf-16-le": b"\xff\xfe", "utf-16-be": b"\xfe\xff"}.get(encoding, b"")
+    for name, text in (("t.obj", body), ("t.off", off)):
+        (tmp_path / name).write_bytes(bom + text.encode(encoding))
+        m = load_mesh(tmp_path / name)
+        assert (m.num_vertices, m.num_faces) == (4, 4)
+        np.testing.assert_array_equal(m.vertices, np.loadtxt(_TET_TEXT.splitlines()))
+
+
+def test_off_binary_is_named(tmp_path):
+    """An OFF BINARY file (Princeton's variant) is refused as such, not as unparsable text."""
+    p = tmp_path / "b.off"
+    p.write_bytes(b"OFF BINARY\n" + np.array([4, 4, 0], ">i4").tobytes() + bytes(64))
+    with pytest.raises(errors.UnreadableMeshError, match="OFF BINARY.*ASCII OFF only"):
+        load_mesh(p)
+
+
 def test_text_meshes_shorter_than_their_headers_are_named(tmp_path):
     """OFF and ASCII PLY files with fewer faces than their headers declare loaded the faces
     present without a word; an OFF face line with fewer indices than it declares passed."""
