@@ -165,7 +165,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             if suffix == ".obj":
                 text = _prepare_obj(text, path)
             else:
-                if re.match(r"\s*[A-Z]*OFF[ \t]+BINARY\b", text[:64]):
+                if re.match(r"\s*[A-Za-z0-9]*OFF[ \t]+BINARY\b", text[:64]):
                     raise errors.UnreadableMeshError(
                         f"{path}: an OFF BINARY file (its header, byte 0); jaxcds reads ASCII OFF "
                         "only: convert it to ASCII OFF, PLY or OBJ")
