@@ -111,12 +111,12 @@ def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
     """
     if isinstance(obj, TriMesh):
         return obj
-    source = "arrays"
+    source, dropped = "arrays", 0
     if faces is not None:
         vertices = obj
     elif isinstance(obj, (str, os.PathLike)):
         source = os.fspath(obj)
-        vertices, faces = _read_file(source)
+        vertices, faces, dropped = _read_file(source)
     elif isinstance(obj, tuple) and len(obj) == 2:
         vertices, faces = obj
     else:
@@ -131,10 +131,15 @@ def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
             raise errors.UnreadableMeshError(
                 f"cannot load a mesh from an object of type {type(obj).__name__}; "
                 "give a path, a trimesh.Trimesh, a TriMesh or (vertices, faces) arrays")
-    return _from_arrays(vertices, faces, source=source, weld=weld)
+    mesh = _from_arrays(vertices, faces, source=source, weld=weld)
+    if dropped:  # left out by the file's parser: counted as if dropped here
+        mesh = dataclasses.replace(mesh, removed_unreferenced=mesh.removed_unreferenced + dropped)
+    return mesh
 
 
-def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
+def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """``(vertices, faces, dropped)`` of the file: ``dropped`` counts the vertices the parser left
+    out because no face uses them (trimesh's OBJ reader does; the others keep them)."""
     try:
         os.stat(path)
     except (OSError, ValueError):
@@ -176,7 +181,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             if suffix == ".ply":
                 mixed = _check_ply(raw, path)
                 if mixed is not None:  # a binary PLY of mixed polygons (trimesh cannot read it)
-                    return mixed
+                    return mixed + (0,)
                 if ((b"\v" in raw or b"\f" in raw or b"\t" in raw)
                         and b"format ascii" in raw[:raw.find(b"end_header")]):
                     # ASCII values split on any blank (trimesh dropped a face line with a
@@ -193,7 +198,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                 # a well-formed OFF trimesh could not read: polygons of 5+ corners among faces of
                 # another size (trimesh 4-5's fan triangulation fails on them under numpy 2)
                 try:
-                    return _read_off_polygons(text)
+                    return _read_off_polygons(text) + (0,)
                 except (ValueError, IndexError):  # a variant this reader does not know: named below
                     pass
         elif suffix == ".stl":
@@ -220,7 +225,22 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")
-    return vertices, faces
+    return vertices, faces, (_obj_unreferenced(text, len(vertices)) if suffix == ".obj" else 0)
+
+
+def _obj_unreferenced(text: str, loaded: int) -> int:
+    """How many of an OBJ's ``v`` lines no face uses (trimesh's reader drops them before
+    jaxcds sees the vertices, so they would not be counted): 0 when every line was loaded, else
+    the lines less the distinct vertex indices of the ``f`` lines (relative ones resolved
+    against the vertex count; trimesh may also split a vertex at texture seams, so the loaded
+    count alone does not tell)."""
+    lines = len(re.findall(r"(?m)^v ", text))
+    if lines == loaded:
+        return 0
+    corners = " ".join(re.findall(r"(?m)^f ([^\n]*)", text)).split()
+    ids = np.array([c.split("/", 1)[0] for c in corners], dtype=np.int64)
+    ids = np.where(ids < 0, ids + lines + 1, ids)
+    return max(lines - int(np.unique(ids).size), 0)
 
 
 def _trimesh_load(stream, file_type: str):

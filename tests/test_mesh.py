@@ -618,6 +618,23 @@ def test_find_defects_and_topology_name_vertices_in_no_face():
 _TET_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n"
 
 
+@pytest.mark.parametrize("faces", ["f 2 4 3\nf 2 3 5\nf 3 4 5\nf 2 5 4\n",
+                                   "f 2/1 4/2 3/3\nf 2/4 3/3 5/2\nf 3/3 4/2 5/1\nf 2/1 5/4 4/2\n",
+                                   "f -5 -3 -4\nf -5 -4 -2\nf -4 -3 -2\nf -5 -2 -3\n"])
+def test_an_obj_counts_its_unreferenced_vertices_as_off_does(faces, tmp_path):
+    """trimesh's OBJ reader drops the vertices no face uses before jaxcds sees them: the report
+    said 0 removed where the same mesh as OFF said 2 (texture corners and relative indices
+    included)."""
+    (tmp_path / "t.obj").write_text("v 7 7 7\n" + _TET_OBJ.split("f")[0] + "v 9 9 9\n"
+                                    + "vt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\n" + faces)
+    (tmp_path / "t.off").write_text("OFF\n6 4 0\n7 7 7\n" + _TET_TEXT + "9 9 9\n"
+                                    "3 1 3 2\n3 1 2 4\n3 2 3 4\n3 1 4 3\n")
+    obj, off = (load_mesh(tmp_path / n) for n in ("t.obj", "t.off"))
+    np.testing.assert_array_equal(obj.vertices, off.vertices)
+    assert obj.removed_unreferenced == off.removed_unreferenced == 2
+    assert topology(obj)["removed_unreferenced_vertices"] == 2
+
+
 @pytest.mark.parametrize("suffix", [".obj", ".off"])
 def test_a_latin1_comment_does_not_stop_a_text_mesh(suffix, tmp_path):
     """A legacy-encoded comment used to fail with "No module named 'charset_normalizer'"
