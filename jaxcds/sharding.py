@@ -43,9 +43,23 @@ PAD = 1 << 29
 
 
 def device_mesh(devices: Optional[Sequence] = None, axis: str = "d") -> Mesh:
-    """A one-axis :class:`~jax.sharding.Mesh` over ``devices`` (all devices by default)."""
-    devs = np.array(jax.devices() if devices is None else list(devices))
-    return Mesh(devs, (axis,))
+    """A one-axis :class:`~jax.sharding.Mesh` over ``devices`` (all devices by default).
+
+    Raises:
+      ArgumentError: no device, or a device listed twice (JAX builds such a Mesh, and the
+        entry points then failed untyped: a modulo by a zero device count, a zip of mismatched
+        lengths)."""
+    devs = list(jax.devices() if devices is None else devices)
+    _check_devices(devs, "device_mesh")
+    return Mesh(np.array(devs), (axis,))
+
+
+def _check_devices(devs: Sequence, where: str) -> None:
+    if not devs:
+        raise errors.ArgumentError(f"{where}: no devices; give at least one (None: all devices)")
+    if len(set(devs)) != len(devs):
+        raise errors.ArgumentError(f"{where}: a device is listed twice ({len(devs)} entries, "
+                                   f"{len(set(devs))} distinct devices)")
 
 
 def _row_sharding(mesh: Mesh, ndim: int) -> NamedSharding:
@@ -70,7 +84,25 @@ def _mesh_arg(mesh, where: str) -> Mesh:
     if not isinstance(mesh, Mesh):
         raise errors.ArgumentError(f"{where}: mesh must be a jax.sharding.Mesh (device_mesh(), or "
                                    f"None for all devices), got {type(mesh).__name__}")
+    _check_devices(list(mesh.devices.flat), where)
     return mesh
+
+
+def _structure_mesh(s) -> Optional[Mesh]:
+    """The mesh ``s``'s arrays were placed on by :func:`shard_structure` (its first named-sharded
+    leaf's), or None for a structure that was not sharded."""
+    for x in jax.tree_util.tree_leaves(s):
+        sharding = getattr(x, "sharding", None)
+        if isinstance(sharding, NamedSharding):
+            return sharding.mesh
+    return None
+
+
+def _on_mesh(x: jax.Array, mesh: Mesh) -> bool:
+    """``x`` is placed on ``mesh``'s devices in ``mesh``'s order (what a jitted call with the
+    structure's arrays takes; the same devices in another order are "incompatible" to JAX)."""
+    sharding = x.sharding
+    return isinstance(sharding, NamedSharding) and list(sharding.mesh.devices.flat) == list(mesh.devices.flat)
 
 
 def _is_numeric(dtype) -> bool:
@@ -312,7 +344,13 @@ def shard_structure(s: MeshStructure, mesh: Optional[Mesh] = None):
 def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None) -> jax.Array:
     """Operator ``op`` on a batch of ``ids``, the batch split over the devices like the
     structure (padded with id 0, the padding answers dropped). Equal to ``getattr(s, op)(ids)``
-    unsharded. Answers are left sharded (``P(axis)``)."""
+    unsharded. Answers are left sharded (``P(axis)``). ``mesh`` ``None``: the mesh ``s`` was
+    sharded over (all devices for a structure that was not).
+
+    Raises:
+      ArgumentError: ``mesh`` holds other devices than the ones ``s`` was sharded over (the
+        jitted query failed with JAX's untyped "incompatible devices"; a structure sharded
+        over 3 of 4 devices met that with the default mesh of all 4)."""
     from jaxcds.batch import OPERATOR_KINDS
 
     if not isinstance(s, MeshStructure):  # AttributeError inside jit before
@@ -320,7 +358,13 @@ def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None
                                    f"build(name, mesh))), got {type(s).__name__}")
     if not isinstance(op, str) or op not in OPERATOR_KINDS:
         raise errors.ArgumentError(f"sharded_query: unknown operator {op!r}; one of {sorted(OPERATOR_KINDS)}")
-    mesh = _mesh_arg(mesh, "sharded_query")
+    own = _structure_mesh(s)
+    mesh = own if mesh is None and own is not None else _mesh_arg(mesh, "sharded_query")
+    if own is not None and list(own.devices.flat) != list(mesh.devices.flat):
+        raise errors.ArgumentError(
+            f"sharded_query: the structure is sharded over {own.devices.size} device(s), the "
+            f"mesh given holds {mesh.devices.size}, not the same ones in the same order; pass "
+            f"the mesh given to shard_structure (or None)")
     ids = _int32_ids(ids, op)
     if ids.ndim == 0:  # one id: a batch of one (shard_rows has no rows to split in a 0-d id)
         return sharded_query(s, op, ids.reshape(1), mesh)[0]
@@ -367,6 +411,12 @@ def sharded_vertex_normals(s: ShardedStructure, positions, method: str = "scatte
                                    f"shard_structure, got {what}")
     refuse_non_real(positions, "sharded_vertex_normals: positions")
     positions = to_device(positions, copy=True)  # the caller's array: no shared buffer
+    own = _structure_mesh(inner)
+    if (own is not None and not isinstance(positions, jax.core.Tracer) and positions.committed
+            and not _on_mesh(positions, own)):
+        # rows placed on other devices (shard_rows with another mesh, device_put): the jitted
+        # normals failed with JAX's untyped "incompatible devices"; replicated on the structure's
+        positions = jax.device_put(positions, NamedSharding(own, PartitionSpec()))
     n, d = s.num_vertices, s.num_devices
     padded = -(-n // d) * d  # shard_rows' length for n rows
     if positions.ndim != 2 or positions.shape[0] not in (n, padded):

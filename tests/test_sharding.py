@@ -336,6 +336,68 @@ def test_shard_rows_pads_big_endian_rows_on_four_devices():
     assert out["int8_1000"] == "ArgumentError"
 
 
+
+_DEVICE_SUBSETS_CHILD = """
+import json, jax, numpy as np
+from jax.sharding import Mesh
+from jaxcds import errors, sharding as S
+from jaxcds.generators import icosphere
+from jaxcds.structures import registry
+m = icosphere(0)
+s = registry.build("halfedge", m)
+devs = jax.devices()
+d3 = S.device_mesh(devs[:3])
+ss = S.shard_structure(s, d3)
+ids = np.arange(7)
+pos = np.asarray(m.vertices, np.float32)
+want = np.asarray(s.target(ids)).tolist()
+out = {"default": np.asarray(S.sharded_query(ss, "target", ids)).tolist() == want,
+       "own": np.asarray(S.sharded_query(ss, "target", ids, d3)).tolist() == want}
+normals = np.asarray(S.sharded_vertex_normals(ss, pos))
+for name, p in (("rows_on_4", S.shard_rows(pos, S.device_mesh())),
+                ("rows_on_one", jax.device_put(pos, devs[3]))):
+    out[name] = bool(np.allclose(np.asarray(S.sharded_vertex_normals(ss, p)), normals))
+for name, f in (("query_on_4", lambda: S.sharded_query(ss, "target", ids, S.device_mesh())),
+                ("query_reversed", lambda: S.sharded_query(ss, "target", ids, S.device_mesh(devs[:3][::-1]))),
+                ("no_devices", lambda: S.device_mesh([])),
+                ("twice", lambda: S.device_mesh([devs[0], devs[0]])),
+                ("empty_mesh", lambda: S.shard_structure(s, Mesh(np.array([], object), ("d",)))),
+                ("empty_rows", lambda: S.shard_rows(pos, Mesh(np.array([], object), ("d",))))):
+    try:
+        f()
+        out[name] = "accepted"
+    except Exception as exc:
+        out[name] = f"{type(exc).__name__}: {exc}"
+print(json.dumps(out))
+"""
+
+
+def test_sharded_entry_points_on_a_subset_of_the_devices():
+    """Sweep 47: a structure sharded over 3 of 4 devices met the default mesh (all devices) in
+    ``sharded_query`` and failed with JAX's untyped "incompatible devices" ValueError, as did a
+    mesh of the same devices in another order and positions placed on other devices in
+    ``sharded_vertex_normals``; ``device_mesh([])`` built a Mesh whose zero device count then
+    raised ZeroDivisionError, and a device listed twice a ValueError from a zip. Now the default
+    is the structure's own mesh, another mesh is a typed error, positions are moved, and an
+    empty or repeated device list is refused by name."""
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={DEVICES}").strip()
+    env["JAX_PLATFORMS"] = "cpu"
+    env["PYTHONPATH"] = f"{ROOT}{os.pathsep}" + env.get("PYTHONPATH", "")
+    r = subprocess.run([sys.executable, "-c", _DEVICE_SUBSETS_CHILD], env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-4000:]
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["default"] and out["own"] and out["rows_on_4"] and out["rows_on_one"], out
+    for name in ("query_on_4", "query_reversed"):
+        assert out[name].startswith("ArgumentError: sharded_query: the structure is sharded over 3 "
+                                    "device(s), the mesh given holds"), out[name]
+    assert out["no_devices"] == "ArgumentError: device_mesh: no devices; give at least one (None: all devices)"
+    assert out["twice"].startswith("ArgumentError: device_mesh: a device is listed twice"), out["twice"]
+    assert out["empty_mesh"].startswith("ArgumentError: shard_structure: no devices"), out["empty_mesh"]
+    assert out["empty_rows"].startswith("ArgumentError: shard_rows: no devices"), out["empty_rows"]
+
+
 # ---------------------------------------------------------------------------------- child
 def _child(full: bool) -> dict:
     import re
