@@ -497,8 +497,21 @@ def from_points(points, source: str = "points") -> Triangulation2D:
     used[tri.simplices.ravel()] = True
     if not used.all():
         v = int(np.nonzero(~used)[0][0])
+        same = np.nonzero((pts == pts[v]).all(axis=1))[0]
+        if same.size > 1:
+            raise errors.PolyllaError(
+                f"{source}: point {v} repeats point {int(same[same != v][0])} "
+                f"{pts[v].tolist()} and is in no triangle; remove duplicates")
+        # not a duplicate: Qhull merged it with a point too near for its precision (a cluster
+        # 1e-6 of the set's extent wide), which the message had called a duplicate
+        d = np.hypot(*(pts - pts[v]).T)
+        d[v] = np.inf
+        near = int(np.argmin(d))
+        extent = float(np.ptp(pts, axis=0).max())
         raise errors.PolyllaError(
-            f"{source}: point {v} is a duplicate (or coplanar) and is in no triangle; remove duplicates")
+            f"{source}: point {v} {pts[v].tolist()} is in no triangle: Qhull merged it with a "
+            f"point too near for its precision (point {near} lies {d[near]:.3g} away, "
+            f"{d[near] / extent:.1g} of the set's extent {extent:.3g}); spread or remove such points")
     # Qhull orients 2-D simplices counter-clockwise (scipy's documentation); its slivers along
     # a nearly straight hull can have a floating-point area of the wrong sign (a 30 x 30 grid
     # moved by 1e-13: 16 of 1,712), so their orientation is Qhull's, not the area's

@@ -823,6 +823,23 @@ def test_collinear_points_are_named_in_one_line():
         assert "\n" not in str(exc.value)
 
 
+def test_points_qhull_drops_are_named_for_what_they_are():
+    """Sweep 47: three clusters 1e-6 wide in a unit domain lost points to Qhull's precision, and
+    the error called such a point "a duplicate (or coplanar)" although no point repeated it. Now
+    a real duplicate names the point it repeats, and a point Qhull merged names its nearest
+    neighbour and the distance."""
+    rng = np.random.default_rng(5)
+    clusters = np.vstack([c + 1e-6 * rng.random((80, 2)) for c in ([0, 0], [1, 0], [0.5, 1])])
+    with pytest.raises(errors.PolyllaError, match=r"clusters: point \d+ \[.*\] is in no triangle: "
+                       r"Qhull merged it with a point too near for its precision \(point \d+ lies") as exc:
+        io.from_points(clusters, "clusters")
+    assert "duplicate" not in str(exc.value)
+    dup = np.vstack([rng.random((30, 2)), [[0.25, 0.75], [0.25, 0.75]]])
+    with pytest.raises(errors.PolyllaError, match=r"dup: point 30 repeats point 31 \[0.25, 0.75\] "
+                       "and is in no triangle; remove duplicates"):
+        io.from_points(dup, "dup")
+
+
 @pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300])
 def test_points50_at_extreme_coordinate_scales(scale, tmp_path):
     """Polylla does not depend on the scale: squared lengths overflowed (1e160) or fell into
