@@ -88,12 +88,13 @@ def _other_routes(s, e):
     :func:`_apply_all` did *not* take for a batch this large (decided, as there, from its static
     size), forced, so that both routes are checked on every dart."""
     out = {}
-    for op, method in s.table_queries.items():
-        if s.takes_table(op, jnp.size(e)):
-            with per_query_routes():
-                out[(op, "per-query")] = getattr(s, op)(e)
-        else:
-            out[(op, "table")] = getattr(s, method)(e)
+    with shared_subexpressions():  # pemb's per-query routes begin with the same searches
+        for op, method in s.table_queries.items():
+            if s.takes_table(op, jnp.size(e)):
+                with per_query_routes():
+                    out[(op, "per-query")] = getattr(s, op)(e)
+            else:
+                out[(op, "table")] = getattr(s, method)(e)
     return out
 
 

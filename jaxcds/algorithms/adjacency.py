@@ -55,6 +55,10 @@ def _turn(s, start, e, hit, done, stop_fn, max_steps: int):
 ADJACENT_FIRST_TURNS = 16
 #: lanes per chunk of those (few lanes: the chunk turns as long as its longest rotation)
 ADJACENT_CHUNK = 1024
+#: turns a query of :func:`adjacent` makes on average (half a triangulation's mean degree 6 when
+#: the pair is an edge, all of it when not): its batch asks about this many times its size of
+#: each operator, which decides whether the structure tabulates them first (``for_queries``)
+ADJACENT_MEAN_TURNS = 4
 
 
 def adjacent(s, u, v):
@@ -79,6 +83,7 @@ def _adjacent(s, u, v):
     u, v = jnp.broadcast_arrays(u, v)
     shape = u.shape
     u, v = u.reshape(-1), v.reshape(-1)
+    s = s.for_queries(u.size * ADJACENT_MEAN_TURNS)
     start = s.edge_of_vertex(u)
     valid = s.dart_valid(start)  # false for a vertex in no face (edge_of_vertex: "absent")
 
@@ -122,6 +127,7 @@ def one_ring(s, v, max_degree: int):
 @functools.partial(jax.jit, static_argnums=2)
 def _one_ring(s, v, max_degree):
     n = s.num_vertices
+    s = s.for_queries(jnp.size(v) * (max_degree + 1))  # the scan's steps ask each operator once
     start = s.edge_of_vertex(v)
     alone = ~s.dart_valid(start)  # a vertex in no face: an empty ring
     dummy = s.dummy_vertex_mask()

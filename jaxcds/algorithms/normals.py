@@ -325,6 +325,7 @@ def _gather_turns(s, positions):
     from jaxcds.structures.succinct.bitvector import finish_pending
 
     n = s.num_vertices
+    s = s.for_queries(s.num_darts)  # every dart is turned to once
     v = jnp.arange(n, dtype=jnp.int32)
     start = s.edge_of_vertex(v)
     dummy = s.dummy_vertex_mask()

@@ -509,6 +509,15 @@ class MeshStructure:
         return (op in self.table_queries and not _NO_TABLE
                 and batch_size >= self.table_ratio(op) * self.num_darts)
 
+    def for_queries(self, num_queries: int) -> "MeshStructure":
+        """The structure a loop should navigate when it asks operators of about ``num_queries``
+        ids in all (every step's batch together): itself here. A structure whose operators
+        search per id and can tabulate them for the call (pemb) returns itself holding its
+        tables once that many ids would pay for them, so the loop's every step reads the tables
+        rather than computing them anew or searching (a pemb's ``one_ring`` of every vertex
+        computed them in each of its steps: slower than the searches)."""
+        return self
+
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         _chunk_queries(cls)

@@ -7,6 +7,7 @@ dart of every shared mesh (``test_protocol.py``), and catches either route when 
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import jax
@@ -177,3 +178,67 @@ def test_both_routes_on_random_triangulations(n, seed):
         d = s.all_darts()
         for op, a, b in zip(OPS, _answers(s, d, False), _answers(s, d, True)):
             np.testing.assert_array_equal(a, b, err_msg=f"{kind}.{op} n={n} seed={seed}")
+
+
+# ------------------------------------------------------------------------------------ pemb
+PEMB_OPS = ("target", "origin", "twin", "next", "prev", "face", "is_border", "ccw_vertex_edge",
+            "cw_vertex_edge")
+
+
+def _pemb_answers(s, ids, per_query: bool):
+    def run(s, d):
+        with (base.per_query_routes() if per_query else contextlib.nullcontext()):
+            return tuple(getattr(s, op)(d) for op in PEMB_OPS)
+    return [np.asarray(x) for x in jax.jit(run)(s, ids)]
+
+
+@pytest.mark.parametrize("packed", [False, True], ids=["one", "packed"])
+def test_pemb_tables_route_equals_its_searches(packed):
+    """pemb answers batches of a few darts' worth of ids from per-call tables (one
+    ``match_all``, then gathers) instead of a parenthesis search per id: the same answers on
+    every dart, of one pemb with a border and of a packed union (global ids)."""
+    from jaxcds.batch import pack
+    from jaxcds.generators import delaunay_square
+
+    meshes = [delaunay_square(150, seed=3), random_planar_triangulation(90, seed=4)]
+    s = pack(meshes, "pemb").structure if packed else registry.build("pemb", meshes[0])
+    assert set(type(s).table_queries) == set(PEMB_OPS)
+    darts = np.tile(s.all_darts(), 2)  # twice the darts: every operator takes its table
+    assert all(s.takes_table(op, darts.size) for op in PEMB_OPS)
+    for op, a, b in zip(PEMB_OPS, _pemb_answers(s, darts, False), _pemb_answers(s, darts, True)):
+        np.testing.assert_array_equal(a, b, err_msg=f"pemb.{op}")
+
+
+def test_pemb_loops_navigate_its_tables(monkeypatch):
+    """A loop that asks many ids (``adjacent``, ``one_ring``) builds pemb's tables once, before
+    it (``for_queries``), not in every step; a small batch keeps the searches. Same answers."""
+    from jaxcds.algorithms import adjacency
+    from jaxcds.structures.pemb import PEMB
+
+    m = random_planar_triangulation(400, seed=6)
+    s = registry.build("pemb", m)
+    built = []
+    real = PEMB.with_tables
+
+    def counted(self, **kw):
+        built.append(kw)
+        return real(self, **kw)
+
+    monkeypatch.setattr(PEMB, "with_tables", counted)
+    assert s.for_queries(8) is s
+    rng = np.random.default_rng(1)
+    u, v = (jnp.asarray(rng.integers(0, m.num_vertices, 2000), jnp.int32) for _ in range(2))
+    vs = jnp.arange(400, dtype=jnp.int32)
+
+    def run():  # fresh functions: jit's cache does not know the per-query flag
+        adj = jax.jit(lambda s, u, v: adjacency._adjacent.__wrapped__(s, u, v))(s, u, v)
+        ring = jax.jit(lambda s, v: adjacency._one_ring.__wrapped__(s, v, 12))(s, vs)[0]
+        return np.asarray(adj), np.asarray(ring)
+
+    with base.per_query_routes():
+        want = run()
+    assert built == []
+    got = run()
+    assert len(built) == 2  # once per program, not once per step
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
