@@ -28,7 +28,7 @@ from benchmarks.paired import paired_summary  # noqa: E402
 from jaxcds.algorithms import adjacent  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import registry  # noqa: E402
-from jaxcds.structures.base import per_query_routes  # noqa: E402
+from jaxcds.structures.base import MeshStructure, per_query_routes  # noqa: E402
 
 
 def race(items, n_items: int, rounds: int) -> dict:
@@ -67,8 +67,8 @@ def main(argv=None) -> int:
                     "same op that the paired verdict is against (issue 3: 2x the half-edge)")
     ap.add_argument("--per-query", action="store_true", help="also race the per-query route of "
                     "each op that the structure answers from a whole-mesh table for batches this "
-                    "large (MeshStructure.table_queries), named 'NAME OP/per-query', and pair the "
-                    "two routes")
+                    "large (MeshStructure.table_queries; adjacent: the loop on tables, "
+                    "MeshStructure.for_queries), named 'NAME OP/per-query', and pair the two routes")
     ap.add_argument("--table-ratio", type=float, default=None, help="override each structure's "
                     "table_batch_ratio while tracing (0: the table route for any batch size; "
                     "the threshold sweeps of RESULTS 'stop 33')")
@@ -81,7 +81,10 @@ def main(argv=None) -> int:
         d = random_darts(s, rng, a.queries)
         for op in a.ops:
             if op == "adjacent":
-                items.append((f"{name} {op}", adjacent, (s,) + random_pairs(s, rng, a.queries)))
+                pairs = (s,) + random_pairs(s, rng, a.queries)
+                items.append((f"{name} {op}", adjacent, pairs))
+                if a.per_query and type(s).for_queries is not MeshStructure.for_queries:
+                    items.append((f"{name} {op}/per-query", per_query_adjacent, pairs))
             elif callable(getattr(s, op, None)):
                 items.append((f"{name} {op}", with_table_ratio(op, a.table_ratio), (s, d)))
                 if a.per_query and op in s.table_queries:
@@ -127,6 +130,15 @@ def per_query(op: str):
         with per_query_routes():
             return getattr(s, op)(d)
     return run
+
+
+def per_query_adjacent(s, u, v):
+    """``adjacent`` traced with the table routes off: a structure whose loops would navigate
+    per-call tables (``for_queries``: pemb) searches every turn instead."""
+    from jaxcds.algorithms.adjacency import _adjacent
+
+    with per_query_routes():  # the unjitted body: jit's cache would hand back the other route
+        return _adjacent.__wrapped__(s, u, v)
 
 
 def random_darts(s, rng, n: int):

@@ -260,17 +260,17 @@ class PEMB(MeshStructure):
     eager_buckets = True
     jit_when_eager = frozenset(("with_tables",))
     # A batch of at least table_ratio(op) * num_darts ids is answered from per-call tables
-    # (with_tables: one match_all, then gathers) instead of one or two parenthesis searches per
-    # id; only the tables the operator reads are built ("twin": mate, "origin": vertex). Ratios
-    # where the tables ran faster, 10K and 100K vertices, random darts (RESULTS.md, "stop 47"):
-    # at 16 darts' worth of ids Target 142-146 -> 11-19 ns per id, Next 157-168 -> 6-10
+    # (with_tables: one match_all, then gathers; face and is_border from every dart's face)
+    # instead of one or two parenthesis searches per id; only the tables the operator reads are
+    # built ("twin": mate, "origin": vertex). The ratios are where the tables ran faster (100K
+    # vertices, random darts; RESULTS.md, "stop 47"): at 16 darts' worth of ids Target 94 -> 16
+    # ns per id, Next 93 -> 5, Face 72 -> 3; Origin, one search, from 4 darts' worth
     _TABLE_OPS = {"target": ("twin", "origin"), "next": ("twin",), "prev": ("twin",),
                   "twin": ("twin",), "ccw_vertex_edge": ("twin",), "cw_vertex_edge": ("twin",),
                   "face": ("twin",), "origin": ("origin",), "is_border": ("twin",)}
     table_queries = {op: "_tabled_" + op for op in _TABLE_OPS}
-    table_batch_ratio = {"target": 1 / 4, "next": 1 / 4, "prev": 1 / 4, "twin": 1 / 2,
-                         "ccw_vertex_edge": 1 / 2, "cw_vertex_edge": 1 / 2, "face": 1 / 2,
-                         "origin": 2, "is_border": 2}
+    table_batch_ratio = {"target": 1 / 2, "next": 1 / 2, "prev": 1 / 2, "twin": 1, "face": 1,
+                         "is_border": 1, "ccw_vertex_edge": 2, "cw_vertex_edge": 2, "origin": 4}
     # jaxcds.sharding pads arrays by rows; the bit vectors' rank/select/match directories read
     # their own lengths, so padded words changed every answer (found by an adversarial sweep)
     row_sharding_refused = ("pemb cannot be split by rows over devices: its succinct bit "
@@ -787,8 +787,23 @@ def _table_route(op: str, needs: tuple):
     return route
 
 
+def _face_route(border: bool):
+    """``PEMB._tabled_face`` / ``_tabled_is_border``: every dart's face tabulated once
+    (:meth:`TableOperators.dart_face_table`: no ``enclose`` search per id), then one gather per
+    id (``is_border``: the face is a border loop's, ``num_faces``)."""
+
+    @by_table
+    def route(self, d: Int) -> Int:
+        f = self.with_tables(origin=False).dart_face_table()[jnp.asarray(d, jnp.int32)]
+        return f == self.num_faces if border else f
+
+    route.__name__ = route.__qualname__ = "_tabled_is_border" if border else "_tabled_face"
+    return route
+
+
 for _op, _needs in PEMB._TABLE_OPS.items():
-    setattr(PEMB, "_tabled_" + _op, _table_route(_op, _needs))
+    setattr(PEMB, "_tabled_" + _op, _face_route(_op == "is_border") if _op in ("face", "is_border")
+            else _table_route(_op, _needs))
 
 
 class TableOperators:
@@ -829,6 +844,21 @@ class TableOperators:
             return super().vertex(i)
         i = jnp.asarray(i, jnp.int32)
         return self._vb_answer(self.vb[self.A.rank1(i)], i)
+
+    def dart_face_table(self) -> Int:
+        """``(num_darts,)`` ``face`` of every dart, from ``fe`` and ``tw``: a triangle's first
+        dart ``first_dual(g)`` and the two ``next`` of it carry its face id, a border loop's
+        darts ``num_faces`` (three scatters over the faces; ``get_face`` searched ``enclose``
+        per dart)."""
+        g = jnp.arange(self._num_pemb_faces, dtype=jnp.int32)
+        f = self._to_mesh_face(g)
+        triangle = f < self.num_faces  # the border loops map to num_faces
+        table = jnp.full((self.num_darts,), self.num_faces, jnp.int32)
+        d = self.first_dual(g)
+        for _ in range(3):
+            table = table.at[jnp.where(triangle, d, self.num_darts)].set(f, mode="drop")
+            d = self.next(d)
+        return table
 
     def _vb_answer(self, v, i):
         """``vertex(i)`` from ``v = vb[rank1(A, i)]``: a negative entry (a packed union's depth-0

@@ -203,7 +203,7 @@ def test_pemb_tables_route_equals_its_searches(packed):
     meshes = [delaunay_square(150, seed=3), random_planar_triangulation(90, seed=4)]
     s = pack(meshes, "pemb").structure if packed else registry.build("pemb", meshes[0])
     assert set(type(s).table_queries) == set(PEMB_OPS)
-    darts = np.tile(s.all_darts(), 2)  # twice the darts: every operator takes its table
+    darts = np.tile(s.all_darts(), 4)  # four times the darts: every operator takes its table
     assert all(s.takes_table(op, darts.size) for op in PEMB_OPS)
     for op, a, b in zip(PEMB_OPS, _pemb_answers(s, darts, False), _pemb_answers(s, darts, True)):
         np.testing.assert_array_equal(a, b, err_msg=f"pemb.{op}")
