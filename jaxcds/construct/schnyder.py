@@ -918,7 +918,7 @@ def schnyder_wood_reference(faces, num_vertices: int, root_face: int = 0) -> np.
     return out
 
 
-def prepare_mesh(mesh, structure: str = "Schnyder woods"):
+def prepare_mesh(mesh, structure: str = "a Schnyder wood"):
     """Validate a mesh for Schnyder woods: manifold, consistently oriented, connected, closed
     (holes are closed with :func:`jaxcds.mesh.close_boundaries`, CDS paper Sec. 4.5), genus 0.
 
@@ -944,7 +944,7 @@ def prepare_mesh(mesh, structure: str = "Schnyder woods"):
     if chi != 2:
         holes = f" after closing {loops} boundary loop(s)" if loops else ""
         raise errors.UnsupportedTopologyError(
-            f"{m.source}: {structure} need a genus-0 surface (a planar triangulation); this mesh has "
+            f"{m.source}: {structure} needs a genus-0 surface (a planar triangulation); this mesh has "
             f"genus {(2 - chi) // 2} (Euler characteristic {chi}{holes}); use the 'lr' or "
             "'halfedge' structure for it")
     if m.num_vertices < 4:
