@@ -271,6 +271,24 @@ def shared_subexpression(method=None, *, masks: tuple = ()):
     return shared
 
 
+def id_table_route(op: str):
+    """A table route (``MeshStructure.table_queries``) for operator ``op`` of a structure whose
+    per-query route costs tens of nanoseconds: ``op`` of every id of the id space once (its own
+    per-query route, over ``arange(num_darts)``), written to memory, then one gather per id;
+    ids out of range read a clamped entry (garbage, as the per-query route gives them). Worth it
+    from about twice the darts' worth of ids (LR's Target, ``RESULTS.md`` "stop 47")."""
+
+    @by_table
+    def route(self, d: Int) -> Int:
+        everything = getattr(self, op)(jnp.arange(self.num_darts, dtype=jnp.int32))
+        # written once: fused into the gather, the per-query route would run once per id
+        (table,) = materialize_loop((everything.astype(jnp.int32),))
+        return table.at[jnp.asarray(d, jnp.int32)].get(mode="clip")
+
+    route.__name__ = route.__qualname__ = f"_{op}_by_id_table"
+    return route
+
+
 def per_query_routes():
     """Within this block, operators traced take no whole-mesh table route (``table_queries``):
     every batch runs the per-query route of the paper's operator. Used inside a table's own

@@ -41,7 +41,8 @@ from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
 from jaxcds.construct.ring_search import check_sweeps, improve_ring
 from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
-from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows, take_nonnegative
+from jaxcds.structures.base import (Int, MeshStructure, check_id_space, id_table_route, interleave_rows,
+                                    take_nonnegative)
 from jaxcds.structures.corner_table import CornerTable
 
 __all__ = ["LR", "LRBits", "build_lr", "stats", "render_list", "expand_render_list",
@@ -238,6 +239,12 @@ class _LRNavigation(MeshStructure):
     # new sizes on a 2,000-vertex LR 6.5 -> 2.5 s, a warm call 30 -> 1.1 ms (stop 43)
     eager_buckets = True
     jit_when_eager = frozenset(("face_vertices", "face_vertices_padded", "dart_faces"))
+    # batches of twice the darts' worth of ids or more: the operators whose per-query route
+    # decodes an opposite corner (Sec. 4.7's case analysis, 16-37 ns per id; the chunked ones)
+    # computed for every dart once, then one gather per id (base.id_table_route, set below the
+    # class; RESULTS.md, "stop 47": 10M ids on 100K vertices, Target 25 -> 3 ns per id)
+    table_queries = {op: f"_{op}_by_id_table" for op in chunked_queries}
+    table_batch_ratio = 2
 
     closed_triangles = True
 
@@ -520,6 +527,10 @@ def _nonempty(a, dtype=np.int32, size: int = 1):
 
 
 # --------------------------------------------------------------------------------- structures
+for _op in _LRNavigation.chunked_queries:
+    setattr(_LRNavigation, f"_{_op}_by_id_table", id_table_route(_op))
+
+
 @pytree_dataclass
 class LR(_LRNavigation):
     """Standard LR (Sec. 4): about 1.08 references per triangle.

@@ -140,6 +140,7 @@ class _ViewMixin:
     int or a whole array; ``_has_border`` (static) is the union's."""
 
     chunked_queries = frozenset()  # views carry per-query arrays; the entries build the views
+    table_queries = {}  # likewise: a view's sizes are per query, not the union's
 
     @property
     def has_border(self) -> bool:
@@ -189,6 +190,7 @@ class _PackedMixin:
     of each element's mesh, global ids out."""
 
     packed = True
+    table_queries = {}  # no whole-union table (as the packed CDS kinds)
 
     def _tables(self, kind):
         if kind == "vertex":

@@ -244,3 +244,32 @@ def test_pemb_loops_navigate_its_tables(monkeypatch):
     assert len(built) == 2  # once per program, not once per step
     for a, b in zip(got, want):
         np.testing.assert_array_equal(a, b)
+
+
+# -------------------------------------------------------------------------------------- LR
+LR_OPS = ("target", "twin", "face_right", "right_front", "right_back", "corner_opposite")
+
+
+@pytest.mark.parametrize("kind", ["lr", "lr-bits"])
+def test_lr_id_tables_equal_its_decoding(kind):
+    """LR answers a batch of twice the darts' worth of ids or more from every dart's answer,
+    computed once (``base.id_table_route``), where each id decodes an opposite corner: the same
+    answers, on a mesh with a border too; a packed union takes no such route."""
+    from jaxcds.batch import pack
+    from jaxcds.generators import delaunay_square
+
+    m = delaunay_square(200, seed=7)
+    s = registry.build(kind, m)
+    assert set(type(s).table_queries) == set(LR_OPS)
+    darts = np.tile(s.all_darts(), -(-2 * s.num_darts // s.all_darts().size))
+    assert s.takes_table("target", darts.size) and not s.takes_table("target", s.num_darts)
+
+    def run(s, d, per_query):
+        with (base.per_query_routes() if per_query else contextlib.nullcontext()):
+            return tuple(getattr(s, op)(d) for op in LR_OPS)
+
+    got = jax.jit(lambda s, d: run(s, d, False))(s, darts)
+    want = jax.jit(lambda s, d: run(s, d, True))(s, darts)
+    for op, a, b in zip(LR_OPS, got, want):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b), err_msg=f"{kind}.{op}")
+    assert pack([m, random_planar_triangulation(50, seed=1)], kind).structure.table_queries == {}
