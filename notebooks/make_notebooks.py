@@ -119,9 +119,12 @@ plt.tight_layout(); plt.show()'''),
 ## Batched queries, jitted
 Every operator takes arrays of dart ids: here a batch of random darts per structure and four
 operators (Target, Twin, Next = LeftFront, Face_left) in one jitted call (timings on a shared
-2-core CPU: indicative only, `benchmarks/` has the careful numbers). The answers are compared
-with the half-edge's through `vertex_order`, as `verify` did above for every operator on every
-dart (its per-operator counts include `adjacent` on vertex pairs)."""),
+2-core CPU: indicative only, `benchmarks/` has the careful numbers). A batch this large (many
+times the mesh's darts) reads tables of every dart's answer where one id costs more than a
+gather (LR's opposite corners, pemb's parenthesis searches, the CDS Target walk): computed once
+per call. The answers are compared with the half-edge's through `vertex_order`, as `verify` did
+above for every operator on every dart (its per-operator counts include `adjacent` on vertex
+pairs, and both routes where a structure has two)."""),
     ("code", '''\
 he = structures["halfedge"]
 rng = np.random.default_rng(0)
