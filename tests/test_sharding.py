@@ -26,15 +26,20 @@ DEVICES = 4
 QUICK_OPS = ("target", "next", "face_right", "corner_opposite", "edge_of_vertex", "edge_of_face")
 
 
-def _run_child(full: bool) -> dict:
+def _run_in_devices(args: list, timeout: int = 300) -> dict:
+    """``python ARGS`` in a child process with :data:`DEVICES` CPU devices (the flag must be set
+    before JAX starts): the JSON object its last line of output prints."""
     env = dict(os.environ)
     env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={DEVICES}").strip()
     env["JAX_PLATFORMS"] = "cpu"
     env["PYTHONPATH"] = f"{ROOT}{os.pathsep}{ROOT / 'tests'}{os.pathsep}" + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, __file__] + (["--full"] if full else [])
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=880 if full else 300)
+    r = subprocess.run([sys.executable] + args, env=env, capture_output=True, text=True, timeout=timeout)
     assert r.returncode == 0, r.stderr[-4000:]
     return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _run_child(full: bool) -> dict:
+    return _run_in_devices([__file__] + (["--full"] if full else []), timeout=880 if full else 300)
 
 
 def _shared_report(tmp_path_factory, full: bool) -> dict:
@@ -321,14 +326,7 @@ def test_shard_rows_pads_big_endian_rows_on_four_devices():
     rows that need no padding placed by value (JAX refused them: TypeError), padded ones with the
     value in their native dtype, and a value the dtype cannot hold refused (np.full raised
     OverflowError for 1000 in int8; 1.5 in int32 was truncated silently)."""
-    env = dict(os.environ)
-    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={DEVICES}").strip()
-    env["JAX_PLATFORMS"] = "cpu"
-    env["PYTHONPATH"] = f"{ROOT}{os.pathsep}" + env.get("PYTHONPATH", "")
-    r = subprocess.run([sys.executable, "-c", _PADDED_ROWS_CHILD], env=env, capture_output=True,
-                       text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-4000:]
-    out = json.loads(r.stdout.strip().splitlines()[-1])
+    out = _run_in_devices(["-c", _PADDED_ROWS_CHILD])
     assert out["devices"] == DEVICES
     assert out["be"] == list(range(10)) + [-1, -1] and out["be_rows"] == [3]
     assert out["even"] == list(range(12))
@@ -380,14 +378,7 @@ def test_sharded_entry_points_on_a_subset_of_the_devices():
     raised ZeroDivisionError, and a device listed twice a ValueError from a zip. Now the default
     is the structure's own mesh, another mesh is a typed error, positions are moved, and an
     empty or repeated device list is refused by name."""
-    env = dict(os.environ)
-    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + f" --xla_force_host_platform_device_count={DEVICES}").strip()
-    env["JAX_PLATFORMS"] = "cpu"
-    env["PYTHONPATH"] = f"{ROOT}{os.pathsep}" + env.get("PYTHONPATH", "")
-    r = subprocess.run([sys.executable, "-c", _DEVICE_SUBSETS_CHILD], env=env, capture_output=True,
-                       text=True, timeout=300)
-    assert r.returncode == 0, r.stderr[-4000:]
-    out = json.loads(r.stdout.strip().splitlines()[-1])
+    out = _run_in_devices(["-c", _DEVICE_SUBSETS_CHILD])
     assert out["default"] and out["own"] and out["rows_on_4"] and out["rows_on_one"], out
     for name in ("query_on_4", "query_reversed"):
         assert out[name].startswith("ArgumentError: sharded_query: the structure is sharded over 3 "
@@ -410,7 +401,7 @@ def _child(full: bool) -> dict:
     from jaxcds import sharding as S
     from jaxcds.algorithms import vertex_degrees, vertex_normals
     from jaxcds.generators import random_planar_triangulation
-    from jaxcds.mesh import boundary_loops, load_mesh
+    from jaxcds.mesh import boundary_loops
     from jaxcds.structures import CornerTable, HalfEdge, registry
 
     from conftest import load_shared
