@@ -27,7 +27,7 @@ or 16-bit relative offsets with long references through ``VO*`` (``LRBits``, Sec
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple, Optional, Sequence
+from typing import NamedTuple, Optional
 
 import jax
 import jax.numpy as jnp
@@ -40,7 +40,7 @@ from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
 from jaxcds.construct.ring_search import check_sweeps, improve_ring
-from jaxcds.mesh import TriMesh, load_mesh, validate, validate_and_close
+from jaxcds.mesh import load_mesh, validate, validate_and_close
 from jaxcds.structures.base import (Int, MeshStructure, check_id_space, id_table_route, interleave_rows,
                                     take_nonnegative)
 from jaxcds.structures.corner_table import CornerTable

@@ -69,7 +69,7 @@ import numpy as np
 from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
+from jaxcds.mesh import load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, _jit_when_eager, by_table, shared_subexpression
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct.bp import unbalanced_at
