@@ -98,11 +98,15 @@ def _structure_mesh(s) -> Optional[Mesh]:
     return None
 
 
+def _same_devices(a: Mesh, b: Mesh) -> bool:
+    """The same devices in the same order (what a jitted call with arrays placed on both takes;
+    the same devices in another order are "incompatible" to JAX)."""
+    return list(a.devices.flat) == list(b.devices.flat)
+
+
 def _on_mesh(x: jax.Array, mesh: Mesh) -> bool:
-    """``x`` is placed on ``mesh``'s devices in ``mesh``'s order (what a jitted call with the
-    structure's arrays takes; the same devices in another order are "incompatible" to JAX)."""
-    sharding = x.sharding
-    return isinstance(sharding, NamedSharding) and list(sharding.mesh.devices.flat) == list(mesh.devices.flat)
+    """``x`` is placed on ``mesh``'s devices in ``mesh``'s order (:func:`_same_devices`)."""
+    return isinstance(x.sharding, NamedSharding) and _same_devices(x.sharding.mesh, mesh)
 
 
 def _is_numeric(dtype) -> bool:
@@ -360,7 +364,7 @@ def sharded_query(s: ShardedStructure, op: str, ids, mesh: Optional[Mesh] = None
         raise errors.ArgumentError(f"sharded_query: unknown operator {op!r}; one of {sorted(OPERATOR_KINDS)}")
     own = _structure_mesh(s)
     mesh = own if mesh is None and own is not None else _mesh_arg(mesh, "sharded_query")
-    if own is not None and list(own.devices.flat) != list(mesh.devices.flat):
+    if own is not None and not _same_devices(own, mesh):
         raise errors.ArgumentError(
             f"sharded_query: the structure is sharded over {own.devices.size} device(s), the "
             f"mesh given holds {mesh.devices.size}, not the same ones in the same order; pass "
