@@ -787,23 +787,24 @@ def _table_route(op: str, needs: tuple):
     return route
 
 
-def _face_route(border: bool):
+def _face_route(op: str, needs: tuple):
     """``PEMB._tabled_face`` / ``_tabled_is_border``: every dart's face tabulated once
     (:meth:`TableOperators.dart_face_table`: no ``enclose`` search per id), then one gather per
     id (``is_border``: the face is a border loop's, ``num_faces``)."""
 
     @by_table
     def route(self, d: Int) -> Int:
-        f = self.with_tables(origin=False).dart_face_table()[jnp.asarray(d, jnp.int32)]
-        return f == self.num_faces if border else f
+        tabled = self.with_tables(twin="twin" in needs, origin="origin" in needs)
+        f = tabled.dart_face_table()[jnp.asarray(d, jnp.int32)]
+        return f == self.num_faces if op == "is_border" else f
 
-    route.__name__ = route.__qualname__ = "_tabled_is_border" if border else "_tabled_face"
+    route.__name__ = route.__qualname__ = "_tabled_" + op
     return route
 
 
 for _op, _needs in PEMB._TABLE_OPS.items():
-    setattr(PEMB, "_tabled_" + _op, _face_route(_op == "is_border") if _op in ("face", "is_border")
-            else _table_route(_op, _needs))
+    _route = _face_route if _op in ("face", "is_border") else _table_route
+    setattr(PEMB, "_tabled_" + _op, _route(_op, _needs))
 
 
 class TableOperators:

@@ -31,13 +31,13 @@ def mesh():
     return random_planar_triangulation(300, seed=5)
 
 
-def _answers(s, ids, per_query: bool):
-    # a fresh jit per call: the route is chosen at trace time
+def _answers(s, ids, per_query: bool, ops=OPS):
+    # a fresh jit per call: the route is chosen at trace time; the operators' common searches
+    # traced once (pemb's, as verify does: half the compile time)
     def run(s, d):
-        if per_query:
-            with base.per_query_routes():
-                return tuple(getattr(s, op)(d) for op in OPS)
-        return tuple(getattr(s, op)(d) for op in OPS)
+        with (base.per_query_routes() if per_query else contextlib.nullcontext()), \
+                base.shared_subexpressions():
+            return tuple(getattr(s, op)(d) for op in ops)
     return [np.asarray(x) for x in jax.jit(run)(s, ids)]
 
 
@@ -185,15 +185,6 @@ PEMB_OPS = ("target", "origin", "twin", "next", "prev", "face", "is_border", "cc
             "cw_vertex_edge")
 
 
-def _pemb_answers(s, ids, per_query: bool):
-    def run(s, d):
-        # the searches of the operators traced once (as verify does): half the compile time
-        with (base.per_query_routes() if per_query else contextlib.nullcontext()), \
-                base.shared_subexpressions():
-            return tuple(getattr(s, op)(d) for op in PEMB_OPS)
-    return [np.asarray(x) for x in jax.jit(run)(s, ids)]
-
-
 @pytest.mark.parametrize("packed", [False, True], ids=["one", "packed"])
 def test_pemb_tables_route_equals_its_searches(packed):
     """pemb answers batches of a few darts' worth of ids from per-call tables (one
@@ -207,7 +198,7 @@ def test_pemb_tables_route_equals_its_searches(packed):
     assert set(type(s).table_queries) == set(PEMB_OPS)
     darts = np.tile(s.all_darts(), 4)  # four times the darts: every operator takes its table
     assert all(s.takes_table(op, darts.size) for op in PEMB_OPS)
-    for op, a, b in zip(PEMB_OPS, _pemb_answers(s, darts, False), _pemb_answers(s, darts, True)):
+    for op, a, b in zip(PEMB_OPS, _answers(s, darts, False, PEMB_OPS), _answers(s, darts, True, PEMB_OPS)):
         np.testing.assert_array_equal(a, b, err_msg=f"pemb.{op}")
 
 
@@ -264,12 +255,7 @@ def test_lr_id_tables_equal_its_decoding(kind):
     darts = np.tile(s.all_darts(), -(-2 * s.num_darts // s.all_darts().size))
     assert s.takes_table("target", darts.size) and not s.takes_table("target", s.num_darts)
 
-    def run(s, d, per_query):
-        with (base.per_query_routes() if per_query else contextlib.nullcontext()):
-            return tuple(getattr(s, op)(d) for op in LR_OPS)
-
-    got = jax.jit(lambda s, d: run(s, d, False))(s, darts)
-    want = jax.jit(lambda s, d: run(s, d, True))(s, darts)
+    got, want = _answers(s, darts, False, LR_OPS), _answers(s, darts, True, LR_OPS)
     for op, a, b in zip(LR_OPS, got, want):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b), err_msg=f"{kind}.{op}")
+        np.testing.assert_array_equal(a, b, err_msg=f"{kind}.{op}")
     assert pack([m, random_planar_triangulation(50, seed=1)], kind).structure.table_queries == {}
