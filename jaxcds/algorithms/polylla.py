@@ -1045,7 +1045,10 @@ def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool,
             points=tri.points[used], faces=faces, source=f"{tri.source}[component {c}]",
             flipped=flipped, clockwise=part_cw if flipped else None)
         t0 = time.perf_counter()
-        s = build_structure(sub, structure, check=False)  # a piece of a valid input
+        try:
+            s = build_structure(sub, structure, check=False)  # a piece of a valid input
+        except errors.JaxcdsError as exc:  # a piece the structure refuses (lr: a lone triangle)
+            raise type(exc)(_piece_refused(c, ncomp, rows, structure, exc)) from exc
         t_build += time.perf_counter() - t0
         m = polylla(s, sub.points, corners=sub.input_faces, clockwise=tri.all_clockwise,
                     tables=tables, canonical=False, mode=mode, row_ids=rows)
@@ -1067,6 +1070,14 @@ def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool,
     mesh = PolyllaMesh(points=tri.points, offsets=offsets, indices=indices,
                        triangles=tri.num_faces, timings=t, seed_edges=seed_edges, **counts)
     return mesh, t_build
+
+
+def _piece_refused(c: int, ncomp: int, rows: np.ndarray, structure: str, exc) -> str:
+    """The message for connected piece ``c`` (input triangles ``rows``) that ``structure``
+    refused: which piece, by its input triangles, then the structure's own reason."""
+    shown = ", ".join(str(int(r)) for r in rows[:5]) + (", ..." if rows.size > 5 else "")
+    return (f"Polylla on {structure}: connected piece {c} of {ncomp} (input triangle(s) {shown}; "
+            f"{rows.size} in all) cannot be built: {exc}")
 
 
 def run(source, output: Optional[str] = None, *, structure: str = "halfedge",

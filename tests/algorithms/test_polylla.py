@@ -533,6 +533,21 @@ def test_pemb_runs_each_piece_of_a_disconnected_input(clockwise, shuffled):
     np.testing.assert_array_equal(out.indices, ref.indices)
 
 
+@pytest.mark.parametrize("structure", ["lr", "lr-bits"])
+def test_a_piece_the_structure_refuses_is_named(structure):
+    """LR needs a ring of at least 4 vertices: a lone triangle beside a larger piece is refused
+    with the piece named by its input triangle, not only the ring's own message."""
+    a = random_tri(0, 40)
+    lone = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]) + [5.0, 5.0]
+    pts = np.concatenate([a.points, lone])
+    faces = np.concatenate([a.faces, [[a.num_vertices, a.num_vertices + 1, a.num_vertices + 2]]])
+    tri = io._make(pts, faces, "pieces")
+    with pytest.raises(errors.UnsupportedTopologyError,
+                       match=rf"connected piece 1 of 2 \(input triangle\(s\) {a.num_faces}; 1 in all\)"
+                             r".*3 vertices"):
+        P.run(tri, structure=structure)
+
+
 def test_corners_are_checked():
     tri = random_tri(0)
     s = P.build_structure(tri)
