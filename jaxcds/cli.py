@@ -96,7 +96,6 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
     if info is None:
         raise errors.JaxcdsError(
             f"unknown structure {structure_name!r}; available: {', '.join(registry.names())}")
-    builder = info.builder
     if ring_sweeps:
         if structure_name not in ("lr", "lr-bits"):
             raise errors.JaxcdsError(
@@ -108,6 +107,8 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
 
         def builder(m):
             return build_lr(m, bits=structure_name == "lr-bits", ring_sweeps=ring_sweeps)
+    else:
+        builder = info.builder
     closed = False
     if info.name not in ("halfedge", "pemb") and not info.closes_boundaries:
         from jaxcds.mesh import validate_and_close

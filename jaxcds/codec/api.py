@@ -19,9 +19,9 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds.codec import fileformat as ff
-from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n
+from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n  # noqa: F401  (Paper6n: named in decode's docs)
 from jaxcds.codec.encode import encode_faces
-from jaxcds.codec.words import Words, to_mixed
+from jaxcds.codec.words import Words
 from jaxcds.construct.schnyder import prepare_mesh
 from jaxcds.mesh import (TriMesh, boundary_loops, close_boundaries, load_mesh, topology,
                          trusted_faces, validate)

@@ -47,7 +47,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._args import is_integer
 from jaxcds._progress import Progress, want_progress
-from jaxcds.construct.ring_expander import _extract_ring, _n, _p, _tables
+from jaxcds.construct.ring_expander import _extract_ring, _n, _tables
 
 __all__ = ["improve_ring", "ring_cost", "check_sweeps"]
 

@@ -10,7 +10,7 @@ import dataclasses
 from typing import Callable, Dict
 
 from jaxcds import errors
-from jaxcds.mesh import TriMesh, load_mesh
+from jaxcds.mesh import load_mesh
 
 __all__ = ["register", "build", "names", "STRUCTURES", "StructureInfo"]
 
