@@ -450,3 +450,30 @@ def test_bench_10m_runs_every_step_in_a_child_per_structure(tmp_path, capsys):
     (r,) = json.loads(out.read_text())["rows"]
     assert not r["done"] and r["exit_status"] == -9 and "--timeout" in r["failure"]
     assert "FAILED" in capsys.readouterr().out
+
+
+def test_race_pemb_host_rows_decodes_the_rows_of_face_vertices(capsys):
+    """benchmarks/race_pemb_host_rows.py's host decoder (the stop-48 experiment) gives
+    ``face_vertices()`` bit for bit on a pemb with a border loop and on a packed union, refuses
+    bits that are not a walk, and the race checks its normals against the face list."""
+    import jax.numpy as jnp
+
+    from benchmarks import race_pemb_host_rows as H
+    from jaxcds import batch
+    from jaxcds.generators import random_planar_triangulation
+    from jaxcds.mesh import load_mesh
+    from jaxcds.structures import registry
+    from conftest import SHARED
+
+    grid = registry.build("pemb", load_mesh(str(SHARED / "meshes" / "grid.off")))
+    assert int(grid.holes.shape[0]) == 1
+    packed = batch.pack([random_planar_triangulation(n, seed=n) for n in (40, 7, 90)], "pemb").structure
+    for s, offs in ((grid, jnp.zeros((1,), jnp.int32)), (packed, packed.mesh_dart_offsets)):
+        np.testing.assert_array_equal(np.asarray(H.host_rows(s, offs)), np.asarray(s.face_vertices()))
+    aw = np.asarray(grid.A.words)
+    pw = np.zeros_like(np.asarray(grid.P.bits.words))  # every parenthesis ')': no walk
+    args = (grid.num_darts, grid.P.size, grid.num_tree_parens, np.array([0, grid.num_darts], np.int32),
+            np.asarray(grid.holes), grid.num_faces, grid._num_pemb_faces)
+    assert H.decode_rows(aw, pw, *args)[1] is False
+    assert H.main(["--vertices", "300", "--meshes", "3", "--rounds", "1"]) == 0
+    assert capsys.readouterr().out.count("x the face list") == 6
