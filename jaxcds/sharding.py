@@ -272,11 +272,14 @@ _WHOLE_MESH_ROUTES = frozenset({"vertex_degrees", "all_edge_targets", "target_ta
 def _forward(op):
     def method(self, x):
         inner = self.structure
-        if op in inner.table_queries and inner.takes_table(op, jnp.size(x)):
+        if any(inner.takes_table(t, jnp.size(x)) for t in inner.table_queries):
             # a whole-mesh table route (CDS Target / Origin from every edge's target, a batch
             # of 1/16 of the darts or more) reads whole arrays, as _WHOLE_MESH_ROUTES do: on
             # the padded ones 70 of 240 targets of a sharded CDS6n icosphere were wrong (PAD
-            # read as a vertex; verify, one_ring), sweep 16a
+            # read as a vertex; verify, one_ring), sweep 16a. Any operator of a batch that
+            # large: one that is no table operator itself may call one (CDS Source and
+            # Corner_vertex call Origin), whose table on the padded arrays read padding as
+            # targets or never ended its pointer jumping (sweep 48: a 45-vertex CDS4n hung)
             return getattr(self.unpadded(), op)(x)
         return getattr(inner, op)(x)
 
