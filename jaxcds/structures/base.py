@@ -402,9 +402,14 @@ def _bucketed(run, structure, ids):
     compiled for the batch's exact size and kept: 24 eager calls of 100-5,000 random darts on a
     2,000-vertex pemb took 119 s and 2.4 GB that stayed (stop 43). Here a size costs at most one
     compilation per power of two, and whole operators compile once instead of loop by loop."""
-    jitted = getattr(run, "_jitted", None)
+    # one program per route choice: jit's cache does not key on per_query_routes(), so an
+    # eager call inside that block ran the table route compiled by an earlier call outside it
+    # (sweep 48)
+    key = "_jitted_per_query" if _NO_TABLE else "_jitted"
+    jitted = getattr(run, key, None)
     if jitted is None:
-        jitted = run._jitted = jax.jit(run)
+        jitted = jax.jit(lambda structure, *ids: run(structure, *ids)) if _NO_TABLE else jax.jit(run)
+        setattr(run, key, jitted)
     shape = ids[0].shape
     size = int(np.prod(shape, dtype=np.int64))
     if size == 0 or any(x.shape != shape for x in ids):

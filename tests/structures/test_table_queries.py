@@ -105,6 +105,24 @@ def test_the_route_follows_the_batch_size(kind, op, alias, mesh, monkeypatch):
     assert spy.calls == 2
 
 
+
+def test_eager_calls_follow_per_query_routes(monkeypatch, fresh_traces):
+    """An eager call runs a cached jitted program per power-of-two batch size
+    (``base._bucketed``); inside ``per_query_routes`` it is the per-query route's program,
+    whichever route an earlier eager call compiled (sweep 48: the table route's was reused)."""
+    from jaxcds.structures.cds import CDS6n
+
+    s = registry.build("cds6n", random_planar_triangulation(60, seed=1))
+    d = s.all_darts()
+    with base.per_query_routes():
+        want = np.asarray(jax.jit(lambda s, d: s.target(d))(s, d))
+    real = CDS6n._edge_target_table
+    monkeypatch.setattr(CDS6n, "_edge_target_table",
+                        lambda self: (real(self) + 1) % self.num_vertices)  # a broken table
+    assert not np.array_equal(np.asarray(s.target(d)), want)  # eager: the table route
+    with base.per_query_routes():
+        np.testing.assert_array_equal(np.asarray(s.target(d)), want)
+
 def test_each_operator_has_its_own_threshold():
     """CDS6n's Face_left table pays from half the darts (its per-query Fronts are single
     reads), its Target table from 1/16; CDS5n-O(1)'s Target (Thm 6, O(1)) from half."""
