@@ -124,6 +124,9 @@ def test_table_routes_sharded(report):
     assert report["cds4n"]["table_target_mismatches"] == 0, report["cds4n"]
     # Source and Corner_vertex call Origin's table route: on the padded arrays, wrong or a hang
     assert report["cds4n"]["table_alias_mismatches"] == 0, report["cds4n"]
+    # Adjacent's own Target table (a batch of n / 16 pairs or more): on the padded arrays, a hang
+    assert report["cds4n"]["adjacent_edges"] >= 20, report["cds4n"]
+    assert report["cds4n"]["adjacent_mismatches"] == 0, report["cds4n"]
 
 
 def test_pemb_is_not_split_by_rows(report):
@@ -480,6 +483,19 @@ def _child(full: bool) -> dict:
     out["cds4n"]["table_alias_mismatches"] = int(sum(np.sum(
         np.asarray(jax.jit(lambda t, d: getattr(t, op)(d))(ss4, every)) != np.asarray(s4.origin(every)))
         for op in ("source", "corner_vertex")))
+    # CDS Adjacent of a batch of n / 16 pairs or more reads every edge's Target from a whole-mesh
+    # table: on the unpadded arrays too (on the padded ones its pointer jumping never ended, a
+    # 45-vertex CDS4n hung on one pair; sweep 48b). Half the pairs are edges.
+    from jaxcds.algorithms import adjacent
+    ar = np.random.default_rng(48)  # its own draws: the checks below keep theirs
+    au = ar.integers(0, s4.num_vertices, 40).astype(np.int32)
+    av = ar.integers(0, s4.num_vertices, 40).astype(np.int32)
+    au[::2], av[::2] = np.asarray(s4.origin(every[:80:4])), np.asarray(s4.target(every[:80:4]))
+    aw = np.asarray(adjacent(s4, au, av))
+    out["cds4n"]["adjacent_edges"] = int(aw.sum())
+    out["cds4n"]["adjacent_mismatches"] = int(sum(np.sum(
+        np.asarray(f(ss4, S.shard_rows(au, mesh), S.shard_rows(av, mesh)))[:40] != aw)
+        for f in (jax.jit(adjacent), jax.jit(lambda t, a, b: t.adjacent(a, b)))))
     # lr-bits has int16 leaves: padded with their largest value (PAD = 2^29 overflowed them)
     sb = registry.build("lr-bits", grid)
     sbs = S.shard_structure(sb, mesh)

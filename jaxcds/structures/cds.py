@@ -1331,6 +1331,13 @@ class _CDS(MeshStructure):
                                 self.num_vertices))
         return ts
 
+    def adjacent_takes_table(self, batch_size: int) -> bool:
+        """Whether :meth:`adjacent` of ``batch_size`` pairs reads every edge's Target from a
+        whole-mesh table (:meth:`all_edge_targets`) rather than walking per query: where Target
+        walks (Thm 2) and the batch asks at least ``n / 16`` pairs. A sharded structure runs
+        such a batch on its unpadded arrays (:class:`jaxcds.sharding.ShardedStructure`)."""
+        return self._target_walks and batch_size * 16 >= self.num_vertices
+
     def adjacent(self, u: Int, v: Int) -> Int:
         """``Adjacent(u, v)`` (Sec. 1.3, Thm 6): every edge leaves one of its endpoints, so ``u``
         and ``v`` are adjacent iff ``v`` is the target of one of the 3 edges leaving ``u`` or the
@@ -1342,8 +1349,7 @@ class _CDS(MeshStructure):
         largest degree (sweep 17b: 100K queries around a degree-1,000 hub, cds5n 4.8 s; a walk's
         lanes into a hub are many, so compacting them did not help: 12 s)."""
         u, v = _ids(u), _ids(v)
-        big = max(u.size, v.size) * 16 >= self.num_vertices
-        table = self._edge_target_table() if self._target_walks and big else None
+        table = self._edge_target_table() if self.adjacent_takes_table(max(u.size, v.size)) else None
         tu = self._out_targets(u, table)
         tv = self._out_targets(v, table)
         hit = jnp.zeros(u.shape if u.ndim >= v.ndim else v.shape, bool)
