@@ -273,7 +273,8 @@ class ShardedStructure(MeshStructure):
         takes_table = getattr(self.structure, "adjacent_takes_table", None)
 
         def adjacent(u, v):
-            if takes_table is not None and takes_table(max(jnp.size(u), jnp.size(v))):
+            size = max(_batch_seen(self.structure, u), _batch_seen(self.structure, v))
+            if takes_table is not None and takes_table(size):
                 return self.unpadded().adjacent(u, v)
             return padded_adjacent(u, v)
 
@@ -285,10 +286,26 @@ class ShardedStructure(MeshStructure):
 _WHOLE_MESH_ROUTES = frozenset({"vertex_degrees", "all_edge_targets", "target_table"})
 
 
+def _batch_seen(inner, x) -> int:
+    """The largest batch ``inner``'s operators may see for a call on ``x``: an eager call of a
+    class with ``eager_buckets`` (its own, or a nested operator's: CDS Corner_vertex calls
+    Origin eagerly) runs padded to the next power of two (``base._bucketed``), and its table
+    routes decide on that size (sweep 48b: 100 eager Targets of a 301-vertex CDS4n over 4
+    devices, bucketed to 128, took the table on the padded arrays: 32 wrong)."""
+    from jaxcds.structures import base
+
+    size = int(jnp.size(x))
+    if (size > 1 and inner.eager_buckets and not base._ONE_PASS
+            and base._eager(inner, (x,))):
+        return 1 << (size - 1).bit_length()
+    return size
+
+
 def _forward(op):
     def method(self, x):
         inner = self.structure
-        if any(inner.takes_table(t, jnp.size(x)) for t in inner.table_queries):
+        size = _batch_seen(inner, x)
+        if any(inner.takes_table(t, size) for t in inner.table_queries):
             # a whole-mesh table route (CDS Target / Origin from every edge's target, a batch
             # of 1/16 of the darts or more) reads whole arrays, as _WHOLE_MESH_ROUTES do: on
             # the padded ones 70 of 240 targets of a sharded CDS6n icosphere were wrong (PAD

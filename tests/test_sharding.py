@@ -127,6 +127,8 @@ def test_table_routes_sharded(report):
     # Adjacent's own Target table (a batch of n / 16 pairs or more): on the padded arrays, a hang
     assert report["cds4n"]["adjacent_edges"] >= 20, report["cds4n"]
     assert report["cds4n"]["adjacent_mismatches"] == 0, report["cds4n"]
+    # eager calls bucketed to a power of two reach the table sizes: on the padded arrays, wrong
+    assert report["cds4n"]["eager_bucket_mismatches"] == 0, report["cds4n"]
 
 
 def test_pemb_is_not_split_by_rows(report):
@@ -496,6 +498,14 @@ def _child(full: bool) -> dict:
     out["cds4n"]["adjacent_mismatches"] = int(sum(np.sum(
         np.asarray(f(ss4, S.shard_rows(au, mesh), S.shard_rows(av, mesh)))[:40] != aw)
         for f in (jax.jit(adjacent), jax.jit(lambda t, a, b: t.adjacent(a, b)))))
+    # eager calls: a CDS operator runs padded to the next power of two (base._bucketed) and its
+    # table routes decide on that size: 100 darts (128 >= 1806 / 16) and 18 pairs (32 >= 301 / 16)
+    # took the tables on the padded arrays (sweep 48b)
+    eids = every[ar.integers(0, every.size, 100)]
+    out["cds4n"]["eager_bucket_mismatches"] = int(sum(
+        np.sum(np.asarray(getattr(ss4, op)(eids)) != np.asarray(getattr(s4, op)(eids)))
+        for op in ("target", "origin", "corner_vertex")) + np.sum(
+        np.asarray(ss4.adjacent(au[:18], av[:18])) != aw[:18]))
     # lr-bits has int16 leaves: padded with their largest value (PAD = 2^29 overflowed them)
     sb = registry.build("lr-bits", grid)
     sbs = S.shard_structure(sb, mesh)
