@@ -287,18 +287,13 @@ _WHOLE_MESH_ROUTES = frozenset({"vertex_degrees", "all_edge_targets", "target_ta
 
 
 def _batch_seen(inner, x) -> int:
-    """The largest batch ``inner``'s operators may see for a call on ``x``: an eager call of a
-    class with ``eager_buckets`` (its own, or a nested operator's: CDS Corner_vertex calls
-    Origin eagerly) runs padded to the next power of two (``base._bucketed``), and its table
-    routes decide on that size (sweep 48b: 100 eager Targets of a 301-vertex CDS4n over 4
-    devices, bucketed to 128, took the table on the padded arrays: 32 wrong)."""
-    from jaxcds.structures import base
+    """The batch ``inner``'s operators see for a call on ``x`` (``base.eager_batch_size``: an
+    eager call runs bucketed to the next power of two, and its table routes decide on that
+    size; sweep 48b: 100 eager Targets of a 301-vertex CDS4n over 4 devices, bucketed to 128,
+    took the table on the padded arrays: 32 wrong)."""
+    from jaxcds.structures.base import eager_batch_size
 
-    size = int(jnp.size(x))
-    if (size > 1 and inner.eager_buckets and not base._ONE_PASS
-            and base._eager(inner, (x,))):
-        return 1 << (size - 1).bit_length()
-    return size
+    return eager_batch_size(inner, (x,))
 
 
 def _forward(op):

@@ -393,6 +393,23 @@ def _eager(structure, ids) -> bool:
     return not any(isinstance(leaf, _Tracer) for leaf in leaves)
 
 
+def _bucket(size: int) -> int:
+    """The next power of two from ``size`` (``size >= 1``): the batch :func:`_bucketed` pads to."""
+    return 1 << (size - 1).bit_length()
+
+
+def eager_batch_size(structure, ids) -> int:
+    """The batch size ``structure``'s operators see for a call on ``ids`` (a tuple of id
+    arrays): an eager call of an :attr:`MeshStructure.eager_buckets` class runs padded to the
+    next power of two (:func:`_bucketed`; nested operators too: CDS Corner_vertex calls Origin
+    eagerly), and its table routes decide on that size; otherwise the batch's own size.
+    :mod:`jaxcds.sharding` reads it to send table-size batches to its unpadded arrays."""
+    size = int(jnp.size(ids[0]))
+    if size > 1 and structure.eager_buckets and not _ONE_PASS and _eager(structure, ids):
+        return _bucket(size)
+    return size
+
+
 def _bucketed(run, structure, ids):
     """An eager call of ``run`` (an operator's wrapper) as one jitted program, its ids padded on
     the host to the next power of two (with copies of the first id: answers about a real dart)
@@ -408,13 +425,14 @@ def _bucketed(run, structure, ids):
     key = "_jitted_per_query" if _NO_TABLE else "_jitted"
     jitted = getattr(run, key, None)
     if jitted is None:
+        # the per-query program wraps run in a function of its own: jit caches by function
         jitted = jax.jit(lambda structure, *ids: run(structure, *ids)) if _NO_TABLE else jax.jit(run)
         setattr(run, key, jitted)
     shape = ids[0].shape
     size = int(np.prod(shape, dtype=np.int64))
     if size == 0 or any(x.shape != shape for x in ids):
         return jitted(structure, *ids)
-    cap = 1 << (size - 1).bit_length()
+    cap = _bucket(size)
     if cap == size and len(shape) == 1:
         return jitted(structure, *ids)
     padded = []
