@@ -244,6 +244,23 @@ def test_race_face_derivation_checks_each_route_against_the_face_list(capsys):
     assert "packed:2 lr/given_rows" in out and "grid.off cds5n: skipped" in out, out
 
 
+def test_race_normals_peers_pairs_every_structure_with_every_peer(capsys):
+    """benchmarks/race_normals_peers.py checks each structure's normals against the face list,
+    skips a structure that closes holes and a peer that is not installed by name, and pairs every
+    structure with the face list and every peer that ran; an unknown peer is refused."""
+    from benchmarks import race_normals_peers as R
+
+    assert R.main(["--meshes", "random:300,grid.off", "--structures", "cds5n,lr",
+                   "--peers", "trimesh,openmesh", "--rounds", "2"]) == 0
+    out = capsys.readouterr().out
+    ran = 1 + ("openmesh: skipped" not in out)  # OpenMesh builds from source: often absent
+    assert "grid.off cds5n: skipped" in out, out
+    assert out.count(" / ") == 3 * (1 + ran), out  # random:300 cds5n, lr; grid.off lr
+    assert "random:300 lr / trimesh: paired" in out and "grid.off lr / face_list: paired" in out, out
+    with pytest.raises(SystemExit, match="unknown peer"):
+        R.main(["--meshes", "random:300", "--peers", "trimesh,igl"])
+
+
 def test_race_in_loop_checks_both_routes_against_the_face_list(capsys):
     """benchmarks/race_in_loop.py traces the CDS5n-O(1) normals with the Target plans inside and
     outside the one-trip loop (``base.IN_LOOP_MAX_VERTICES`` forced each way) and checks both
