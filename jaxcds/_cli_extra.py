@@ -96,7 +96,7 @@ def cmd_encode(args) -> int:
 
     _check_output(args.output, (".cds",), "a .cds file", args.mesh)
     t0 = time.perf_counter()
-    mesh = load_mesh(args.mesh)
+    mesh = load_mesh(args.mesh, weld=args.weld)
     with _writing(args.output):
         rep = write_cds(args.output, mesh, mixed=not args.separate_words)
     n, f = mesh.num_vertices, mesh.num_faces
@@ -211,6 +211,9 @@ def add_commands(sub) -> None:
                    help="store the red word then the black word instead of the streamable "
                         "mixed word (Sec. 3.3)")
     e.add_argument("--json", action="store_true")
+    e.add_argument("--no-weld", dest="weld", action="store_false",
+                   help="keep vertices that share a position apart (by default they are welded: "
+                        "texture seams)")
     e.set_defaults(func=cmd_encode)
 
     d = sub.add_parser("decode", help="decompress a .cds file into a mesh (and a CDS structure)")

@@ -66,7 +66,7 @@ def cmd_info(args) -> int:
         codec = _optional("jaxcds.codec", "the .cds codec")
         report = codec.cds_info(args.mesh)
     else:
-        report = topology(load_mesh(args.mesh))
+        report = topology(load_mesh(args.mesh, weld=args.weld))
     if args.json:
         _print_json(report)
     else:
@@ -82,15 +82,16 @@ def cmd_info(args) -> int:
 
 # ------------------------------------------------------------------------------ build
 def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: int = 0,
-                 return_structure: bool = False):
+                 return_structure: bool = False, weld: bool = True):
     """Build ``structure_name`` on ``mesh``; the dict ``jaxcds build --json`` prints.
     ``ring_sweeps``: the LR ring search (``lr`` / ``lr-bits`` only, see
     :func:`jaxcds.structures.lr.build_lr`). ``return_structure``: ``(dict, structure, mesh)``,
-    the mesh being the one built on (holes closed for a structure that needs a closed mesh)."""
+    the mesh being the one built on (holes closed for a structure that needs a closed mesh).
+    ``weld``: :func:`~jaxcds.mesh.load_mesh`'s, for a path (``--no-weld``)."""
     from jaxcds.mesh import load_mesh
     from jaxcds.structures import registry
 
-    mesh = load_mesh(mesh)
+    mesh = load_mesh(mesh, weld=weld)
     registry.names()
     info = registry.STRUCTURES.get(structure_name)
     if info is None:
@@ -155,7 +156,7 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
 def cmd_build(args) -> int:
     require_jax()
     out = build_report(args.structure, args.mesh, verify=args.verify,
-                       ring_sweeps=args.ring_sweeps)
+                       ring_sweeps=args.ring_sweeps, weld=args.weld)
     if args.json:
         _print_json(out)
     else:
@@ -197,7 +198,7 @@ def cmd_demo(args) -> int:
 
     require_jax()
     path = default_mesh_path() if args.mesh is None else args.mesh
-    mesh = load_mesh(path)
+    mesh = load_mesh(path, weld=args.weld)
     topo = topology(mesh)
     print(f"mesh: {os.path.basename(path)}  V={topo['vertices']} E={topo['edges']} F={topo['faces']} "
           f"genus={topo['genus']} closed={topo['closed']} manifold={topo['manifold']}")
@@ -272,11 +273,17 @@ def _parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser("demo", help="run every structure on the bundled bunny and check it")
     d.add_argument("mesh", nargs="?", help="another mesh instead of the bundled bunny")
+    d.add_argument("--no-weld", dest="weld", action="store_false",
+                   help="keep vertices that share a position apart (by default they are welded: "
+                        "texture seams)")
     d.set_defaults(func=cmd_demo)
 
     i = sub.add_parser("info", help="topology report of a mesh (or a .cds file)")
     i.add_argument("mesh")
     i.add_argument("--json", action="store_true")
+    i.add_argument("--no-weld", dest="weld", action="store_false",
+                   help="keep vertices that share a position apart (by default they are welded: "
+                        "texture seams)")
     i.set_defaults(func=cmd_info)
 
     b = sub.add_parser("build", help="build a structure; memory figures; --verify checks it")
@@ -285,6 +292,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--verify", action="store_true",
                    help="check every operator on every edge against the half-edge")
     b.add_argument("--json", action="store_true")
+    b.add_argument("--no-weld", dest="weld", action="store_false",
+                   help="keep vertices that share a position apart (by default they are welded: "
+                        "texture seams)")
     b.add_argument("--ring-sweeps", type=int, default=0, metavar="N",
                    help="lr / lr-bits: anneal the ring for N sweeps towards fewer references "
                         "(beyond the paper; 0 = RING-EXPANDER's ring)")

@@ -52,6 +52,10 @@ class TriMesh:
       dummy_vertices: ``(V,)`` bool, True for vertices added by :func:`close_boundaries`.
       dummy_faces: ``(F,)`` bool, True for faces added by :func:`close_boundaries`.
       source: where the mesh came from (file name or ``"arrays"``).
+      welded_ids: sorted ids of the vertices that :func:`load_mesh` made by merging two or more
+        input vertices of one position (``None``: no record, e.g. a mesh made by hand). Defect
+        messages name a welded vertex as such, since a merge is a common cause of a defect the
+        file itself does not have (two bodies touching at a point become a bow-tie).
 
     Made by hand, ``vertices`` may be any real ``(V, 3)`` (or planar ``(V, 2)``, z = 0) array
     or nested lists and ``faces`` any integer ``(F, 3)`` ones (floats of integral value too, as
@@ -68,6 +72,7 @@ class TriMesh:
     dummy_vertices: Optional[np.ndarray] = None
     dummy_faces: Optional[np.ndarray] = None
     source: str = "arrays"
+    welded_ids: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         # A TriMesh made by hand may hold big-endian, float, unsigned, strided or list arrays:
@@ -82,6 +87,8 @@ class TriMesh:
             object.__setattr__(self, "vertices", v)
         if not _canonical(self.faces, np.int32, 3):
             object.__setattr__(self, "faces", _int32_faces(self.faces, v.shape[0], self.source))
+        if self.welded_ids is not None:
+            object.__setattr__(self, "welded_ids", np.unique(np.asarray(self.welded_ids, np.int64)).astype(np.int32))
 
     @property
     def num_vertices(self) -> int:
@@ -1228,9 +1235,9 @@ def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMe
         raise errors.EmptyMeshError(
             f"{source}: empty mesh ({v.shape[0]} vertices, {f.shape[0]} faces)")
     _check_indices(f, v.shape[0], source)
-    welded = 0
+    welded, merged = 0, np.zeros(0, np.int64)
     if weld and np.all(np.isfinite(v)):
-        v, f, welded = _weld(v, f)
+        v, f, welded, merged = _weld(v, f)
     used = np.zeros(v.shape[0], dtype=bool)
     used[f.ravel()] = True
     removed = int(v.shape[0] - used.sum())
@@ -1238,8 +1245,10 @@ def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMe
         remap = np.cumsum(used) - 1
         v = v[used]
         f = remap[f]
+        merged = remap[merged[used[merged]]]
     return TriMesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f, dtype=np.int32),
-                   welded=int(welded), removed_unreferenced=removed, source=source)
+                   welded=int(welded), removed_unreferenced=removed, source=source,
+                   welded_ids=merged.astype(np.int32) if weld else None)
 
 
 def _int64_ids(f: np.ndarray, num_vertices: int, source: str, *,
@@ -1352,16 +1361,19 @@ def trusted_faces(faces: Any, num_vertices: Any, source: str) -> np.ndarray:
     return f
 
 
-def _weld(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Merge vertices with identical coordinates, keeping first-occurrence order."""
-    _, first, inverse = np.unique(v, axis=0, return_index=True, return_inverse=True)
+def _weld(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+    """Merge vertices with identical coordinates, keeping first-occurrence order. Returns the
+    vertices, the faces, how many vertices merged away and the sorted ids of the merged ones."""
+    _, first, inverse, counts = np.unique(v, axis=0, return_index=True, return_inverse=True,
+                                          return_counts=True)
     inverse = inverse.ravel()
     if first.size == v.shape[0]:
-        return v, f, 0
+        return v, f, 0, np.zeros(0, np.int64)
     order = np.argsort(first)  # unique rows in order of first occurrence
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
-    return v[first[order]], rank[inverse][f], int(v.shape[0] - first.size)
+    merged = np.sort(rank[counts > 1])
+    return v[first[order]], rank[inverse][f], int(v.shape[0] - first.size), merged
 
 
 # ---------------------------------------------------------------------------------- edges
@@ -1425,7 +1437,8 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
     if degenerate.size:
         fi = int(degenerate[0])
         found.append(errors.DegenerateFaceError(
-            f"{src}: face {fi} repeats a vertex {f[fi].tolist()} ({degenerate.size} degenerate faces)"))
+            f"{src}: face {fi} repeats a vertex {f[fi].tolist()} ({degenerate.size} degenerate faces)"
+            f"{_weld_hint(mesh, f[degenerate])}"))
     et = edge_table(mesh.faces) if et is None else et
     partner, ok = kernels.duplicate_faces(f, et.order, et.starts, 64)
     if not ok:  # a huge non-manifold edge: sort the faces instead of comparing pairs
@@ -1435,13 +1448,14 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
         fi = int(dup[0])
         found.append(errors.DuplicateFaceError(
             f"{src}: faces {fi} and {int(partner[fi])} use the same vertices {f[fi].tolist()} "
-            f"({dup.size} faces in duplicate groups)"))
+            f"({dup.size} faces in duplicate groups){_weld_hint(mesh, f[dup])}"))
     nm = np.nonzero(et.count > 2)[0]
     if nm.size:
         a, b = (int(x) for x in et.edges[nm[0]])
         found.append(errors.NonManifoldEdgeError(
             f"{src}: edge ({a}, {b}) is shared by {int(et.count[nm[0]])} faces "
-            f"({nm.size} non-manifold edges); a manifold edge has at most 2"))
+            f"({nm.size} non-manifold edges); a manifold edge has at most 2"
+            f"{_weld_hint(mesh, et.edges[nm])}"))
     two = et.count == 2
     same_dir = np.nonzero(two & (et.forward != 1))[0]
     if same_dir.size:
@@ -1456,15 +1470,33 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
                   "orientable surface")
         found.append(errors.InconsistentOrientationError(
             f"{src}: faces {faces_on.tolist()} both traverse edge ({a}, {b}) in the same direction "
-            f"({same_dir.size} such edges); {advice}"))
+            f"({same_dir.size} such edges); {advice}{_weld_hint(mesh, et.edges[same_dir])}"))
     if not nm.size and not degenerate.size:
         fans = _fans_per_vertex(f, et, mesh.num_vertices)
         bad_v = np.nonzero(fans > 1)[0]
         if bad_v.size:
             found.append(errors.NonManifoldVertexError(
                 f"{src}: vertex {int(bad_v[0])} joins {int(fans[bad_v[0]])} separate fans of faces "
-                f"({bad_v.size} non-manifold vertices)"))
+                f"({bad_v.size} non-manifold vertices){_weld_hint(mesh, bad_v)}"))
     return found
+
+
+def _weld_hint(mesh: TriMesh, involved: np.ndarray) -> str:
+    """``""`` unless some of the vertex ids ``involved`` in a defect were made by
+    :func:`load_mesh`'s welding (``mesh.welded_ids``); then the clause that says so and how to
+    load the file without it. Why: a merge of coincident vertices is a common cause of a defect
+    the file itself does not have (two bodies that touch at a point or along an edge, a thin
+    sliver whose corners share a position), and the message would otherwise point at the file."""
+    if mesh.welded_ids is None or not mesh.welded_ids.size:
+        return ""
+    ids = np.unique(np.asarray(involved, np.int64).ravel())
+    hit = ids[np.isin(ids, mesh.welded_ids)]
+    if not hit.size:
+        return ""
+    which = f"vertex {int(hit[0])}" if hit.size == 1 else f"{hit.size} of them, e.g. vertex {int(hit[0])},"
+    return (f"; {which} merged input vertices that share a position (load_mesh welds coincident "
+            "vertices, for texture seams): load_mesh(path, weld=False), or --no-weld on the "
+            "command line, keeps them apart")
 
 
 def _duplicate_faces_by_sorting(f: np.ndarray) -> np.ndarray:

@@ -34,6 +34,24 @@ def test_info_reports_defects_of_a_defective_mesh(capsys):
     assert rc == 0 and d["manifold"] is False and any("NonManifoldEdge" in x for x in d["defects"])
 
 
+def test_no_weld_keeps_coincident_vertices_apart(capsys):
+    """``--no-weld`` on info / build / encode: cow.off, refused once welded (its message says
+    so), is a closed genus-0 manifold as written and builds and verifies as such."""
+    rc, d = run_json(capsys, ["info", mesh_path("cow.off"), "--json", "--no-weld"])
+    assert rc == 0 and d["manifold"] is True and d["genus"] == 0 and d["welded_vertices"] == 0, d
+    rc, d = run_json(capsys, ["build", mesh_path("cow.off"), "-s", "cds5n", "--no-weld", "--verify",
+                              "--json"])
+    assert rc == 0 and d["mismatches"] == 0 and d["vertices"] == 2762, d
+    assert main(["build", mesh_path("cow.off"), "-s", "cds5n"]) != 0
+    assert "--no-weld" in capsys.readouterr().err
+
+
+def test_encode_no_weld(capsys, tmp_path):
+    out = tmp_path / "cow.cds"
+    assert main(["encode", mesh_path("cow.off"), "-o", str(out), "--no-weld", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["vertices"] == 2762 and out.stat().st_size > 0
+
+
 def test_build_verify_json(capsys):
     rc, d = run_json(capsys, ["build", mesh_path("grid.off"), "--structure", "corner-table",
                               "--verify", "--json"])

@@ -55,6 +55,48 @@ def test_defective_real_files_are_refused(name, kind):
     assert name in str(exc.value)
 
 
+def _touching_tetrahedra(shared_corner: bool):
+    """Two closed tetrahedra; with ``shared_corner`` the second one's first corner is written as
+    a vertex of its own at the first one's apex position (a file of two bodies touching at a
+    point: manifold as written, a bow-tie once welded), else they are apart. A vertex no face
+    uses comes first, so the ids move when it is dropped."""
+    tet = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    other = tet * -1 + (0 if shared_corner else 5)
+    v = np.concatenate([[[9, 9, 9]], tet, other])
+    f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]) + 1
+    return v, np.concatenate([f, f + 4])
+
+
+def test_a_defect_that_welding_made_says_so_and_how_to_avoid_it():
+    """Welding by position (texture seams) merges two bodies that touch at a point into a bow-tie:
+    the message names the merged vertex as welded and ``weld=False``, which loads the file as the
+    valid two-body mesh it is; a defect of the file itself gets no such clause."""
+    v, f = _touching_tetrahedra(True)
+    m = load_mesh(v, f)
+    assert m.welded == 1 and m.removed_unreferenced == 1 and m.welded_ids.tolist() == [0]  # after the drop
+    (d,) = find_defects(m)
+    assert isinstance(d, errors.NonManifoldVertexError), d
+    assert "vertex 0 joins 2 separate fans" in str(d) and "vertex 0 merged input vertices" in str(d), d
+    assert "weld=False" in str(d) and "--no-weld" in str(d), d
+    raw = load_mesh(v, f, weld=False)
+    assert raw.welded_ids is None and not find_defects(raw)
+    apart = load_mesh(*_touching_tetrahedra(False))
+    assert apart.welded_ids.size == 0 and not find_defects(apart)
+    (d,) = find_defects(TriMesh(vertices=m.vertices, faces=m.faces))  # the bow-tie as a file holds it
+    assert isinstance(d, errors.NonManifoldVertexError) and "weld" not in str(d), d
+    (d,) = find_defects(load_mesh(m.vertices, m.faces))  # ... and loaded: nothing merged on load
+    assert isinstance(d, errors.NonManifoldVertexError) and "weld" not in str(d), d
+
+
+def test_welding_is_named_in_the_shared_cow():
+    """cow.off as shipped: one non-manifold edge, made by welding two vertices of one position
+    (the shared README: "must be refused clearly"); unwelded, it is a closed genus-0 manifold."""
+    with pytest.raises(errors.NonManifoldEdgeError, match=r"vertex \d+ merged input vertices"):
+        validate(load_shared("cow.off"))
+    raw = load_mesh(mesh_path("cow.off"), weld=False)
+    assert not find_defects(raw) and topology(raw)["genus"] == 0
+
+
 def test_cow_names_the_non_manifold_edge():
     with pytest.raises(errors.NonManifoldEdgeError, match=r"edge \(\d+, \d+\) is shared by 4 faces"):
         validate(load_shared("cow.off"))
