@@ -1600,7 +1600,17 @@ def _fast_check(mesh: TriMesh, components: bool, unreferenced_ok: bool = False) 
 def _components_error(mesh: TriMesh, ncomp: int, structure: str) -> errors.MeshError:
     return errors.UnsupportedTopologyError(
         f"{mesh.source}: {structure} needs a connected mesh, this one has {ncomp} components; "
-        "use jaxcds.mesh.split_components(mesh) and build one structure per component")
+        "use jaxcds.mesh.split_components(mesh) and build one structure per component, or "
+        f"pack them into one: jaxcds.batch.pack(split_components(mesh), {_kind_name(structure)})")
+
+
+def _kind_name(structure: str) -> str:
+    """The registry name that opens ``structure`` (``"cds5n (Schnyder woods)"``), quoted, or a
+    placeholder where it names none (``"this structure"``)."""
+    from jaxcds.structures import registry  # at call time: the registry imports this module
+
+    name = structure.split()[0] if structure.split() else ""
+    return repr(name) if name in registry.names() else "name"
 
 
 def _closed_error(mesh: TriMesh, loops: list, structure: str) -> errors.MeshError:

@@ -280,6 +280,21 @@ def test_close_boundaries_of_closed_mesh_is_identity():
     assert c.num_faces == m.num_faces and not c.dummy_vertices.any()
 
 
+@pytest.mark.parametrize("name", ["cds4n", "lr-bits", "pemb"])
+def test_a_kind_that_needs_one_component_names_itself_and_its_pack(name):
+    """The refusal of a several-body mesh names the kind asked for (lr-bits was named "lr") and
+    the packed batch that takes the bodies as they are; that call works."""
+    from jaxcds import batch, build
+
+    m = load_mesh(np.concatenate([OCT_V, OCT_V + 5]), np.concatenate([OCT_F, OCT_F + 6]))
+    with pytest.raises(errors.UnsupportedTopologyError) as exc:
+        build(name, m)
+    msg = str(exc.value)
+    assert msg.startswith(f"arrays: {name}") and "2 components" in msg, msg
+    assert f"jaxcds.batch.pack(split_components(mesh), {name!r})" in msg, msg
+    assert batch.pack(split_components(m), name).structure.num_vertices == 12
+
+
 def test_split_components_and_connected_requirement():
     v2 = np.concatenate([OCT_V, OCT_V + 5])
     f2 = np.concatenate([OCT_F, OCT_F + 6])

@@ -742,17 +742,17 @@ def _check_table(ct: CornerTable, where: str) -> None:
 _AUTO_K = (16, 32, 64, 128, 256, 512, 1024, 0)
 
 
-def _prepare(mesh):
+def _prepare(mesh, name: str = "lr"):
     """``(mesh, twins)``: the validated mesh, holes closed, and the dart twins validation found
     for its faces (:class:`jaxcds.mesh.Twins`; ``None`` if it took the full path), so the corner
     table does not match twins a second time."""
     mesh = load_mesh(mesh)
     if mesh.dummy_vertices is not None and np.any(mesh.dummy_vertices):
         # already closed by close_boundaries: keep its dummy flags
-        return validate(mesh, closed=True, connected=True, structure="lr", return_twins=True)
+        return validate(mesh, closed=True, connected=True, structure=name, return_twins=True)
     # validation and hole closing (Sec. 4.6: one dummy vertex per hole) in one pass over the
     # faces; a closed mesh comes back unchanged
-    return validate_and_close(mesh, connected=True, structure="lr", return_twins=True)
+    return validate_and_close(mesh, connected=True, structure=name, return_twins=True)
 
 
 def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
@@ -771,7 +771,7 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
     ring_sweeps = check_sweeps(ring_sweeps)
     ks = _check_k(k) if bits else None
-    mesh, twins = _prepare(mesh)
+    mesh, twins = _prepare(mesh, "lr-bits" if bits else "lr")
     ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
     dummy = mesh.dummy_vertices
     seeds = check_seeds(seeds, ct.V, dummy)
