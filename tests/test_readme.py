@@ -50,3 +50,55 @@ def test_readme_python_block_runs(k):
     r = subprocess.run([sys.executable, "-c", code + "import jax\n" + tail], cwd=ROOT,
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, f"README block {k} failed:\n{code}\n--- stderr:\n{r.stderr[-3000:]}"
+
+
+# ---------------------------------------------------------------------------- docs/ARCHITECTURE.md
+ARCH = (ROOT / "docs" / "ARCHITECTURE.md").read_text(encoding="utf-8")
+
+
+def test_architecture_test_paths_exist():
+    """Every ``tests/...py`` file docs/ARCHITECTURE.md names exists (its layout named a
+    ``tests/structures/test_halfedge.py`` that never did: the HalfEdge's tests are
+    ``test_reference.py`` and ``test_protocol.py``)."""
+    paths = set(re.findall(r"\btests/[\w/]+\.py\b", ARCH))
+    assert paths, "docs/ARCHITECTURE.md names no test file"
+    missing = sorted(p for p in paths if not (ROOT / p).is_file())
+    assert not missing, f"docs/ARCHITECTURE.md names test files that do not exist: {missing}"
+
+
+def test_architecture_register_keywords_exist():
+    """The keywords docs/ARCHITECTURE.md gives ``registry.register`` are its own (it said
+    ``requires=...``, which register refuses with a TypeError; they are ``closes_boundaries`` and
+    ``description``)."""
+    import inspect
+
+    from jaxcds.structures import registry
+
+    m = re.search(r"registry\.register\(([^)]*)\)", ARCH)
+    assert m, "docs/ARCHITECTURE.md no longer shows registry.register's signature"
+    documented = set(re.findall(r"(\w+)=", m.group(1)))
+    params = set(inspect.signature(registry.register).parameters)
+    assert documented and documented <= params, (
+        f"docs/ARCHITECTURE.md gives register keywords {sorted(documented - params)} that it lacks")
+
+
+def test_architecture_static_field_examples_are_static_fields():
+    """The static fields docs/ARCHITECTURE.md names as examples are static fields of some
+    registered structure (it named a ``max_degree`` that no structure has)."""
+    import dataclasses
+
+    import jaxcds.structures  # noqa: F401  (registers every structure class)
+    from jaxcds.structures.base import MeshStructure
+
+    m = re.search(r"shapes are `static_field\(\)`s \(([^)]*)\)", ARCH)
+    assert m, "docs/ARCHITECTURE.md no longer names example static fields"
+    named = set(re.findall(r"`(\w+)`", m.group(1)))
+
+    def subclasses(c):
+        for k in c.__subclasses__():
+            yield k
+            yield from subclasses(k)
+
+    static = {f.name for c in subclasses(MeshStructure) if dataclasses.is_dataclass(c)
+              for f in dataclasses.fields(c) if f.metadata.get("static")}
+    assert named and named <= static, f"not a static field of any structure: {sorted(named - static)}"
