@@ -102,3 +102,22 @@ def test_architecture_static_field_examples_are_static_fields():
     static = {f.name for c in subclasses(MeshStructure) if dataclasses.is_dataclass(c)
               for f in dataclasses.fields(c) if f.metadata.get("static")}
     assert named and named <= static, f"not a static field of any structure: {sorted(named - static)}"
+
+
+def test_readme_names_every_dtype_a_structure_stores():
+    """The README's opening says what structures are made of; every dtype a registered
+    structure stores is named there (it said "pytrees of `int32` arrays", while lr-bits keeps its
+    16-bit offsets as int16 and pemb its bit vectors as uint32 words)."""
+    import jax
+
+    import jaxcds
+    from jaxcds.structures import registry
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    m = re.search(r"Structures are immutable pytrees of (.*?);", text, flags=re.S)
+    assert m, "README.md no longer says what structures are made of"
+    named = set(re.findall(r"`(u?int\d+)`", m.group(1)))
+    mesh = jaxcds.load_mesh(ROOT / "jaxcds" / "data" / "bunny.off")
+    stored = {str(leaf.dtype) for name in registry.names()
+              for leaf in jax.tree_util.tree_leaves(registry.build(name, mesh))}
+    assert stored <= named, f"README.md does not name the dtypes {sorted(stored - named)}"
