@@ -121,3 +121,40 @@ def test_readme_names_every_dtype_a_structure_stores():
     stored = {str(leaf.dtype) for name in registry.names()
               for leaf in jax.tree_util.tree_leaves(registry.build(name, mesh))}
     assert stored <= named, f"README.md does not name the dtypes {sorted(stored - named)}"
+
+
+def _cli_synopsis() -> dict:
+    """``{command: set of options}`` of the README's "Command line" block (bench left out: its
+    ``...`` stands for the harness's many options)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    m = re.search(r"^## Command line\n+```\n(.*?)^```", text, flags=re.S | re.M)
+    assert m, "README.md lost its \"Command line\" block"
+    out = {}
+    for line in m.group(1).splitlines():
+        words = line.split("#")[0].split()
+        if len(words) >= 2 and words[0] == "jaxcds" and words[1] != "bench":
+            out[words[1]] = set(re.findall(r"(?<![\w-])(--?[a-z][\w-]*)", " ".join(words[2:])))
+    return out
+
+
+def test_readme_cli_synopsis_matches_the_parser():
+    """Every option the README's "Command line" block shows exists on its command, and every
+    option of a command is shown (``--no-weld`` of info / encode / demo was missing from it)."""
+    import argparse
+
+    from jaxcds import cli
+
+    sub = next(a for a in cli._parser()._actions if isinstance(a, argparse._SubParsersAction))
+    synopsis = _cli_synopsis()
+    assert {"demo", "info", "build", "encode", "decode", "polylla"} <= set(synopsis)
+    for command, shown in synopsis.items():
+        parser = sub.choices[command]
+        options = {s for a in parser._actions if not isinstance(a, argparse._HelpAction)
+                   for s in a.option_strings}
+        longest = {max(a.option_strings, key=len) for a in parser._actions
+                   if a.option_strings and not isinstance(a, argparse._HelpAction)}
+        assert shown <= options, f"README shows {sorted(shown - options)} that `jaxcds {command}` lacks"
+        unshown = {o for o in longest if o not in shown
+                   and not any(s in shown for a in parser._actions if o in a.option_strings
+                               for s in a.option_strings)}
+        assert not unshown, f"README's synopsis of `jaxcds {command}` leaves out {sorted(unshown)}"
