@@ -158,3 +158,27 @@ def test_readme_cli_synopsis_matches_the_parser():
                    and not any(s in shown for a in parser._actions if o in a.option_strings
                                for s in a.option_strings)}
         assert not unshown, f"README's synopsis of `jaxcds {command}` leaves out {sorted(unshown)}"
+
+
+def test_readme_float64_advice_names_x64():
+    """The README's "Float32 range" bullet offers float64 positions as a way past float32's
+    range: that holds only with ``jax_enable_x64`` on (without it JAX reads float64 positions as
+    float32 and the normals overflow to NaN as before), so the advice must say so (it did not)."""
+    code = (
+        "import jax, numpy as np, jaxcds\n"
+        "from jaxcds.algorithms import vertex_normals\n"
+        "m = jaxcds.load_mesh('jaxcds/data/bunny.off')\n"
+        "s = jaxcds.build('halfedge', m)\n"
+        "p = np.asarray(m.vertices, np.float64) * 1e22\n"
+        "print(bool(np.isnan(np.asarray(vertex_normals(s, p))).any()))\n"
+        "jax.config.update('jax_enable_x64', True)\n"
+        "print(bool(np.isnan(np.asarray(vertex_normals(s, p))).any()))\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.split() == ["True", "False"], r.stdout  # NaN without x64, finite with it
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    m = re.search(r"pass float64 positions([^.]*)", text)
+    assert m, "README.md no longer offers float64 positions"
+    assert "jax_enable_x64" in m.group(1), (
+        "README.md offers float64 positions without saying they need jax_enable_x64")
