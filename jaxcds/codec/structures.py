@@ -566,8 +566,10 @@ def build_cds(structure: str, words: Words, *, dummy=None, **kw):
     """``"cds6n"``, ``"cds5n"`` or ``"cds4n"`` from words. ``dummy``: ``(n,)`` bool, the
     dummy vertices that closed holes, in decoded vertex order (the ``.cds`` file's dummy mask):
     kept as the structure's ``dummy_ids`` (degrees and normals of the open surface)."""
+    from jaxcds import _mappings
     from jaxcds.structures.cds import with_dummy_vertices
 
+    _mappings.relieve()  # a folder of .cds files decoded in one process: programs pile up
     if dummy is not None:
         dummy = _checked_dummy(dummy, words)
         kw.setdefault("boundaries_closed", bool(dummy.any()))

@@ -99,7 +99,6 @@ class CornerTable(MeshStructure):
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "CornerTable":
         """Build from a closed manifold mesh, validated first (typed errors); ``check=False``:
         trusted input, not validated (the checks of :meth:`from_faces` only)."""
-        _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         twins = None
         if check:
@@ -117,6 +116,7 @@ class CornerTable(MeshStructure):
         face), that there is a face (``EmptyMeshError``), and border sides that do not chain
         into loops (``MeshError``). Other defects give a table whose answers are unspecified,
         never a crash: use :meth:`from_mesh` for untrusted input."""
+        _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
         f = trusted_faces(faces, num_vertices, "CornerTable.from_faces")
         if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
             raise errors.EmptyMeshError(f"CornerTable.from_faces: no faces ({int(num_vertices)} "

@@ -55,7 +55,6 @@ class HalfEdge(MeshStructure):
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "HalfEdge":
         """Build from a validated mesh (borders allowed, several components allowed).
         ``check=False``: trusted input, not validated (the checks of :meth:`from_faces` only)."""
-        _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         twins = None
         if check:
@@ -73,6 +72,7 @@ class HalfEdge(MeshStructure):
         into loops (``MeshError`` naming the defect). Other defects (non-manifold edges,
         duplicated or degenerate faces, flipped faces whose borders still chain) give a
         structure whose answers are unspecified, never a crash."""
+        _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
         f = trusted_faces(faces, num_vertices, "HalfEdge.from_faces")
         if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
             raise errors.EmptyMeshError(f"HalfEdge.from_faces: no faces ({int(num_vertices)} "

@@ -302,7 +302,6 @@ class PEMB(MeshStructure):
 
         ``check=False`` skips the validation and the genus test (trusted input, the checks of
         :meth:`from_faces` only: answers unspecified on a defective mesh, never a crash)."""
-        _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
         mesh = load_mesh(mesh)
         if check:
             # refuses vertices in no face too (UnreferencedVertexError): the spanning tree
@@ -325,6 +324,7 @@ class PEMB(MeshStructure):
         face (``EmptyMeshError``), border sides that chain into loops; a walk that breaks on a
         non-planar or disconnected input is ``UnsupportedTopologyError``. Other defects give
         answers that are unspecified, never a crash."""
+        _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
         f = trusted_faces(faces, num_vertices, "PEMB.from_faces")
         nf = int(f.shape[0])
         if nf == 0:  # the walk's first dart would not exist
