@@ -8,7 +8,8 @@ on cds6n, measured 2026-12-03; a half-edge about 36 per new vertex count). Past
 ``/proc/sys/vm/max_map_count`` (65,530 by default: about 850 meshes) LLVM cannot map more code
 and jaxlib 0.10.2 dies of a segmentation fault instead of raising. :func:`relieve` is called
 before each build (``jaxcds.build`` and every structure's own builder: ``build_cds``,
-``build_lr``, ``HalfEdge`` / ``CornerTable`` / ``PEMB.from_mesh``): near the limit it clears
+``build_lr``, ``HalfEdge`` / ``CornerTable`` / ``PEMB.from_faces``, which their ``from_mesh``
+goes through, and the codec's ``build_cds``): near the limit it clears
 JAX's caches (the executables are compiled again when next used) and warns once per clearing. Linux only (elsewhere a no-op).
 """
 
