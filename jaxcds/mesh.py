@@ -225,8 +225,11 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, int]:
             count = int(np.frombuffer(raw[80:84], dtype="<u4")[0]) if len(raw) >= 84 else None
             if count == 0:
                 raise errors.EmptyMeshError(f"{path}: the binary STL header declares 0 triangles")
+            whole = max(len(raw) - 84, 0) // 50  # 50 bytes per triangle after the header
+            held = "no whole triangle" if whole == 0 else f"{whole} whole triangle{'s' * (whole > 1)}"
             raise errors.UnreadableMeshError(
-                f"{path}: a binary STL of {len(raw)} bytes holds no whole triangle (truncated?): "
+                f"{path}: a binary STL of {len(raw)} bytes holds {held}, which trimesh did not "
+                "read (truncated?): "
                 + (f"its header declares {count} triangles, {84 + 50 * count} bytes"
                    if count is not None else "shorter than the 84-byte header"))
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too

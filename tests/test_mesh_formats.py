@@ -492,7 +492,10 @@ _STL_ONE = b"x" * 80 + struct.pack("<I", 1) + struct.pack("<12fH", 0, 0, 1, 0, 0
     (_STL_ONE[:50], errors.UnreadableMeshError, "50 bytes holds no whole triangle.*84-byte header"),
     (_STL_ONE[:90], errors.UnreadableMeshError, "90 bytes holds no whole triangle.*declares 1 triangles, 134 bytes"),
     (_STL_ONE[:80] + struct.pack("<I", 0), errors.EmptyMeshError, "header declares 0 triangles"),
-], ids=["in-header", "in-first-triangle", "zero-triangles"])
+    # two whole all-zero triangles under a count of 5 (sweep 49: it said "no whole triangle")
+    (bytes(80) + struct.pack("<I", 5) + bytes(100), errors.UnreadableMeshError,
+     "184 bytes holds 2 whole triangles, which trimesh did not read.*declares 5 triangles, 334 bytes"),
+], ids=["in-header", "in-first-triangle", "zero-triangles", "whole-triangles-short-of-the-count"])
 def test_binary_stl_without_a_whole_triangle_names_its_sizes(data, kind, match, tmp_path):
     """Robustness sweep (stop 37): a binary STL cut inside its first triangle said "no faces
     could be read (a point cloud, or an empty or unparsable file)", without its sizes."""
