@@ -251,12 +251,15 @@ def test_race_normals_peers_pairs_every_structure_with_every_peer(capsys):
     from benchmarks import race_normals_peers as R
 
     assert R.main(["--meshes", "random:300,grid.off", "--structures", "cds5n,lr",
-                   "--peers", "trimesh,openmesh", "--rounds", "2"]) == 0
+                   "--peers", "trimesh,openmesh", "--rounds", "6"]) == 0  # 6: the fewest with an interval
     out = capsys.readouterr().out
     ran = 1 + ("openmesh: skipped" not in out)  # OpenMesh builds from source: often absent
     assert "grid.off cds5n: skipped" in out, out
     assert out.count(" / ") == 3 * (1 + ran), out  # random:300 cds5n, lr; grid.off lr
     assert "random:300 lr / trimesh: paired" in out and "grid.off lr / face_list: paired" in out, out
+    pairs = [line for line in out.splitlines() if " / " in line]
+    assert all("interval" in line for line in pairs), out
+    assert all(line.endswith("at 1.5x") == (" / face_list:" in line) for line in pairs), out  # own targets
     with pytest.raises(SystemExit, match="unknown peer"):
         R.main(["--meshes", "random:300", "--peers", "trimesh,igl"])
 
