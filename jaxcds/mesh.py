@@ -1339,6 +1339,16 @@ def _check_indices(f: np.ndarray, num_vertices: int, source: str) -> None:
             f"({bad[0].size} bad indices in all)")
 
 
+def _mesh_arg(mesh: Any, function: str) -> "TriMesh":
+    """``mesh`` when it is a :class:`TriMesh`; else the typed error that names ``function`` and
+    what it was given (a tuple or a path reached ``mesh.faces``: an ``AttributeError``)."""
+    if not isinstance(mesh, TriMesh):
+        raise errors.ArgumentError(
+            f"jaxcds.mesh.{function} takes a TriMesh, not an object of type {type(mesh).__name__}; "
+            "make one with jaxcds.load_mesh(path) or jaxcds.load_mesh(vertices, faces)")
+    return mesh
+
+
 def trusted_faces(faces: Any, num_vertices: Any, source: str) -> np.ndarray:
     """``faces`` as the unvalidated builders take them (``HalfEdge.from_faces``,
     ``CornerTable.from_faces``, ``pack(..., check=False)``): C-contiguous int32 ``(F, 3)`` with
@@ -1400,8 +1410,17 @@ class EdgeTable:
 
 def edge_table(faces: np.ndarray) -> EdgeTable:
     """Group the darts by undirected edge (one counting sort by the smaller end, each bucket
-    sorted in cache, see :mod:`jaxcds._mesh_kernels`)."""
+    sorted in cache, see :mod:`jaxcds._mesh_kernels`).
+
+    ``faces``: an ``(F, 3)`` integer array of vertex ids >= 0 (else :class:`ArgumentError` /
+    :class:`InvalidIndexError`: the kernel failed to compile, or indexed out of bounds)."""
     f = np.ascontiguousarray(faces)
+    if f.ndim != 2 or f.shape[1] != 3 or f.dtype.kind not in "iu":
+        raise errors.ArgumentError(
+            f"jaxcds.mesh.edge_table takes an (F, 3) integer array of vertex ids, got "
+            f"{type(faces).__name__} of shape {f.shape} and dtype {f.dtype}")
+    if f.size and f.min() < 0:
+        _check_indices(f, int(f.max()) + 1, "edge_table")
     n = int(f.max(initial=-1)) + 1
     if 3 * f.shape[0] >= 2**31:
         raise errors.MeshError(f"{3 * f.shape[0]} face sides: more than 2^31 - 1 are not supported")
@@ -1414,15 +1433,20 @@ def edge_table(faces: np.ndarray) -> EdgeTable:
 def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.MeshError]:
     """Every defect of the mesh, as (unraised) typed errors, most fundamental first.
 
-    Checks: no faces, non-finite coordinates, unreferenced vertices, degenerate faces, duplicate
+    Checks: no faces, face ids outside ``[0, V)`` (then the only defect listed: edges mean
+    nothing past one), non-finite coordinates, unreferenced vertices, degenerate faces, duplicate
     faces, non-manifold edges, inconsistent orientation, non-manifold vertices. (:func:`load_mesh`
     already refuses empty meshes and bad indices and drops unreferenced vertices; a ``TriMesh``
     made by hand may have them.) ``et``: the mesh's :func:`edge_table`, if already at hand.
     """
-    v, f, src = mesh.vertices, np.ascontiguousarray(mesh.faces), mesh.source
+    v, f, src = _mesh_arg(mesh, "find_defects").vertices, np.ascontiguousarray(mesh.faces), mesh.source
     if f.ndim != 2 or f.shape[0] == 0 or mesh.num_vertices == 0:
         return [errors.EmptyMeshError(f"{src}: the mesh has {mesh.num_vertices} vertices and "
                                       f"{f.shape[0] if f.ndim else 0} faces; nothing to build")]
+    try:  # an id outside [0, V) (a TriMesh made by hand): the edges mean nothing past it
+        _check_indices(f, mesh.num_vertices, src)
+    except errors.InvalidIndexError as exc:
+        return [exc]
     found: list[errors.MeshError] = []
     bad = np.nonzero(~np.isfinite(v).all(axis=1))[0]
     if bad.size:
@@ -1535,7 +1559,8 @@ def split_nonmanifold_vertices(mesh: TriMesh) -> TriMesh:
     """Repair 'bow-tie' vertices: a vertex whose faces form k > 1 separate fans becomes k
     vertices (same position), the copies appended after the originals. Edges must already be
     manifold. Returns the mesh unchanged when every vertex is manifold."""
-    f = mesh.faces.astype(np.int64)
+    f = _mesh_arg(mesh, "split_nonmanifold_vertices").faces.astype(np.int64)
+    _check_indices(f, mesh.num_vertices, mesh.source)
     et = edge_table(f)
     if np.any(et.count > 2):
         raise errors.NonManifoldEdgeError(
@@ -1636,7 +1661,8 @@ def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,
       unreferenced_ok: accept vertices in no face (a half-edge built with
         ``HalfEdge.from_faces`` answers "absent" for them; Polylla's points in a hole).
     """
-    clean = _fast_check(mesh, components=connected, unreferenced_ok=unreferenced_ok)
+    clean = _fast_check(_mesh_arg(mesh, "validate"), components=connected,
+                        unreferenced_ok=unreferenced_ok)
     if clean is None:  # a defect, or an input the fast path does not take: the full checks
         et = edge_table(mesh.faces)
         found = [d for d in find_defects(mesh, et)
@@ -1668,7 +1694,7 @@ def validate_and_close(mesh: TriMesh, *, connected: bool = True,
     return ``(mesh, twins)``, the :class:`Twins` of the returned (closed) mesh's faces, the
     closing fans included, or ``None`` when validation took the full path.
     """
-    clean = _fast_check(mesh, components=connected)
+    clean = _fast_check(_mesh_arg(mesh, "validate_and_close"), components=connected)
     if clean is None:  # the full checks, from ONE edge table
         et = edge_table(mesh.faces)
         found = find_defects(mesh, et)
@@ -1713,6 +1739,7 @@ def _components(mesh: TriMesh) -> tuple[int, np.ndarray]:
 def boundary_loops(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[np.ndarray]:
     """Boundary loops as arrays of vertex ids, each in the order of the border darts (the
     reverse of the face sides on the boundary). Requires manifold vertices on the boundary."""
+    _check_indices(_mesh_arg(mesh, "boundary_loops").faces, mesh.num_vertices, mesh.source)
     et = edge_table(mesh.faces) if et is None else et
     # the face side on each edge with one side, in increasing side id (E-sized, not 3F-sized)
     border_side = np.sort(et.order[et.starts[:-1][et.count == 1]])
@@ -1777,7 +1804,7 @@ def topology(mesh: TriMesh) -> dict:
     """Topology report: counts, components, boundary loops, Euler characteristic, genus,
     orientability, manifoldness, and the list of defects (as messages). Never raises on a
     readable mesh."""
-    clean = _fast_check(mesh, components=True)
+    clean = _fast_check(_mesh_arg(mesh, "topology"), components=True)
     if clean is not None:  # no defect: everything follows from the twins (same report)
         return _clean_topology(mesh, clean)
     f = mesh.faces.astype(np.int64)
@@ -1930,7 +1957,7 @@ def close_boundaries(mesh: TriMesh) -> TriMesh:
     (CDS paper Sec. 4.5, LR paper Sec. 4.6). Dummy vertices and faces are appended after the
     originals and flagged in ``dummy_vertices`` / ``dummy_faces``, so results map back by
     slicing ``[:num_original]``. A closed mesh is returned unchanged (with all-False masks)."""
-    clean = _fast_check(mesh, components=False)
+    clean = _fast_check(_mesh_arg(mesh, "close_boundaries"), components=False)
     if clean is not None:  # no defect: the border sides are the darts without a twin
         return _close_loops(mesh, _boundary_cycles(mesh, np.flatnonzero(clean.twins.opp < 0))[0])
     et = edge_table(mesh.faces)
@@ -1961,7 +1988,13 @@ def _close_loops(mesh: TriMesh, loops: list[np.ndarray]) -> TriMesh:
 
 
 def split_components(mesh: TriMesh) -> list[TriMesh]:
-    """One :class:`TriMesh` per connected component (vertices renumbered from 0, input order kept)."""
+    """One :class:`TriMesh` per connected component (vertices renumbered from 0, input order kept).
+
+    Raises:
+      InvalidIndexError: a face id outside ``[0, V)`` (a ``TriMesh`` made by hand; the
+        component kernel wrote out of bounds on one, a crash or a silently wrong split).
+    """
+    _check_indices(_mesh_arg(mesh, "split_components").faces, mesh.num_vertices, mesh.source)
     ncomp, face_label = _components(mesh)
     if ncomp == 1:
         return [mesh]

@@ -960,3 +960,75 @@ def test_trusted_faces_checks_ids_only():
         with pytest.raises(errors.ArgumentError, match="num_vertices"):
             trusted_faces(f, nv, "t")
     assert trusted_faces(f, np.int64(3), "t") is f
+
+
+_TET4_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+
+
+@pytest.mark.parametrize("fn", ["validate", "topology", "close_boundaries", "split_components",
+                                "split_nonmanifold_vertices", "boundary_loops", "find_defects",
+                                "validate_and_close"])
+@pytest.mark.parametrize("arg", [(_TET4_V, [[0, 2, 1]]), "cube.off", None])
+def test_mesh_functions_name_an_argument_that_is_not_a_trimesh(fn, arg):
+    """The functions documented on a TriMesh raised AttributeError ('tuple' object has no
+    attribute 'faces') on a tuple, a path or None: now ArgumentError naming the function, what it
+    was given and how to make a TriMesh."""
+    import jaxcds.mesh as M
+
+    with pytest.raises(errors.ArgumentError) as exc:
+        getattr(M, fn)(arg)
+    msg = str(exc.value)
+    assert f"jaxcds.mesh.{fn} takes a TriMesh" in msg and type(arg).__name__ in msg, msg
+    assert "load_mesh" in msg, msg
+
+
+@pytest.mark.parametrize("bad", [7, -1])
+def test_bad_face_ids_of_a_hand_made_trimesh_are_named_by_every_mesh_function(bad):
+    """A TriMesh made by hand may hold ids outside [0, V) (its docstring: validate names them).
+    find_defects listed only 'vertex 3 is in no face' (with -1: an orientation defect on 'faces []'
+    of edge (0, 0)), split_nonmanifold_vertices returned the mesh as it was and boundary_loops
+    raised numpy's IndexError or answered loops of one vertex: each now names the face and the id
+    (InvalidIndexError), as validate does."""
+    import jaxcds.mesh as M
+
+    m = TriMesh(_TET4_V, np.array([[0, 2, 1], [0, 1, bad]]))
+    found = find_defects(m)
+    assert [type(d) for d in found] == [errors.InvalidIndexError], found
+    assert f"face 1 refers to vertex {bad}" in str(found[0])
+    for fn in (M.split_nonmanifold_vertices, boundary_loops):
+        with pytest.raises(errors.InvalidIndexError, match=f"face 1 refers to vertex {bad},"):
+            fn(m)
+
+
+def test_split_components_and_edge_table_name_a_bad_face_id_instead_of_crashing():
+    """split_components ran its numba component kernel on ids outside [0, V): an out-of-bounds
+    write (a segmentation fault, or silently wrong parts); edge_table's kernel read out of bounds
+    on a negative id (a segmentation fault). Run in a subprocess, so the old crash fails this test
+    instead of ending the run."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np\nfrom jaxcds import errors\nfrom jaxcds.mesh import TriMesh, edge_table, split_components\n"
+            "v = np.zeros((4, 3))\n"
+            "for bad in (7, 100000, -1):\n"
+            "    m = TriMesh(v, np.array([[0, 2, 1], [0, 1, bad]] * 50))\n"
+            "    try:\n        split_components(m)\n    except errors.InvalidIndexError as exc:\n"
+            "        print('named', exc)\n    else:\n        print('no error')\n"
+            "try:\n    edge_table(np.array([[0, 1, -1]] * 50))\nexcept errors.InvalidIndexError as exc:\n"
+            "    print('named', exc)\nelse:\n    print('no error')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stdout.splitlines()
+    assert len(lines) == 4, out.stdout
+    assert all(l.startswith("named arrays: face 1 refers to vertex") for l in lines[:3]), out.stdout
+    assert lines[3].startswith("named edge_table: face 0 refers to vertex -1"), out.stdout
+
+
+@pytest.mark.parametrize("faces", [[[0, 1, 2.0]], "faces", np.zeros(3, np.int32)])
+def test_edge_table_names_faces_it_cannot_take(faces):
+    """edge_table (public) passed anything to its numba kernel: a float or list array gave numba's
+    TypingError, a string numpy's UFuncTypeError (a negative id: the subprocess test above)."""
+    from jaxcds.mesh import edge_table
+
+    with pytest.raises((errors.ArgumentError, errors.InvalidIndexError), match="edge_table"):
+        edge_table(faces)
