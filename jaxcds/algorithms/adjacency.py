@@ -6,10 +6,11 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxcds import errors
 from jaxcds._args import is_integer
-from jaxcds.structures.base import id_arg
+from jaxcds.structures.base import id_arg, structure_arg
 
 __all__ = ["adjacent", "one_ring", "rotate_until"]
 
@@ -68,10 +69,23 @@ def adjacent(s, u, v):
     family), a dummy is adjacent to its hole's border vertices (mask with
     ``s.dummy_vertex_mask()``); between the input's vertices the answer is the input mesh's.
 
+    ``u`` and ``v`` broadcast against each other (a scalar against an array); the answer has
+    their broadcast shape.
+
     Raises:
       InvalidIndexError: ``u`` or ``v`` are not integers (floats, bools, strings: a cast would
-        truncate 1.7 to 1); any integer kind and byte order is read as int32."""
-    return _adjacent(s, id_arg(u, "adjacent: u"), id_arg(v, "adjacent: v"))
+        truncate 1.7 to 1); any integer kind and byte order is read as int32.
+      ArgumentError: ``s`` is not a structure, or ``u`` and ``v`` have shapes that do not
+        broadcast (JAX's untyped ValueError / TypeError from inside the jitted query before)."""
+    structure_arg(s, "adjacent")
+    u, v = id_arg(u, "adjacent: u"), id_arg(v, "adjacent: v")
+    try:
+        np.broadcast_shapes(np.shape(u), np.shape(v))
+    except ValueError:
+        raise errors.ArgumentError(
+            f"adjacent: u and v must have shapes that broadcast together, got "
+            f"{tuple(np.shape(u))} and {tuple(np.shape(v))}") from None
+    return _adjacent(s, u, v)
 
 
 @jax.jit
@@ -116,7 +130,9 @@ def one_ring(s, v, max_degree: int):
 
     Raises:
       ArgumentError: ``max_degree`` is not a non-negative integer (``1.7`` or ``"3"`` would
-        otherwise be cut or parsed quietly, and a negative size fails inside XLA)."""
+        otherwise be cut or parsed quietly, and a negative size fails inside XLA), or ``s`` is
+        not a structure."""
+    structure_arg(s, "one_ring")
     if not is_integer(max_degree) or max_degree < 0:
         raise errors.ArgumentError(
             f"one_ring: max_degree must be a non-negative integer (the ring's static width), "

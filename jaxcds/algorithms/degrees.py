@@ -5,12 +5,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxcds.structures.base import structure_arg
+
 __all__ = ["vertex_degrees"]
 
 
-@jax.jit
 def vertex_degrees(s):
-    """``(num_vertices,)`` int32 degree of every vertex.
+    """``(num_vertices,)`` int32 degree of every vertex. Jitted.
 
     A structure with a faster route (e.g. CDS: 3 outgoing edges + incoming counts) provides a
     ``vertex_degrees()`` method; otherwise :func:`dart_count_degrees`.
@@ -19,7 +20,16 @@ def vertex_degrees(s):
     (``s.dummy_vertex_mask()``, the CDS family) answers 0 for a dummy and leaves it out of
     its neighbours' degrees, as LR (which shows holes as borders) and the half-edge do. (A
     structure's own route does this itself.)
+
+    Raises:
+      ArgumentError: ``s`` is not a structure (an ``AttributeError`` on a tracer before).
     """
+    structure_arg(s, "vertex_degrees")
+    return _vertex_degrees(s)
+
+
+@jax.jit
+def _vertex_degrees(s):
     if hasattr(s, "vertex_degrees"):
         return s.vertex_degrees()
     return dart_count_degrees(s)
@@ -52,3 +62,6 @@ def _without_dummy_neighbours(s, deg, dummy):
         fan = fan & valid
     fans_at = corner_sums(fan.astype(jnp.int32), fv, s.num_vertices)
     return jnp.where(dummy, 0, deg - fans_at // 2)
+
+
+vertex_degrees.__wrapped__ = _vertex_degrees.__wrapped__  # the unjitted body

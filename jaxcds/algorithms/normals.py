@@ -210,8 +210,14 @@ def vertex_normals(s, positions, method: str = "scatter"):
       MeshError: ``positions`` is not ``(num_vertices, 3)`` (checked at trace time), or not
         real numbers (strings, objects, complex numbers: the imaginary part would be dropped), or a
         masked array (the mask would be dropped).
-      ArgumentError: an unknown ``method``.
+      ArgumentError: an unknown ``method`` (also one that is not a string: JAX's untyped
+        "non-hashable static arguments" before), or ``s`` is not a structure.
     """
+    from jaxcds.structures.base import structure_arg
+
+    structure_arg(s, "vertex_normals")
+    if not isinstance(method, str) or method not in ("scatter", "gather"):
+        raise errors.ArgumentError(f"unknown normals method {method!r}: 'scatter' or 'gather'")
     refuse_non_real(positions, "positions", bools=True)
     return _vertex_normals(s, native_order(positions), method=method)
 

@@ -92,6 +92,21 @@ def integer_array(ids, what: str) -> np.ndarray:
     return a
 
 
+def structure_arg(s, what: str) -> None:
+    """:class:`~jaxcds.errors.ArgumentError` naming ``what`` unless ``s`` is a jaxcds structure
+    (a :class:`MeshStructure`: a registry build, a packed batch, a sharded structure). The
+    generic algorithms read ``s.num_vertices`` inside ``jit``: a ``TriMesh``, an array or a
+    path failed there with an ``AttributeError`` about a tracer."""
+    if not isinstance(s, MeshStructure):
+        from jaxcds.mesh import TriMesh
+
+        hint = (" (build one first: jaxcds.build(name, mesh))" if isinstance(s, TriMesh)
+                else "")
+        raise errors.ArgumentError(
+            f"{what}: expected a jaxcds structure (jaxcds.build(name, mesh), a packed batch), "
+            f"got {type(s).__name__}{hint}")
+
+
 def id_arg(x, what: str) -> Int:
     """Ids handed to an operator, as int32: a traced or int32 jax array as it is (inside ``jit``
     the caller's dtype is fixed already; other integer dtypes converted); host values (numpy

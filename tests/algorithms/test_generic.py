@@ -650,3 +650,39 @@ def test_one_ring_of_a_border_vertex_leaves_the_dummy_out(structure):
         got = order[ring[i, : deg[i]]]
         assert {int(got[0]), int(got[-1])} <= border and adjacent(he, i, int(got[0]))
     assert np.asarray(one_ring(s, np.flatnonzero(dummy), width)[1]).tolist() == [0]
+
+
+@pytest.mark.parametrize("call", ["vertex_normals", "vertex_degrees", "adjacent", "one_ring"])
+def test_generic_algorithms_name_an_argument_that_is_not_a_structure(call):
+    """A TriMesh or an array in the structure's place failed inside jit with an AttributeError on
+    a tracer ('DynamicJaxprTracer has no attribute num_vertices'): now ArgumentError naming the
+    function and, for a TriMesh, how to build a structure from it."""
+    m = load_mesh(*octahedron())
+    args = {"vertex_normals": (m.vertices,), "vertex_degrees": (), "adjacent": (0, 1),
+            "one_ring": ([0], 4)}[call]
+    fn = {"vertex_normals": vertex_normals, "vertex_degrees": vertex_degrees,
+          "adjacent": adjacent, "one_ring": one_ring}[call]
+    for bad in (m, m.vertices):
+        with pytest.raises(errors.ArgumentError) as exc:
+            fn(bad, *args)
+        msg = str(exc.value)
+        assert msg.startswith(f"{call}: expected a jaxcds structure") and type(bad).__name__ in msg, msg
+    assert "jaxcds.build(name, mesh)" in msg
+
+
+def test_adjacent_names_ids_whose_shapes_do_not_broadcast():
+    """adjacent(s, [0, 1], [1, 2, 3]) raised JAX's untyped ValueError ('Incompatible shapes for
+    broadcasting') or TypeError (the CDS family's own route) from inside the jitted query."""
+    s = HalfEdge.from_mesh(load_mesh(*octahedron()))
+    with pytest.raises(errors.ArgumentError, match=r"adjacent: u and v .* got \(2,\) and \(3,\)"):
+        adjacent(s, [0, 1], [1, 2, 3])
+    assert np.asarray(adjacent(s, [[0], [1]], [1, 2, 3])).shape == (2, 3)  # broadcast still works
+
+
+def test_vertex_normals_names_a_method_that_is_not_a_string():
+    """An unhashable method (a list) failed in jit's static-argument hashing with JAX's ValueError
+    'Non-hashable static arguments are not supported'."""
+    v, f = octahedron()
+    s = HalfEdge.from_mesh(load_mesh(v, f))
+    with pytest.raises(errors.ArgumentError, match=r"unknown normals method \['gather'\]"):
+        vertex_normals(s, v, method=["gather"])
