@@ -95,7 +95,7 @@ def build_report(structure_name: str, mesh, verify: bool = False, ring_sweeps: i
     registry.names()
     info = registry.STRUCTURES.get(structure_name)
     if info is None:
-        raise errors.JaxcdsError(
+        raise errors.ArgumentError(
             f"unknown structure {structure_name!r}; available: {', '.join(registry.names())}")
     if ring_sweeps:
         if structure_name not in ("lr", "lr-bits"):

@@ -43,15 +43,22 @@ def register(name: str, builder: Callable, *, closes_boundaries: bool = False,
 
 
 def names() -> list[str]:
+    """The registered structure names, in registration order."""
     _load_all()
     return list(STRUCTURES)
 
 
 def build(name: str, mesh) -> object:
-    """Build structure ``name`` from a mesh (path, arrays or :class:`TriMesh`)."""
+    """Build structure ``name`` from a mesh (path, arrays or :class:`TriMesh`).
+
+    Raises:
+      ArgumentError: ``name`` is not a registered name (a bare ``JaxcdsError`` before, and a
+        list's ``TypeError: unhashable type``), listing the registered ones.
+      MeshError: what :func:`~jaxcds.mesh.load_mesh` raises on ``mesh``, and the defect or
+        topology the builder refuses (a subclass naming it)."""
     _load_all()
-    if name not in STRUCTURES:
-        raise errors.JaxcdsError(
+    if not isinstance(name, str) or name not in STRUCTURES:
+        raise errors.ArgumentError(
             f"unknown structure {name!r}; available: {', '.join(STRUCTURES)}")
     # every builder calls _mappings.relieve() first: a loop over many meshes piles up programs
     return STRUCTURES[name].builder(load_mesh(mesh))

@@ -231,3 +231,13 @@ def test_verify_takes_the_open_or_the_user_closed_mesh(structure):
         assert rep.checked > 10 * holed.num_faces and rep.mismatches == 0, str(rep)
     with pytest.raises(errors.ArgumentError, match="vertices, the mesh 12"):
         verify(registry.build(structure, holed), icosphere(0))
+
+
+@pytest.mark.parametrize("name", ["nope", ["cds5n"], None])
+def test_build_names_an_unknown_structure_as_an_argument_error(name):
+    """registry.build raised a bare JaxcdsError for an unknown name (errors.py: an unknown name
+    is an ArgumentError, as batch.pack raises) and TypeError 'unhashable type' for a list."""
+    from conftest import octahedron
+
+    with pytest.raises(errors.ArgumentError, match=r"unknown structure .*; available: halfedge"):
+        registry.build(name, octahedron())
