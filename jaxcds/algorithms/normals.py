@@ -30,7 +30,6 @@ __all__ = ["vertex_normals", "face_normals", "normalize", "face_list_vertex_norm
            "surface_faces_padded", "faces_with_dummy_corner", "within_range"]
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
 def normalize(x, axis: int = -1, eps: float = 0.0):
     """``x / |x|``; a vector whose largest component is at most ``eps`` in magnitude (a zero
     vector) maps to zero with a zero derivative instead of NaN (as optax's ``safe_norm``); a
@@ -40,7 +39,19 @@ def normalize(x, axis: int = -1, eps: float = 0.0):
     normals overflowed from coordinates near 1e10 (``|x|^2`` past 3e38: every normal came out
     zero) and flushed to zero near 1e-10. Scaled, ``|x|^2`` lies in ``[1, 3]``. The derivative
     is written out, ``(dx - u (u . dx)) / |x|`` (a custom JVP, so forward and reverse mode
-    both work): differentiating through the scaling underflowed at small scales."""
+    both work): differentiating through the scaling underflowed at small scales.
+
+    ``x``: a JAX array (traced too), a numpy array or nested lists of real numbers.
+
+    Raises:
+      ArgumentError: ``x`` is not real numbers (a list raised JAX's TypeError 'absolute
+        requires ndarray or scalar arguments', a string its 'Error interpreting argument')."""
+    x = number_array(x, "normalize: x", error=errors.ArgumentError, bools=True)
+    return _normalize(x if isinstance(x, jax.Array) else jnp.asarray(x), axis, eps)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
+def _normalize(x, axis: int = -1, eps: float = 0.0):
     return _unit(x, axis, eps)[0]
 
 
@@ -66,7 +77,7 @@ def _sum_or_max(v, axis, op):
     return (jnp.max if op is jnp.maximum else jnp.sum)(v, axis=axis, keepdims=True)
 
 
-@normalize.defjvp
+@_normalize.defjvp
 def _normalize_jvp(axis, eps, primals, tangents):
     (x,), (dx,) = primals, tangents
     u, norm, nonzero = _unit(x, axis, eps)
@@ -147,7 +158,7 @@ def within_range(positions):
     # the largest *finite* magnitude: a NaN or inf coordinate (NaN normals at its one-ring
     # anyway) neither hides nor drives the rescaling of the others
     finite = jnp.where(jnp.isfinite(positions), jnp.abs(positions), 0)
-    m = jax.lax.stop_gradient(jnp.max(finite))
+    m = jax.lax.stop_gradient(jnp.max(finite, initial=0))  # no coordinates: unchanged
     far = (m > hi) | ((m < lo) & (m > 0))
     k = jnp.where(far, t - jnp.frexp(m)[1], 0)  # m * 2^k in [2^(t-1), 2^t)
     # a product by powers of two (1 when near), not ldexp (its derivative in x is not 2^k on
@@ -168,15 +179,30 @@ def face_list_vertex_normals(positions, faces):
     of the same shape, was read by jit's cache as native bytes: wrong normals).
 
     Raises:
-      MeshError: ``positions`` are not real numbers, or are a masked array.
-      InvalidIndexError: ``faces`` are not integers (a float index would be truncated).
+      MeshError: ``positions`` are not real numbers, or are a masked array, or ``positions`` /
+        ``faces`` are not ``(V, 3)`` / ``(F, 3)`` (a flat array gave JAX's untyped ValueError
+        about the cross product; ``(V, 2)`` positions a ``(V,)`` answer, ``(F, 4)`` faces
+        normals of their first three columns).
+      InvalidIndexError: ``faces`` are not integers (a float index would be truncated), or host
+        ``faces`` hold an id outside ``[0, V)`` (its faces added nothing: zero normals, or a
+        negative id wrapped to another vertex). Ids of ``faces`` already on the device are not
+        read back to be checked (as plain JAX, an id past ``V`` adds nothing there).
     """
     # nested lists as arrays (jit would take a list for a pytree of scalars)
     positions = number_array(positions, "face_list_vertex_normals: positions", bools=True)
-    faces = faces if isinstance(faces, jax.Array) else np.asarray(faces)
+    host = not isinstance(faces, jax.Array)
+    faces = np.asarray(faces) if host else faces
     if not jnp.issubdtype(faces.dtype, jnp.integer):
         raise errors.InvalidIndexError(
             f"face_list_vertex_normals: faces must be integers, got dtype {faces.dtype}")
+    for what, a, rows in (("positions", positions, "V"), ("faces", faces, "F")):
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise errors.MeshError(f"face_list_vertex_normals: {what} must have shape ({rows}, 3), "
+                                   f"got {tuple(a.shape)}")
+    if host and faces.size:
+        from jaxcds.mesh import _check_indices
+
+        _check_indices(faces, positions.shape[0], "face_list_vertex_normals")
     return _face_list_normals(native_order(positions), native_order(faces))
 
 

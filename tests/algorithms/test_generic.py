@@ -686,3 +686,50 @@ def test_vertex_normals_names_a_method_that_is_not_a_string():
     s = HalfEdge.from_mesh(load_mesh(v, f))
     with pytest.raises(errors.ArgumentError, match=r"unknown normals method \['gather'\]"):
         vertex_normals(s, v, method=["gather"])
+
+
+@pytest.mark.parametrize("pos_shape,faces,want", [
+    ((6, 2), None, r"positions must have shape \(V, 3\), got \(6, 2\)"),
+    ((18,), None, r"positions must have shape \(V, 3\), got \(18,\)"),
+    ((6, 3), np.zeros(24, np.int32), r"faces must have shape \(F, 3\), got \(24,\)"),
+    ((6, 3), np.zeros((8, 4), np.int32), r"faces must have shape \(F, 3\), got \(8, 4\)")])
+def test_face_list_normals_name_misshapen_positions_and_faces(pos_shape, faces, want):
+    """face_list_vertex_normals documents (V, 3) positions and (F, 3) faces: a flat array raised
+    JAX's untyped ValueError ('Dimension must be either 2 or 3 for cross product'), (V, 2)
+    positions answered a (V,) array and (F, 4) faces the normals of their first three columns."""
+    v, f = octahedron()
+    p = np.resize(v, pos_shape)
+    with pytest.raises(errors.MeshError, match=want):
+        face_list_vertex_normals(p, f if faces is None else faces)
+
+
+@pytest.mark.parametrize("bad", [6, 100, -100])
+def test_face_list_normals_name_host_face_ids_out_of_range(bad):
+    """An id past V made its faces add nothing (zero normals, no error); a negative one wrapped
+    onto another vertex. Host faces are checked (the ids are read on the host anyway)."""
+    v, f = octahedron()
+    f = np.array(f)
+    f[3, 1] = bad
+    with pytest.raises(errors.InvalidIndexError,
+                       match=rf"face_list_vertex_normals: face 3 refers to vertex {bad}, outside \[0, 6\)"):
+        face_list_vertex_normals(v, f)
+
+
+def test_within_range_takes_no_positions():
+    """within_range of a (0, 3) array raised numpy's ValueError 'zero-size array to reduction
+    operation max which has no identity'; nothing to rescale: it comes back as it is."""
+    from jaxcds.algorithms.normals import within_range
+
+    out = within_range(np.zeros((0, 3), np.float32))
+    assert out.shape == (0, 3) and out.dtype == jnp.float32
+
+
+def test_normalize_takes_lists_and_names_non_numbers():
+    """normalize (exported by jaxcds.algorithms) raised JAX's TypeError on nested lists ('absolute
+    requires ndarray or scalar arguments') and on strings; lists are now read as arrays and
+    non-numbers named (ArgumentError). Its custom derivative is unchanged."""
+    np.testing.assert_allclose(np.asarray(normalize([[3.0, 0.0, 4.0]])), [[0.6, 0.0, 0.8]], atol=1e-7)
+    with pytest.raises(errors.ArgumentError, match="normalize: x must be real numbers"):
+        normalize("abc")
+    g = jax.grad(lambda x: normalize(x)[0])(jnp.array([3.0, 0.0, 4.0]))
+    np.testing.assert_allclose(np.asarray(g), [0.128, 0.0, -0.096], atol=1e-6)
