@@ -30,6 +30,14 @@ __all__ = ["EncodedMesh", "encode_mesh", "decode", "write_cds", "read_cds", "cds
            "encode_file", "decode_file", "write_mesh_atomic"]
 
 
+def _flags(function: str, **flags) -> None:
+    """:class:`ArgumentError` naming the first of ``flags`` that is not a bool (``'no'`` and
+    ``None`` are truthy / falsy to Python: ``keep_order='no'`` stored the order)."""
+    for flag, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise errors.ArgumentError(f"{function}: {flag} must be True or False, got {value!r}")
+
+
 @dataclasses.dataclass(frozen=True)
 class EncodedMesh:
     """The connectivity words of a mesh and how its vertices were renumbered.
@@ -70,9 +78,7 @@ def encode_mesh(mesh: Any, *, mixed: bool = True, maximal: bool = True, check: b
     Raises:
       UnsupportedTopologyError: genus > 0, several components, or (``close=False``) boundaries.
     """
-    for flag, value in (("mixed", mixed), ("maximal", maximal), ("check", check), ("close", close)):
-        if not isinstance(value, (bool, np.bool_)):  # mixed='no' is truthy: the mixed word
-            raise errors.ArgumentError(f"encode_mesh: {flag} must be True or False, got {value!r}")
+    _flags("encode_mesh", mixed=mixed, maximal=maximal, check=check, close=close)
     mesh = load_mesh(mesh)
     if check and close:
         # holes closed, then genus 0 refused naming the file and the structures that take it:
@@ -203,8 +209,11 @@ def write_cds(path: str | os.PathLike, mesh: Any, *, mixed: bool = True, geometr
     Returns a report (sizes, bits per vertex, timings).
 
     Raises:
-      OutputError: ``path`` cannot be written (checked before encoding)."""
+      OutputError: ``path`` cannot be written (checked before encoding).
+      ArgumentError: ``path`` is not a path (``os.fspath``'s TypeError before), or a flag is
+        not a bool (``keep_order='no'`` stored the order)."""
     ff.check_writable(path)
+    _flags("write_cds", mixed=mixed, geometry=geometry, keep_order=keep_order, maximal=maximal)
     t0 = time.perf_counter()
     enc = encode_mesh(mesh, mixed=mixed, maximal=maximal)
     m = enc.mesh
@@ -266,7 +275,10 @@ def read_cds(path: str | os.PathLike, *, original_order: bool = True, drop_dummi
 
     The mesh is in the original vertex order when the file stores it (and ``original_order``),
     else in decoded order; dummy vertices and their faces are dropped (``drop_dummies``).
-    Raises :class:`FormatError` / :class:`EncodingError` naming the byte / bit offset."""
+    Raises :class:`FormatError` / :class:`EncodingError` naming the byte / bit offset, and
+    :class:`ArgumentError` for a flag that is not a bool or an input that is not a path or bytes."""
+    _flags("read_cds", original_order=original_order, drop_dummies=drop_dummies,
+           return_words=return_words)
     t0 = time.perf_counter()
     if isinstance(path, (bytes, bytearray, memoryview)):
         data, path = bytes(path), "<bytes>"
@@ -353,9 +365,19 @@ def write_mesh_atomic(path: str | os.PathLike, mesh: TriMesh) -> None:
     """Write ``mesh`` as .off / .obj / .ply / .stl (by suffix) to a temporary file in the same
     folder, then rename it over ``path``. OFF and OBJ keep every digit (float64 too); PLY and
     STL are binary float32, exact for a decoded ``.cds`` geometry (float32), rounded for a
-    float64 mesh."""
+    float64 mesh.
+
+    Raises:
+      OutputError: an unknown suffix, or ``path`` cannot be written.
+      ArgumentError: ``mesh`` is not a :class:`TriMesh` (an ``AttributeError`` before), or
+        ``path`` is not a path."""
     import trimesh
 
+    if not isinstance(mesh, TriMesh):
+        raise errors.ArgumentError(f"write_mesh_atomic: mesh must be a jaxcds.mesh.TriMesh "
+                                   f"(jaxcds.load_mesh makes one), got {type(mesh).__name__}")
+    if not isinstance(path, (str, os.PathLike)):  # os.fspath's TypeError before
+        raise errors.ArgumentError(f"an output path is a str or os.PathLike, not {type(path).__name__}")
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in _MESH_TYPES:
@@ -392,7 +414,16 @@ def _mesh_text(mesh: TriMesh, ext: str) -> str:
 def encode_file(mesh_path: str | os.PathLike, out_path: str | os.PathLike, *, mixed: bool = True,
                 keep_order: bool = True) -> dict:
     """``jaxcds encode MESH -o FILE.cds``: load, encode, write atomically; JSON-able report
-    (adds ``input_bytes``, ``binary_off_bytes`` and ``ratio_vs_binary_off``)."""
+    (adds ``input_bytes``, ``binary_off_bytes`` and ``ratio_vs_binary_off``).
+
+    Raises:
+      ArgumentError: ``mesh_path`` is not a path (arrays or a TriMesh were encoded and written,
+        then ``os.path.getsize`` raised TypeError; :func:`write_cds` takes those), or
+        ``keep_order`` is not a bool."""
+    if not isinstance(mesh_path, (str, os.PathLike)):
+        raise errors.ArgumentError(f"encode_file: mesh_path must be a mesh file's path, got "
+                                   f"{type(mesh_path).__name__} (write_cds(out_path, mesh) takes "
+                                   "arrays and TriMesh objects)")
     mesh = load_mesh(mesh_path)
     rep = write_cds(out_path, mesh, mixed=mixed, keep_order=keep_order)
     rep["input"] = os.fspath(mesh_path)
@@ -407,7 +438,15 @@ def decode_file(cds_path: str | os.PathLike, out_path: str | os.PathLike, *,
                 structure: Optional[str] = None, verify: bool = False) -> dict:
     """``jaxcds decode FILE.cds -o MESH.off|.obj|.ply [--structure cds6n|cds5n]``: read and decode,
     optionally build a CDS structure from the decoded words (and ``verify`` it against the
-    half-edge), write the mesh atomically. Returns a JSON-able report."""
+    half-edge), write the mesh atomically. Returns a JSON-able report.
+
+    Raises:
+      ArgumentError: ``verify`` without a ``structure`` (nothing to verify: it was ignored), or
+        ``verify`` not a bool; what :func:`read_cds` and :func:`write_mesh_atomic` raise."""
+    _flags("decode_file", verify=verify)
+    if verify and not structure:
+        raise errors.ArgumentError("decode_file: verify checks the structure built from the words; "
+                                   "give structure='cds6n', 'cds5n' or 'cds4n'")
     mesh, info, words = read_cds(cds_path, return_words=True)
     rep = {"input": os.fspath(cds_path), "output": os.fspath(out_path),
            "vertices": mesh.num_vertices, "faces": mesh.num_faces, **info}

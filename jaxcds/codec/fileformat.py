@@ -237,6 +237,8 @@ def check_writable(path: str | os.PathLike) -> str:
     readers refuse them as inputs."""
     import stat
 
+    if not isinstance(path, (str, os.PathLike)):  # os.fspath's TypeError before
+        raise errors.ArgumentError(f"an output path is a str or os.PathLike, not {type(path).__name__}")
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):

@@ -513,3 +513,35 @@ def test_an_output_in_place_keeps_its_mode_and_links(tmp_path):
     # no temporary file left in either folder
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling.off", "link.off", "old.bin", "sub"]
     assert sorted(p.name for p in (tmp_path / "sub").iterdir()) == ["made.off", "real.off"]
+
+
+def test_codec_file_functions_name_arguments_of_the_wrong_kind(tmp_path):
+    """write_cds(None, mesh) raised os.fspath's TypeError; encode_file(arrays or a TriMesh, out)
+    encoded and wrote the file, then raised TypeError from os.path.getsize; write_mesh_atomic of
+    a tuple an AttributeError; decode_file(verify=True) without a structure ignored verify; and
+    the bool flags of write_cds / read_cds took 'no' or None as truthy / falsy (keep_order='no'
+    stored the order). Each is now an ArgumentError naming the argument, nothing written."""
+    from jaxcds.codec.api import write_mesh_atomic
+
+    mesh = icosphere(1)
+    v, f = mesh.vertices, mesh.faces
+    with pytest.raises(errors.ArgumentError, match="output path is a str or os.PathLike, not NoneType"):
+        write_cds(None, mesh)
+    with pytest.raises(errors.ArgumentError, match="output path is a str or os.PathLike, not int"):
+        write_mesh_atomic(3, mesh)
+    out = tmp_path / "a.cds"
+    with pytest.raises(errors.ArgumentError, match="encode_file: mesh_path must be a mesh file's path, got tuple"):
+        encode_file((v, f), out)
+    assert not out.exists()
+    with pytest.raises(errors.ArgumentError, match=r"write_mesh_atomic: mesh must be a jaxcds\.mesh\.TriMesh "
+                       r"\(jaxcds\.load_mesh makes one\), got tuple"):
+        write_mesh_atomic(tmp_path / "m.off", (v, f))
+    with pytest.raises(errors.ArgumentError, match="write_cds: keep_order must be True or False, got 'no'"):
+        write_cds(out, mesh, keep_order="no")
+    assert not out.exists()
+    write_cds(out, mesh)
+    with pytest.raises(errors.ArgumentError, match="read_cds: drop_dummies must be True or False, got None"):
+        read_cds(out, drop_dummies=None)
+    with pytest.raises(errors.ArgumentError, match="decode_file: verify checks the structure"):
+        decode_file(out, tmp_path / "m.off", verify=True)
+    assert not (tmp_path / "m.off").exists()
