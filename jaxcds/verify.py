@@ -128,11 +128,29 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
     ``mesh`` must be a :class:`~jaxcds.mesh.TriMesh` (``(vertices, faces)`` arrays or a path:
     :func:`jaxcds.mesh.load_mesh` first, as the builder was given).
 
+    ``reference``: the mesh's :class:`HalfEdge`, if already built. ``chunk``: darts per batch of
+    operator calls (a positive integer); ``adjacency_samples``: how many edges and how many
+    random vertex pairs ``adjacent`` is checked on (a non-negative integer); ``seed``: the random
+    pairs' seed (a non-negative integer, or ``None``).
+
     Raises:
       ArgumentError: ``structure`` is not a jaxcds structure, ``mesh`` is not a
         :class:`~jaxcds.mesh.TriMesh`, or the structure and the mesh do not have the same number
-        of vertices."""
+        of vertices; ``reference`` is not a :class:`HalfEdge`; ``chunk``, ``adjacency_samples``
+        or ``seed`` out of the above (``chunk=-1`` checked no dart at all and reported no
+        mismatch; ``chunk=0`` and the others raised Python's or numpy's untyped errors)."""
+    from jaxcds._args import is_integer
     from jaxcds.structures.base import MeshStructure
+
+    for what, value, low in (("chunk", chunk, 1), ("adjacency_samples", adjacency_samples, 0),
+                             ("seed", 0 if seed is None else seed, 0)):
+        if not is_integer(value) or value < low:
+            kind = "a positive" if low else "a non-negative"
+            raise errors.ArgumentError(f"verify: {what} must be {kind} integer, got "
+                                       f"{(seed if what == 'seed' else value)!r}")
+    if reference is not None and not isinstance(reference, HalfEdge):
+        raise errors.ArgumentError(f"verify: reference must be the mesh's HalfEdge (or None), got "
+                                   f"{type(reference).__name__}")
 
     if not isinstance(structure, MeshStructure):  # AttributeError on num_vertices before
         swapped = " (the arguments are swapped?)" if isinstance(structure, TriMesh) else ""

@@ -40,3 +40,28 @@ def test_verify_refuses_a_structure_that_is_not_one(built, name):
         verify(bad, m)
     with pytest.raises(errors.ArgumentError, match="arguments are swapped"):
         verify(m, s)
+
+
+@pytest.mark.parametrize("kw,want", [
+    ({"chunk": -1}, "chunk must be a positive integer, got -1"),
+    ({"chunk": 0}, "chunk must be a positive integer, got 0"),
+    ({"chunk": 1.5}, "chunk must be a positive integer, got 1.5"),
+    ({"adjacency_samples": -1}, "adjacency_samples must be a non-negative integer, got -1"),
+    ({"adjacency_samples": 2.5}, "adjacency_samples must be a non-negative integer, got 2.5"),
+    ({"seed": "a"}, "seed must be a non-negative integer, got 'a'"),
+    ({"seed": -1}, "seed must be a non-negative integer, got -1")])
+def test_verify_refuses_chunk_samples_and_seed_out_of_range(built, kw, want):
+    """chunk=-1 made range(0, darts, -1) empty: no dart was checked and the report said 0
+    mismatches (ok); chunk=0, a float and the others raised Python's / numpy's untyped errors
+    (range's ValueError, 'negative dimensions', SeedSequence's TypeError)."""
+    s, m = built
+    with pytest.raises(errors.ArgumentError, match=f"verify: {want}"):
+        verify(s, m, **kw)
+    assert verify(s, m, chunk=7, adjacency_samples=0, seed=None).ok  # small values still work
+
+
+def test_verify_refuses_a_reference_that_is_not_a_halfedge(built):
+    """reference=<a TriMesh> raised AttributeError 'all_darts'; another structure an IndexError."""
+    s, m = built
+    with pytest.raises(errors.ArgumentError, match="verify: reference must be the mesh's HalfEdge .*got TriMesh"):
+        verify(s, m, reference=m)
