@@ -265,8 +265,13 @@ class PackedBatch(MeshStructure):
     def query(self, op: str, mesh: Int, local: Int) -> Int:
         """Operator ``op`` (``"target"``, ``"twin"``, ``"face_left"``, ``"edge_of_vertex"``...)
         on mesh-local ids: ``mesh`` and ``local`` broadcast together, the answer is local to the
-        same mesh (ids never leave their component). Jittable; ``op`` must be static."""
-        if op not in OPERATOR_KINDS:
+        same mesh (ids never leave their component). Jittable; ``op`` must be static.
+
+        Raises:
+          ArgumentError: an unknown ``op`` (a list raised TypeError: unhashable), ``mesh`` and
+            ``local`` that do not broadcast.
+          InvalidIndexError: ids that are not integers."""
+        if not isinstance(op, str) or op not in OPERATOR_KINDS:
             raise errors.ArgumentError(f"PackedBatch.query: unknown operator {op!r}; one of "
                                        f"{sorted(OPERATOR_KINDS)}")
         arg_kind, res_kind = OPERATOR_KINDS[op]
@@ -524,9 +529,13 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
     Raises:
       MeshError: a defective mesh; the message names the mesh index and the defect.
       UnsupportedTopologyError: the structure refuses a mesh, or has no ``concatenate``.
+      ArgumentError: an unknown ``structure``, ``meshes`` that are not a list, or ``check`` not
+        a bool (``check='no'`` was truthy: the meshes were validated).
     """
     from jaxcds.structures import registry
 
+    if not isinstance(check, (bool, np.bool_)):
+        raise errors.ArgumentError(f"pack: check must be True or False, got {check!r}")
     ms = [_load(m) for m in _mesh_list(meshes, "pack")]
     if not ms:
         raise errors.EmptyMeshError("pack: no meshes given")
@@ -788,9 +797,24 @@ def concatenate(parts: Sequence[MeshStructure]) -> PackedBatch:
 
     Raises:
       UnsupportedTopologyError: mixed classes, or a class without ``concatenate``.
-    """
+      EmptyMeshError: no structures.
+      ArgumentError: ``parts`` is not a list of structures (one structure raised TypeError 'not
+        subscriptable'; a TriMesh was refused as a class 'without concatenate')."""
+    if isinstance(parts, MeshStructure):
+        raise errors.ArgumentError(f"concatenate: give a list of structures (one is [s]), got a "
+                                   f"single {type(parts).__name__}")
     if not parts:
         raise errors.EmptyMeshError("concatenate: no structures given")
+    try:
+        parts = list(parts)
+    except TypeError:
+        raise errors.ArgumentError(f"concatenate: give a list of structures, got "
+                                   f"{type(parts).__name__}") from None
+    for i, p in enumerate(parts):
+        if not isinstance(p, MeshStructure):
+            raise errors.ArgumentError(
+                f"concatenate: structure {i} is a {type(p).__name__}, not a jaxcds structure "
+                "(build each with jaxcds.build(name, mesh), or pack meshes with pack(meshes, name))")
     cls = type(parts[0])
     for i, p in enumerate(parts):
         if type(p) is not cls:
@@ -837,12 +861,16 @@ def pack_positions(batch: PackedBatch, meshes: Sequence[Any], dtype=jnp.float32)
     (float32).
 
     Raises:
-      ArgumentError: not one mesh per mesh of the batch; ``dtype`` not a dtype, or not a floating
-        one (integers truncated the coordinates, booleans and complex numbers are no positions).
+      ArgumentError: ``batch`` is not a :class:`PackedBatch`; not one mesh per mesh of the batch;
+        ``dtype`` not a dtype, or not a floating one (integers truncated the coordinates,
+        booleans and complex numbers are no positions).
       MeshError: the positions do not match the batch's vertex counts (naming the mesh).
     """
     from jaxcds.mesh import validate_and_close
 
+    if not isinstance(batch, PackedBatch):  # an AttributeError on n_vertex before
+        raise errors.ArgumentError(f"pack_positions: batch must be a PackedBatch (from pack or "
+                                   f"concatenate), got {type(batch).__name__}")
     if dtype is not None:  # numpy's / jax's TypeError before, or truncated int positions
         try:
             dt = np.dtype(dtype)

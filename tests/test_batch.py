@@ -307,7 +307,9 @@ def test_errors_name_the_mesh():
 
 
 def test_class_without_concatenate_is_refused():
-    class NoHook:  # a structure class that did not implement the hook
+    from jaxcds.structures.base import MeshStructure
+
+    class NoHook(MeshStructure):  # a structure class that did not implement the hook
         name = "nohook"
 
     with pytest.raises(errors.UnsupportedTopologyError, match="no `concatenate"):
@@ -944,3 +946,26 @@ def test_a_non_finite_dummy_position_carries_no_gradient(chunked, monkeypatch):
         g = np.asarray(grad(jnp.asarray(q)))
         np.testing.assert_array_equal(g[dummy], 0.0)
         np.testing.assert_allclose(g, clean, rtol=1e-5, atol=1e-6)
+
+
+def test_batch_entry_points_name_arguments_of_the_wrong_kind():
+    """PackedBatch.query(['target'], ...) raised TypeError 'unhashable type: list';
+    concatenate(one structure) TypeError 'not subscriptable' and concatenate([TriMesh]) a refusal
+    of 'TriMesh (?)' as a class without concatenate; pack_positions(None, ...) AttributeError on
+    n_vertex; pack(..., check='no') validated (a truthy string). Each is an ArgumentError now."""
+    from jaxcds.structures.halfedge import HalfEdge
+
+    m = load_mesh(*octahedron())
+    b = B.pack([m, m], "halfedge")
+    with pytest.raises(errors.ArgumentError, match=r"PackedBatch.query: unknown operator \['target'\]"):
+        b.query(["target"], 0, 0)
+    s = HalfEdge.from_mesh(m)
+    with pytest.raises(errors.ArgumentError, match="concatenate: give a list of structures .*single HalfEdge"):
+        B.concatenate(s)
+    with pytest.raises(errors.ArgumentError, match="concatenate: structure 1 is a TriMesh, not a jaxcds structure"):
+        B.concatenate([s, m])
+    assert B.concatenate(iter([s, s])).num_meshes == 2  # any iterable of structures
+    with pytest.raises(errors.ArgumentError, match="pack_positions: batch must be a PackedBatch .*got NoneType"):
+        B.pack_positions(None, [m])
+    with pytest.raises(errors.ArgumentError, match="pack: check must be True or False, got 'no'"):
+        B.pack([m], "halfedge", check="no")
