@@ -455,6 +455,7 @@ def shift_ids(arrays: Sequence[np.ndarray], counts: Sequence[int]) -> np.ndarray
     one past the end) becomes the total. The helper ``concatenate`` classmethods use for
     vertex- and face-valued fields."""
     counts = np.asarray(counts, np.int64)
+    _same_parts(arrays, counts, "shift_ids")
     off = np.concatenate([[0], np.cumsum(counts)[:-1]])
     lens = [int(np.asarray(a).size) for a in arrays]
     cat = np.concatenate([np.asarray(a, np.int64).ravel() for a in arrays]) if arrays else np.zeros(0, np.int64)
@@ -464,6 +465,13 @@ def shift_ids(arrays: Sequence[np.ndarray], counts: Sequence[int]) -> np.ndarray
     return _int32(out)
 
 
+def _same_parts(arrays, counts: np.ndarray, where: str) -> None:
+    """One count per part: a mismatch raised numpy's untyped "operands could not be broadcast"."""
+    if counts.ndim != 1 or counts.shape[0] != len(arrays):
+        raise errors.ArgumentError(f"{where}: {len(arrays)} arrays but {counts.size} counts; give one "
+                                   "count per part")
+
+
 def shift_darts(arrays: Sequence[np.ndarray], primary: Sequence[int], extra: Sequence[int]) -> np.ndarray:
     """Concatenate per-part arrays of *dart* ids into the batch's dart numbering: part ``i``'s
     primary darts ``[0, P_i)`` follow the previous parts' primary darts, its extra darts
@@ -471,6 +479,8 @@ def shift_darts(arrays: Sequence[np.ndarray], primary: Sequence[int], extra: Seq
     ``P_i + X_i`` becomes the total."""
     p = np.asarray(primary, np.int64)
     x = np.asarray(extra, np.int64)
+    _same_parts(arrays, p, "shift_darts")
+    _same_parts(arrays, x, "shift_darts")
     poff = np.concatenate([[0], np.cumsum(p)[:-1]])
     xoff = np.concatenate([[0], np.cumsum(x)[:-1]])
     lens = [int(np.asarray(a).size) for a in arrays]
@@ -803,6 +813,8 @@ def concatenate(parts: Sequence[MeshStructure]) -> PackedBatch:
     if isinstance(parts, MeshStructure):
         raise errors.ArgumentError(f"concatenate: give a list of structures (one is [s]), got a "
                                    f"single {type(parts).__name__}")
+    if parts is None:
+        raise errors.ArgumentError("concatenate: give a list of structures, got None")
     if not parts:
         raise errors.EmptyMeshError("concatenate: no structures given")
     try:

@@ -88,7 +88,12 @@ class TriMesh:
         if not _canonical(self.faces, np.int32, 3):
             object.__setattr__(self, "faces", _int32_faces(self.faces, v.shape[0], self.source))
         if self.welded_ids is not None:
-            object.__setattr__(self, "welded_ids", np.unique(np.asarray(self.welded_ids, np.int64)).astype(np.int32))
+            try:
+                ids = np.unique(np.asarray(self.welded_ids, np.int64))
+            except (TypeError, ValueError) as exc:
+                raise errors.InvalidIndexError(f"{self.source}: welded_ids must be vertex ids "
+                                               f"(integers): {exc}") from None
+            object.__setattr__(self, "welded_ids", ids.astype(np.int32))
 
     @property
     def num_vertices(self) -> int:

@@ -48,8 +48,15 @@ def device_mesh(devices: Optional[Sequence] = None, axis: str = "d") -> Mesh:
     Raises:
       ArgumentError: no device, or a device listed twice (JAX builds such a Mesh, and the
         entry points then failed untyped: a modulo by a zero device count, a zip of mismatched
-        lengths)."""
+        lengths), or ``devices`` are not jax devices (``"cpu"`` raised an AttributeError)."""
+    if isinstance(devices, (str, bytes)) or (devices is not None and not hasattr(devices, "__iter__")):
+        raise errors.ArgumentError(f"device_mesh: devices must be a list of jax devices (e.g. "
+                                   f"jax.devices('cpu')), got {type(devices).__name__} {devices!r}")
     devs = list(jax.devices() if devices is None else devices)
+    bad = [d for d in devs if not isinstance(d, jax.Device)]
+    if bad:
+        raise errors.ArgumentError(f"device_mesh: devices must be jax devices (e.g. jax.devices('cpu')), "
+                                   f"got {type(bad[0]).__name__} {bad[0]!r}")
     _check_devices(devs, "device_mesh")
     return Mesh(np.array(devs), (axis,))
 

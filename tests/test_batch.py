@@ -969,3 +969,17 @@ def test_batch_entry_points_name_arguments_of_the_wrong_kind():
         B.pack_positions(None, [m])
     with pytest.raises(errors.ArgumentError, match="pack: check must be True or False, got 'no'"):
         B.pack([m], "halfedge", check="no")
+
+
+def test_id_shifting_needs_one_count_per_part_and_concatenate_a_list():
+    """Sweep 49b's leftovers: mismatched counts raised numpy's broadcast ValueError, and
+    ``concatenate(None)`` was an ``EmptyMeshError`` (no structures) rather than a wrong argument."""
+    with pytest.raises(errors.ArgumentError, match="shift_ids: 2 arrays but 3 counts"):
+        B.shift_ids([np.arange(3), np.arange(2)], [3, 2, 4])
+    with pytest.raises(errors.ArgumentError, match="shift_darts: 1 arrays but 2 counts"):
+        B.shift_darts([np.arange(3)], [3, 1], [0, 0])
+    np.testing.assert_array_equal(B.shift_ids([np.arange(3), np.arange(2)], [3, 2]), [0, 1, 2, 3, 4])
+    with pytest.raises(errors.ArgumentError, match="got None"):
+        B.concatenate(None)
+    with pytest.raises(errors.EmptyMeshError):
+        B.concatenate([])

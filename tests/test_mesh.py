@@ -84,6 +84,8 @@ def test_a_defect_that_welding_made_says_so_and_how_to_avoid_it():
     assert apart.welded_ids.size == 0 and not find_defects(apart)
     (d,) = find_defects(TriMesh(vertices=m.vertices, faces=m.faces))  # the bow-tie as a file holds it
     assert isinstance(d, errors.NonManifoldVertexError) and "weld" not in str(d), d
+    with pytest.raises(errors.InvalidIndexError, match="welded_ids must be vertex ids"):
+        TriMesh(vertices=m.vertices, faces=m.faces, welded_ids=["a"])
     (d,) = find_defects(load_mesh(m.vertices, m.faces))  # ... and loaded: nothing merged on load
     assert isinstance(d, errors.NonManifoldVertexError) and "weld" not in str(d), d
 

@@ -567,3 +567,17 @@ def _child(full: bool) -> dict:
 
 if __name__ == "__main__":
     print(json.dumps(_child(full="--full" in sys.argv)))
+
+
+@pytest.mark.parametrize("devices", ["cpu", 0, [0], ["cpu"]])
+def test_device_mesh_names_devices_that_are_not_devices(devices):
+    """Sweep 49b's leftover: ``device_mesh("cpu")`` raised an AttributeError ('str' object has no
+    attribute 'id'); a platform name, an int or a list of them is now named as such."""
+    import jax
+
+    from jaxcds import errors
+    from jaxcds import sharding as S
+
+    with pytest.raises(errors.ArgumentError, match="device_mesh: devices must be"):
+        S.device_mesh(devices)
+    assert S.device_mesh(jax.devices("cpu")[:1]).devices.size == 1
