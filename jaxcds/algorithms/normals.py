@@ -176,7 +176,9 @@ def face_list_vertex_normals(positions, faces):
     ``(V, 3)`` unit area-weighted normals of ``positions`` ``(V, 3)``. Jitted; differentiable.
 
     Host arrays of either byte order are read by value (a big-endian array, after a native call
-    of the same shape, was read by jit's cache as native bytes: wrong normals).
+    of the same shape, was read by jit's cache as native bytes: wrong normals). Positions are
+    summed in their own floating dtype, as plain JAX code would (float16 in, float16 out, with
+    float16's range), where :func:`vertex_normals` takes narrow floats as float32.
 
     Raises:
       MeshError: ``positions`` are not real numbers, or are a masked array, or ``positions`` /
