@@ -54,6 +54,7 @@ from jaxcds._arrays import to_device, traced_for_cpu
 
 __all__ = ["MeshStructure", "Int", "as_ids", "interleave_rows", "interleave_windows",
            "materialize_loop", "computed_in_loop", "QUERY_CHUNK", "CHUNKED_QUERIES", "one_pass_queries",
+           "checked_ids",
            "by_table", "per_query_routes", "shared_subexpressions", "shared_subexpression"]
 
 Int = jnp.ndarray  # int32 array of ids, any shape
@@ -171,11 +172,33 @@ QUERY_CHUNK = 1 << 16
 WRITE_CHUNK_ANSWERS_APART = True
 
 #: the batched queries whose ids are checked (:func:`id_arg`) and which may run chunk by chunk:
-#: one or two id arrays in, one array out (``dart_valid`` is never chunked: no class names it)
+#: one or two id arrays in, one array out (``dart_valid`` is never chunked: no class names it).
+#: ``is_border`` and ``corner_vertex`` / ``corner_next`` / ``corner_prev`` joined the list late:
+#: outside the list, a float or string id was refused in the name of the operator they call
+#: (``face``, ``origin``, ``next``, ``prev``), and pemb's declared ``is_border`` table route
+#: (``table_queries``) was never taken
 CHUNKED_QUERIES = ("dart_valid", "origin", "source", "target", "twin", "next", "prev", "face", "face_left",
                    "face_right", "edge_of_vertex", "edge_of_face", "left_front", "left_back",
-                   "right_front", "right_back", "ccw_vertex_edge", "cw_vertex_edge",
-                   "corner_opposite", "corner_swing", "adjacent")
+                   "right_front", "right_back", "ccw_vertex_edge", "cw_vertex_edge", "is_border",
+                   "corner_vertex", "corner_next", "corner_prev", "corner_opposite", "corner_swing",
+                   "adjacent")
+
+
+def checked_ids(method):
+    """``method(self, *ids, **kwargs)`` with its positional ids checked and made int32 by
+    :func:`id_arg`, named after ``method``: for public operators outside :data:`CHUNKED_QUERIES`
+    (the papers' own vocabulary: the corner table's and LR's ``v``, ``n``, ``p``, ``o``, ``s``,
+    the CDS corner numbering). They cast their ids with ``jnp.asarray(c, int32)`` (corner 1.5
+    read as 1, ``True`` as 1, the string ``'1'`` as 1: silently wrong answers) or indexed a
+    table with them (a list as a tuple of indices, a bool array as a mask, floats raised JAX's
+    TypeError). Traced int32 ids pass through unchanged (no cost inside ``jit``)."""
+    name = method.__name__
+
+    @functools.wraps(method)
+    def run(self, *ids, **kwargs):
+        return method(self, *(id_arg(x, f"{name}: ids") for x in ids), **kwargs)
+
+    return run
 
 
 class _TraceFlag(threading.local):

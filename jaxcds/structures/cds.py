@@ -1477,12 +1477,14 @@ class _CDS(MeshStructure):
         return d.astype(jnp.int32)
 
     # ---- corners (Thm 8)
+    @_base.checked_ids
     def corner_index(self, d: Int) -> Int:
         """Thm 8 corner number of dart/corner ``d``: ``u + n (c + 3 r)``."""
         d = _ids(d)
         e = d >> 1
         return (e // 3 + self.num_vertices * (e % 3 + 3 * (d & 1))).astype(jnp.int32)
 
+    @_base.checked_ids
     def corner_dart(self, k: Int) -> Int:
         """Inverse of :meth:`corner_index`."""
         k = _ids(k)

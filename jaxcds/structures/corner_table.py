@@ -21,7 +21,7 @@ from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
-from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.base import Int, MeshStructure, checked_ids
 from jaxcds.structures.halfedge import _halfedge_arrays, _match_twins
 
 __all__ = ["CornerTable"]
@@ -141,22 +141,27 @@ class CornerTable(MeshStructure):
                    vertex_corner=to_device(vedge), num_vertices=int(num_vertices), num_faces=nf)
 
     # Rossignac's operators, named as in the LR paper (Sec. 2)
+    @checked_ids
     def n(self, c: Int) -> Int:
         """``c.n``: next corner in the triangle."""
         c = jnp.asarray(c, jnp.int32)  # a Python int too
         return (3 * (c // 3) + (c + 1) % 3).astype(jnp.int32)
 
+    @checked_ids
     def p(self, c: Int) -> Int:
         """``c.p``: previous corner in the triangle."""
         c = jnp.asarray(c, jnp.int32)
         return (3 * (c // 3) + (c + 2) % 3).astype(jnp.int32)
 
+    @checked_ids
     def v(self, c: Int) -> Int:
         return self.V[c]
 
+    @checked_ids
     def o(self, c: Int) -> Int:
         return self.O[c]
 
+    @checked_ids
     def s(self, c: Int) -> Int:
         """``c.s = c.n.o.n`` (swing around ``c.v``)."""
         return self.n(self.O[self.n(c)])

@@ -41,8 +41,8 @@ from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
 from jaxcds.construct.ring_search import check_sweeps, improve_ring
 from jaxcds.mesh import load_mesh, validate, validate_and_close
-from jaxcds.structures.base import (Int, MeshStructure, check_id_space, id_table_route, interleave_rows,
-                                    take_nonnegative)
+from jaxcds.structures.base import (Int, MeshStructure, check_id_space, checked_ids, id_table_route,
+                                    interleave_rows, take_nonnegative)
 from jaxcds.structures.corner_table import CornerTable
 
 __all__ = ["LR", "LRBits", "build_lr", "stats", "render_list", "expand_render_list",
@@ -262,6 +262,7 @@ class _LRNavigation(MeshStructure):
         i = c - (c >> 2) - 6 * self.num_ring
         return jnp.clip(i, 0, max(3 * self.num_t0 - 1, 0))
 
+    @checked_ids
     def v(self, c: Int) -> Int:
         """``c.v`` (Sec. 4.7): ``V0`` for T0 corners ``c >= 8 m_r``, else from ``v = c / 8``, the
         offset ``c mod 8`` and the L/R entry of ``v``."""
@@ -271,6 +272,7 @@ class _LRNavigation(MeshStructure):
         ring = _ring_vertex(jnp, self._dec, m, jnp.where(t0, 0, c))
         return jnp.where(t0, self.V0[self._t0_index(c)], ring).astype(jnp.int32)
 
+    @checked_ids
     def o(self, c: Int) -> Int:
         """``c.o`` (Sec. 4.7, Fig. 6): ``O0`` for T0 corners; the ``VO*`` record of an irregular
         slot (Sec. 4.5); otherwise the ring case analysis of :func:`_cheap_opposite`, canonicalised."""
@@ -289,37 +291,45 @@ class _LRNavigation(MeshStructure):
         ring = jnp.where(irr_l | irr_r, take_nonnegative(self.VOs, k), cheap)
         return jnp.where(t0, self.O0[self._t0_index(c)], ring).astype(jnp.int32)
 
+    @checked_ids
     def n(self, c: Int) -> Int:
         """``c.n = c - 2`` if ``c mod 4 = 2`` else ``c + 1`` (Sec. 4.7)."""
         c = jnp.asarray(c, jnp.int32)
         return jnp.where((c & 3) == 2, c - 2, c + 1).astype(jnp.int32)
 
+    @checked_ids
     def p(self, c: Int) -> Int:
         """``c.p = c + 2`` if ``c mod 4 = 0`` else ``c - 1``."""
         c = jnp.asarray(c, jnp.int32)
         return jnp.where((c & 3) == 0, c + 2, c - 1).astype(jnp.int32)
 
+    @checked_ids
     def s(self, c: Int) -> Int:
         """``c.s = c.n.o.n``: next corner around ``c.v``."""
         return self.n(self.o(self.n(c)))
 
+    @checked_ids
     def l(self, c: Int) -> Int:  # noqa: E743 - the paper's name
         """``c.l = c.n.o``."""
         return self.o(self.n(c))
 
+    @checked_ids
     def r(self, c: Int) -> Int:
         """``c.r = c.p.o``."""
         return self.o(self.p(c))
 
+    @checked_ids
     def t(self, c: Int) -> Int:
         """``c.t = c / 4``: the paper's triangle id (``2v``, ``2v + 1``, ``2 m_r + j``), with the
         redundant T2 slots as holes (see :meth:`face` for the dense protocol id)."""
         return (jnp.asarray(c, jnp.int32) >> 2).astype(jnp.int32)
 
+    @checked_ids
     def tc(self, t: Int) -> Int:
         """``t.c = 4t``: first corner of paper triangle ``t``."""
         return (4 * jnp.asarray(t, jnp.int32)).astype(jnp.int32)
 
+    @checked_ids
     def vc(self, v: Int) -> Int:
         """``v.c`` (Sec. 4.7): ``C[v - m_r]`` for isolated vertices, else ``v.0 = 8v``
         canonicalised ("if v.l = v.n.n then v.c = 8 v.n + 1")."""

@@ -111,6 +111,36 @@ def test_refusals_are_typed(structure):
         registry.build(structure, load_shared("cow.off"))
 
 
+# the paper vocabularies' own corner operators, where a structure has them
+PAPER_OPS = ("v", "n", "p", "o", "s", "l", "r", "t", "tc", "vc", "corner_index", "corner_dart")
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+def test_is_border_and_corner_operators_check_their_ids_by_name(structure):
+    """``is_border``, ``corner_vertex`` / ``corner_next`` / ``corner_prev`` and the paper ops
+    (the corner table's and LR's ``v n p o s``, CDS ``corner_index``) refuse floats, bools and
+    strings with an InvalidIndexError naming themselves: before, ``is_border`` was refused as
+    ``face``, the corner ops as ``origin`` / ``next`` / ``prev``, and ``v n p o s`` cast 1.5
+    and ``'1'`` to corner 1 (a silently wrong answer) or raised JAX's TypeError / IndexError."""
+    from conftest import octahedron
+
+    s = registry.build(structure, octahedron())
+    ops = ("is_border", "corner_vertex", "corner_next", "corner_prev") + tuple(
+        op for op in PAPER_OPS if hasattr(s, op))
+    for op in ops:
+        for bad in (1.5, True, "1", ["a"], np.array([1.0, 2.0]), np.array([True, False])):
+            with pytest.raises(errors.InvalidIndexError, match=f"^{op}: ids"):
+                getattr(s, op)(bad)
+    if structure == "pemb":  # every pemb program takes seconds to compile: refusals only
+        return
+    d = s.all_darts()[:4]
+    for op in ops:
+        want = np.asarray(getattr(s, op)(d.astype(np.int32)))
+        for ids in (list(map(int, d)), tuple(map(int, d)), d.astype(">i8"), d.astype(np.uint8)):
+            np.testing.assert_array_equal(np.asarray(getattr(s, op)(ids)), want, err_msg=op)
+        assert np.asarray(getattr(s, op)(int(d[1]))).shape == ()
+
+
 # ---------------------------------------------------------------- random triangulations
 from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
 

@@ -220,6 +220,30 @@ def test_pemb_tables_route_equals_its_searches(packed):
         np.testing.assert_array_equal(a, b, err_msg=f"pemb.{op}")
 
 
+def test_pemb_is_border_takes_its_table_route(monkeypatch):
+    """pemb declares a table route for ``is_border`` (``table_queries``, ratio 1) but the
+    operator was not among ``base.CHUNKED_QUERIES``, whose wrapper takes the table routes: a
+    whole-mesh batch searched per dart. Traced only (``eval_shape``), nothing compiled."""
+    from jaxcds.structures.pemb import PEMB
+
+    s = registry.build("pemb", random_planar_triangulation(30, seed=2))
+    taken = []
+    real = PEMB._tabled_is_border
+
+    def counted(self, d):
+        taken.append(d.shape)
+        return real(self, d)
+
+    monkeypatch.setattr(PEMB, "_tabled_is_border", counted)
+    darts = jnp.arange(s.num_darts, dtype=jnp.int32)
+    assert s.takes_table("is_border", darts.size)
+    jax.eval_shape(lambda s, d: s.is_border(d), s, darts)
+    assert taken == [(s.num_darts,)]
+    with base.per_query_routes():
+        jax.eval_shape(lambda s, d: s.is_border(d), s, darts[:8])
+    assert len(taken) == 1
+
+
 def test_pemb_loops_navigate_its_tables(monkeypatch):
     """A loop that asks many ids (``adjacent``, ``one_ring``) builds pemb's tables once, before
     it (``for_queries``), not in every step; a small batch keeps the searches. Same answers."""
