@@ -82,7 +82,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._args import refuse_non_real
+from jaxcds._args import flag_arg, refuse_non_real
 from jaxcds._arrays import to_device
 from jaxcds.polylla_io import BORDER_STRUCTURES  # (re-exported: the structures Polylla runs on)
 
@@ -609,10 +609,19 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
     does not close into cycles covering every frontier dart, or a reference-mode walk does not
     close (a structure bug), and :class:`~jaxcds.errors.PolyllaError` for ``positions`` that are
     not ``(V, 2)`` or ``(V, 3)`` real numbers or hold a NaN / inf (naming the vertex), ``corners``
-    that are not the structure's triangles or an unknown ``mode``.
+    that are not the structure's triangles or an unknown ``mode``;
+    :class:`~jaxcds.errors.ArgumentError` for an ``s`` that is no jaxcds structure and flags
+    (``tables``, ``sync_timings``, ``canonical``) that are not bools.
     """
     from jaxcds.polylla_io import length_scale
+    from jaxcds.structures.base import structure_arg
 
+    # a Triangulation2D or TriMesh raised an AttributeError; flags of the wrong kind were read
+    # as truthy ('no') or falsy (0, None)
+    structure_arg(s, "polylla: s")
+    tables = flag_arg(tables, "polylla: tables")
+    sync_timings = flag_arg(sync_timings, "polylla: sync_timings")
+    canonical = flag_arg(canonical, "polylla: canonical", none_ok=True)
     _refuse_closed_holes(s)
     # as given, the reference's own lengths; scaled by a power of two only where its squares
     # would overflow or the coordinates are tiny (length_scale)
@@ -989,9 +998,15 @@ def build_structure(tri, structure: str = "halfedge", *, check: bool = True):
 
     With ``check`` the triangulation is validated first (typed :class:`~jaxcds.errors.MeshError`
     naming the bad face, edge or vertex: non-manifold edges, bow-tie vertices, duplicates...)."""
+    from jaxcds.polylla_io import Triangulation2D
     from jaxcds.structures import registry
     from jaxcds.structures.halfedge import HalfEdge
 
+    if not isinstance(tri, Triangulation2D):  # an AttributeError about .points before
+        raise errors.ArgumentError(
+            f"build_structure: tri must be a jaxcds.polylla_io.Triangulation2D (read_input, "
+            f"from_points), got {type(tri).__name__}")
+    check = flag_arg(check, "build_structure: check")
     mesh = _checked_mesh(tri, structure, check)
     if structure == "halfedge":
         return HalfEdge.from_faces(tri.faces, tri.num_vertices)
@@ -1101,10 +1116,23 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     ``timings`` (seconds per phase, first call includes compilation).
 
     Raises:
-      PolyllaError (unreadable or degenerate input, naming file and line/triangle), MeshError
-      (non-manifold triangulations, naming the edge/vertex).
+      PolyllaError (unreadable or degenerate input, naming file and line/triangle; an unknown
+      ``mode``), MeshError (non-manifold triangulations, naming the edge/vertex), OutputError
+      (``output`` cannot be written: checked before any work), ArgumentError (``output`` not a
+      path, ``check`` or ``tables`` not a bool).
     """
     from jaxcds import polylla_io
+    from jaxcds.codec.fileformat import check_writable
+
+    # before any work: an output that is no path was written as str(output) (a file named '5'
+    # in the working folder), a missing folder was found after the run; tables='no' ran with
+    # tables, mode=None ran the reference mode and reported mode None
+    check = flag_arg(check, "run: check")
+    tables = flag_arg(tables, "run: tables")
+    if not isinstance(mode, str) or mode not in ("reference", "canonical"):
+        raise errors.PolyllaError(f"unknown Polylla mode {mode!r}: 'reference' or 'canonical'")
+    if output is not None:
+        output = check_writable(output)
 
     if isinstance(source, polylla_io.Triangulation2D):
         tri, name = source, source.source
@@ -1125,9 +1153,8 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
         mesh = polylla(s, tri.points, corners=tri.input_faces, clockwise=tri.all_clockwise,
                        tables=tables, mode=mode)
     if output is not None:
-        polylla_io.write_polygon_off(str(output), tri.points, mesh.offsets, mesh.indices)
+        polylla_io.write_polygon_off(output, tri.points, mesh.offsets, mesh.indices)
     out = mesh.summary()
-    out.update(structure=structure, mode=mode, tables=bool(tables), input=name,
-               output=None if output is None else str(output),
+    out.update(structure=structure, mode=mode, tables=tables, input=name, output=output,
                timings={"build": t_build, **mesh.timings})
     return out

@@ -1082,3 +1082,39 @@ def test_structures_without_the_border_are_refused_by_name():
     with pytest.raises(errors.UnsupportedTopologyError, match="Polylla on corner-table") as exc:
         P.run(tri, structure="corner-table")
     assert "close_boundaries" not in str(exc.value) and "halfedge, pemb, lr, lr-bits" in str(exc.value)
+
+
+def test_entry_points_name_arguments_of_the_wrong_kind(tmp_path, monkeypatch):
+    """``run``: an output that is no path was written as ``str(output)`` (a file named '5' in
+    the working folder), a missing folder was found only after the run, ``tables='no'`` ran
+    with tables and ``mode=None`` reported mode None; ``polylla`` read flags as truthy / falsy
+    and a Triangulation2D as ``s`` raised an AttributeError, as did ``build_structure`` of a
+    non-triangulation. Nothing is written by a refused call."""
+    monkeypatch.chdir(tmp_path)
+    pts = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
+    for out in (5, b"x.off", ["a"]):
+        with pytest.raises(errors.ArgumentError, match="output path"):
+            P.run(pts, out)
+    with pytest.raises(errors.OutputError, match="does not exist"):
+        P.run(pts, tmp_path / "missing" / "x.off")  # checked before any work
+    for flag in ("check", "tables"):
+        for bad in ("no", 0, None):
+            with pytest.raises(errors.ArgumentError, match=f"run: {flag} must be True or False"):
+                P.run(pts, **{flag: bad})
+    with pytest.raises(errors.PolyllaError, match="unknown Polylla mode None"):
+        P.run(pts, mode=None)
+    assert sorted(os.listdir(tmp_path)) == []
+    tri = io.from_points(pts)
+    with pytest.raises(errors.ArgumentError, match="build_structure: tri must be"):
+        P.build_structure("points.xy")
+    with pytest.raises(errors.ArgumentError, match="build_structure: check must be"):
+        P.build_structure(tri, check="no")
+    s = P.build_structure(tri)
+    with pytest.raises(errors.ArgumentError, match="polylla: s: expected a jaxcds structure"):
+        P.polylla(tri, tri.points)
+    for flag in ("tables", "sync_timings", "canonical"):
+        with pytest.raises(errors.ArgumentError, match=f"polylla: {flag} must be True"):
+            P.polylla(s, tri.points, **{flag: "no"})
+    rep = P.run(tri, pathlib.Path(tmp_path / "out.off"))
+    assert rep["output"] == str(tmp_path / "out.off") and rep["tables"] is True
+    assert sorted(os.listdir(tmp_path)) == ["out.off"]
