@@ -52,3 +52,16 @@ def refuse_non_real(values, what: str, *, bools: bool = False) -> None:
     array or tracer, or nested lists, not a masked array) hold real numbers: integers or floats,
     booleans too with ``bools`` (:func:`number_array`)."""
     number_array(values, what, bools=bools)
+
+
+def flag_arg(value, what: str, *, none_ok: bool = False) -> bool:
+    """``value`` as a bool, or :class:`~jaxcds.errors.ArgumentError` naming ``what`` unless it is
+    ``True`` or ``False`` (a numpy bool too; ``None`` too with ``none_ok``, returned as it is):
+    to Python ``'no'`` is truthy and ``0`` or ``[]`` falsy, so ``check='no'`` validated and
+    ``check=0`` silently skipped the validation."""
+    if none_ok and value is None:
+        return value
+    if not isinstance(value, (bool, np.bool_)):
+        allowed = "True, False or None" if none_ok else "True or False"
+        raise errors.ArgumentError(f"{what} must be {allowed}, got {value!r}")
+    return bool(value)

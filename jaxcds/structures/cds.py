@@ -2139,7 +2139,10 @@ def build_cds(cls, mesh, root_face: Optional[int] = None, progress: Optional[boo
         several components, or fewer than 4 vertices; other :class:`MeshError` for defects.
     """
     _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
+    from jaxcds._args import flag_arg
     from jaxcds.construct.schnyder import prepare_mesh
+
+    progress = flag_arg(progress, "build_cds: progress", none_ok=True)  # 'no' showed the bar
 
     n0 = int(getattr(mesh, "num_vertices", 0) or 0)
     bar = _Progress(["mesh checks", "Schnyder wood", f"{cls.name} tables"], f"build {cls.name}",

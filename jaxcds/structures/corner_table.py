@@ -18,11 +18,12 @@ import numba
 import numpy as np
 
 from jaxcds import _mappings, errors
+from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, checked_ids
-from jaxcds.structures.halfedge import _halfedge_arrays, _match_twins
+from jaxcds.structures.halfedge import _halfedge_arrays, _match_twins, twins_arg
 
 __all__ = ["CornerTable"]
 
@@ -98,7 +99,9 @@ class CornerTable(MeshStructure):
     @classmethod
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "CornerTable":
         """Build from a closed manifold mesh, validated first (typed errors); ``check=False``:
-        trusted input, not validated (the checks of :meth:`from_faces` only)."""
+        trusted input, not validated (the checks of :meth:`from_faces` only); ``check`` must be a
+        bool (``ArgumentError``: ``check='no'`` validated, ``check=0`` did not)."""
+        check = flag_arg(check, "CornerTable.from_mesh: check")
         mesh = load_mesh(mesh)
         twins = None
         if check:
@@ -117,6 +120,7 @@ class CornerTable(MeshStructure):
         into loops (``MeshError``). Other defects give a table whose answers are unspecified,
         never a crash: use :meth:`from_mesh` for untrusted input."""
         _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
+        twins_arg(twins, "CornerTable.from_faces")
         f = trusted_faces(faces, num_vertices, "CornerTable.from_faces")
         if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
             raise errors.EmptyMeshError(f"CornerTable.from_faces: no faces ({int(num_vertices)} "

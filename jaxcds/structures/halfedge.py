@@ -18,9 +18,10 @@ import numpy as np
 
 from jaxcds import _mesh_kernels as _kernels
 from jaxcds import _mappings, errors
+from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
+from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure
 
 __all__ = ["HalfEdge", "halfedge_arrays"]
@@ -54,7 +55,9 @@ class HalfEdge(MeshStructure):
     @classmethod
     def from_mesh(cls, mesh: TriMesh, *, check: bool = True) -> "HalfEdge":
         """Build from a validated mesh (borders allowed, several components allowed).
-        ``check=False``: trusted input, not validated (the checks of :meth:`from_faces` only)."""
+        ``check=False``: trusted input, not validated (the checks of :meth:`from_faces` only);
+        ``check`` must be a bool (``ArgumentError``: ``check='no'`` validated, ``check=0`` did not)."""
+        check = flag_arg(check, "HalfEdge.from_mesh: check")
         mesh = load_mesh(mesh)
         twins = None
         if check:
@@ -73,6 +76,7 @@ class HalfEdge(MeshStructure):
         duplicated or degenerate faces, flipped faces whose borders still chain) give a
         structure whose answers are unspecified, never a crash."""
         _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
+        twins_arg(twins, "HalfEdge.from_faces")
         f = trusted_faces(faces, num_vertices, "HalfEdge.from_faces")
         if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
             raise errors.EmptyMeshError(f"HalfEdge.from_faces: no faces ({int(num_vertices)} "
@@ -165,6 +169,15 @@ class HalfEdge(MeshStructure):
 
 
 # ------------------------------------------------------------------ numba builder
+def twins_arg(twins, where: str) -> None:
+    """:class:`~jaxcds.errors.ArgumentError` naming ``where`` unless ``twins`` is ``None`` or a
+    :class:`jaxcds.mesh.Twins` (``twins=1`` raised an AttributeError about ``.opp``)."""
+    if twins is not None and not isinstance(twins, Twins):
+        raise errors.ArgumentError(f"{where}: twins must be None or the jaxcds.mesh.Twins that "
+                                   f"validate(..., return_twins=True) returned, got "
+                                   f"{type(twins).__name__}")
+
+
 def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None, *,
                     source: str = "halfedge_arrays"):
     """``(next, opposite, vertex, vertex_edge, border_prev)`` int32 arrays for a face list.

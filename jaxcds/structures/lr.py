@@ -35,7 +35,7 @@ import numpy as np
 
 from jaxcds import _mappings, errors
 from jaxcds._arrays import to_device
-from jaxcds._args import is_integer
+from jaxcds._args import flag_arg, is_integer
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
 from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
@@ -620,7 +620,9 @@ class LR(_LRNavigation):
         """Ring and tables from a :class:`CornerTable` (the paper's input, Sec. 8.1);
         ``dummy``: mask of dummy vertices (shown as borders). The table is trusted (a closed
         manifold): only its ids are checked (:func:`_check_table`)."""
-        _check_table(ct, "LR.from_corner_table")
+        check, wart_skipping = _check_table(ct, "LR.from_corner_table", dummy=dummy, check=check,
+                                            wart_skipping=wart_skipping)
+        seeds = check_seeds(seeds, ct.V, dummy)  # a count of 0 or -1 was numpy's ValueError
         return _from_corner_table(cls, ct, dummy=dummy, seeds=seeds, k=None, check=check,
                                   wart_skipping=wart_skipping, ring_sweeps=ring_sweeps)
 
@@ -716,7 +718,8 @@ class LRBits(_LRNavigation):
         """HYBRID-RING-EXPANDER of period ``k`` (Sec. 6.1; 0 = depth-first) and the 16-bit tables
         from a :class:`CornerTable`; ``dummy``: mask of dummy vertices (shown as borders). The
         table is trusted (a closed manifold): only its ids are checked (:func:`_check_table`)."""
-        _check_table(ct, "LRBits.from_corner_table")
+        check, wart_skipping = _check_table(ct, "LRBits.from_corner_table", dummy=dummy,
+                                            check=check, wart_skipping=wart_skipping)
         ks = _check_k(k)
         if len(ks) != 1:
             raise errors.ArgumentError(f"LRBits.from_corner_table takes one period k, got {k!r}")
@@ -726,12 +729,29 @@ class LRBits(_LRNavigation):
 
 
 # --------------------------------------------------------------------------------- construction
-def _check_table(ct: CornerTable, where: str) -> None:
+def _check_table(ct: CornerTable, where: str, *, dummy=None, check=True,
+                 wart_skipping=True) -> tuple:
     """The ids of a corner table handed to the LR builders: ``c.v`` in ``[0, n)`` and ``c.o`` in
     ``[0, 3F)`` (O(F)). RING-EXPANDER's numba kernels read them unchecked: a table built by
     ``CornerTable.from_faces`` on a mesh with borders has ``c.o`` past the corners there (the
     half-edge's border darts), which read outside the arrays (a segfault). Other defects of a
-    trusted table give a typed refusal from the ring or tables of unspecified meaning."""
+    trusted table give a typed refusal from the ring or tables of unspecified meaning.
+
+    Also the builders' other arguments (:class:`~jaxcds.errors.ArgumentError` naming them):
+    ``ct`` a :class:`CornerTable` (a ``TriMesh`` raised an AttributeError about ``.V``),
+    ``dummy`` ``None`` or ``num_vertices`` booleans (a string or a short mask raised numpy's
+    IndexError), ``check`` and ``wart_skipping`` bools (returned)."""
+    if not isinstance(ct, CornerTable):
+        raise errors.ArgumentError(f"{where}: expected a CornerTable (CornerTable.from_mesh), got "
+                                   f"{type(ct).__name__}")
+    check = flag_arg(check, f"{where}: check")
+    wart_skipping = flag_arg(wart_skipping, f"{where}: wart_skipping")
+    if dummy is not None:
+        d = np.asarray(dummy)
+        if d.dtype != np.bool_ or d.shape != (ct.num_vertices,):
+            raise errors.ArgumentError(f"{where}: dummy must be None or a ({ct.num_vertices},) "
+                                       f"bool mask of the dummy vertices, got dtype {d.dtype} "
+                                       f"and shape {d.shape}")
     V, O = np.asarray(ct.V), np.asarray(ct.O)
     nc, nv = 3 * ct.num_faces, ct.num_vertices
     if V.shape != (nc,) or O.shape != (nc,):
@@ -747,6 +767,7 @@ def _check_table(ct: CornerTable, where: str) -> None:
         c = int(np.flatnonzero((V < 0) | (V >= nv))[0])
         raise errors.InvalidIndexError(f"{where}: corner {c} (face {c // 3}) has vertex "
                                        f"{int(V[c])}, outside [0, {nv})")
+    return check, wart_skipping
 
 
 _AUTO_K = (16, 32, 64, 128, 256, 512, 1024, 0)
@@ -779,6 +800,11 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     towards fewer references (:mod:`jaxcds.construct.ring_search`; beyond the paper, 0 = the
     paper's ring; about 0.2 us per triangle per sweep)."""
     _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
+    # flags as bools (ArgumentError): check='no' was truthy, borders=0 falsy
+    where = "LRBits.from_mesh" if bits else "LR.from_mesh"
+    check = flag_arg(check, f"{where}: check")
+    wart_skipping = flag_arg(wart_skipping, f"{where}: wart_skipping")
+    borders = flag_arg(borders, f"{where}: borders")
     ring_sweeps = check_sweeps(ring_sweeps)
     ks = _check_k(k) if bits else None
     mesh, twins = _prepare(mesh, "lr-bits" if bits else "lr")

@@ -67,6 +67,7 @@ import numba
 import numpy as np
 
 from jaxcds import _mappings, errors
+from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import load_mesh, trusted_faces, validate
@@ -301,7 +302,9 @@ class PEMB(MeshStructure):
         :class:`~jaxcds.structures.succinct.BalancedParens` answer without the min-max tree.
 
         ``check=False`` skips the validation and the genus test (trusted input, the checks of
-        :meth:`from_faces` only: answers unspecified on a defective mesh, never a crash)."""
+        :meth:`from_faces` only: answers unspecified on a defective mesh, never a crash);
+        ``check`` must be a bool (``ArgumentError``)."""
+        check = flag_arg(check, "PEMB.from_mesh: check")
         mesh = load_mesh(mesh)
         if check:
             # refuses vertices in no face too (UnreferencedVertexError): the spanning tree

@@ -446,3 +446,11 @@ def test_progress_bar_only_when_asked_or_large_on_a_tty(rnd, capsys):
     err = capsys.readouterr().err
     assert err.count("\r") == 4 and "3/3 done" in err and err.endswith("\n")
     assert cds.PROGRESS_MIN_VERTICES >= 100_000
+
+
+def test_progress_must_be_a_bool_or_none(rnd, capsys):
+    """``progress='no'`` was truthy: the bar was shown."""
+    for bad in ("no", 0, [False]):
+        with pytest.raises(errors.ArgumentError, match="build_cds: progress must be True, False or None"):
+            cds.build_cds(cds.CDS6n, rnd, progress=bad)
+    assert capsys.readouterr().err == ""

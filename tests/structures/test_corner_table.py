@@ -71,3 +71,17 @@ def test_corner_table_of_a_hub_of_high_degree_in_random_face_order():
         hub = np.nonzero(V == 0)[0]  # corner at hub 0 faces ring edge (r, r+1): apex k+1 opposite
         assert (V[O[hub]] == k + 1).all()
         assert (O[O] == np.arange(O.size)).all()
+
+
+def test_from_faces_names_twins_of_the_wrong_kind():
+    """``twins`` must be None or validation's ``Twins`` (``twins=1`` raised an AttributeError
+    about ``.opp``), for the corner table and the half-edge alike."""
+    from jaxcds import errors
+    from jaxcds.structures.halfedge import HalfEdge
+    from conftest import octahedron
+
+    _, f = octahedron()
+    for cls in (CornerTable, HalfEdge):
+        for bad in (1, "twins", (np.zeros(24, np.int32), np.zeros(6, np.int32))):
+            with pytest.raises(errors.ArgumentError, match=f"{cls.__name__}.from_faces: twins must be"):
+                cls.from_faces(f, 6, twins=bad)

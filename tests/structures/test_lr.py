@@ -620,3 +620,35 @@ def test_lr_from_corner_table_refuses_a_table_with_borders():
             got, msg = out[f"{cls}:{name}"]
             assert got == "UnsupportedTopologyError", (cls, name, got, msg)
             assert msg.startswith(f"{cls}.from_corner_table: corner ") and "has no opposite" in msg
+
+
+def test_builder_flags_and_corner_table_arguments_are_checked():
+    """``check``, ``wart_skipping``, ``borders`` must be bools (``check='no'`` was truthy: it
+    validated; ``borders=0`` silently showed the closed mesh); ``from_corner_table`` names a
+    TriMesh given for the table (AttributeError about ``.V``), a bad ``dummy`` mask (numpy's
+    IndexError) and, for LR, a seed count of 0 or -1 (numpy's ValueError)."""
+    from conftest import octahedron
+
+    m = octahedron()
+    for cls in (LR, LRBits):
+        for flag in ("check", "wart_skipping", "borders"):
+            if cls is LRBits and flag == "wart_skipping":
+                continue  # not one of LRBits.from_mesh's arguments
+            for bad in ("no", 0, None):
+                with pytest.raises(errors.ArgumentError, match=f"{cls.__name__}.from_mesh: {flag} must be"):
+                    cls.from_mesh(m, **{flag: bad})
+    ct = CornerTable.from_mesh(m)
+    for cls in (LR, LRBits):
+        where = f"{cls.__name__}.from_corner_table"
+        with pytest.raises(errors.ArgumentError, match=f"{where}: expected a CornerTable"):
+            cls.from_corner_table(load_mesh(m))
+        for dummy in ("x", np.zeros(3, bool), np.zeros(6, np.float32)):
+            with pytest.raises(errors.ArgumentError, match=f"{where}: dummy must be"):
+                cls.from_corner_table(ct, dummy=dummy)
+        for flag in ("check", "wart_skipping"):
+            with pytest.raises(errors.ArgumentError, match=f"{where}: {flag} must be"):
+                cls.from_corner_table(ct, **{flag: "no"})
+    for seeds in (0, -1, "x"):
+        with pytest.raises(errors.ArgumentError, match="seeds must be a count"):
+            LR.from_corner_table(ct, seeds=seeds)
+    assert LR.from_corner_table(ct, dummy=np.zeros(6, bool), check=np.True_).num_vertices == 6

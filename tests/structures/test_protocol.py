@@ -141,6 +141,21 @@ def test_is_border_and_corner_operators_check_their_ids_by_name(structure):
         assert np.asarray(getattr(s, op)(int(d[1]))).shape == ()
 
 
+@pytest.mark.parametrize("cls_name", ["HalfEdge", "CornerTable", "PEMB"])
+def test_builders_take_check_as_a_bool(cls_name):
+    """``from_mesh(check=...)`` names a non-bool (``check='no'`` was truthy: it validated;
+    ``check=0`` silently skipped the validation); LR's flags: tests/structures/test_lr.py."""
+    from conftest import octahedron
+    from jaxcds.structures.corner_table import CornerTable
+    from jaxcds.structures.pemb import PEMB
+
+    cls = {"HalfEdge": HalfEdge, "CornerTable": CornerTable, "PEMB": PEMB}[cls_name]
+    for bad in ("no", 0, 1, None, [True]):
+        with pytest.raises(errors.ArgumentError, match=f"{cls_name}.from_mesh: check must be True or False"):
+            cls.from_mesh(octahedron(), check=bad)
+    assert cls.from_mesh(octahedron(), check=np.False_).num_faces == 8
+
+
 # ---------------------------------------------------------------- random triangulations
 from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
 
