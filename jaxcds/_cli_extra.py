@@ -50,6 +50,9 @@ def _check_output(path: str, suffixes: tuple, what: str, source: str) -> None:
     the input file ``source`` itself (``polylla IN.off -o IN.off`` replaced the triangulation
     with its polygon mesh and exited 0: the input was lost)."""
     ext = os.path.splitext(path)[1].lower()
+    if os.path.isdir(path):  # checked first: a folder has no suffix, and "unknown suffix ''" hid why
+        raise errors.OutputError(f"output {path!r} is a folder; give a file path in it "
+                                 f"(e.g. {os.path.join(path, 'out' + suffixes[0])!r})")
     if ext not in suffixes:
         raise errors.OutputError(f"output {path!r}: unknown suffix {ext!r} for {what} "
                                  f"(use {', '.join(suffixes)})")

@@ -170,6 +170,11 @@ def test_bad_meshes_and_outputs_write_nothing(capsys, tmp_path):
     nodir = str(tmp_path / "nodir" / "m.cds")
     _refused(capsys, ["encode", mesh_path("cube.off"), "-o", nodir], str(tmp_path / "x"),
              "does not exist")
+    folder = tmp_path / "a_folder"  # named as a folder (it was "unknown suffix ''"), for every writer
+    folder.mkdir()
+    for argv in (["encode", mesh_path("cube.off")], ["decode", str(tmp_path / "missing.cds")],
+                 ["polylla", mesh_path("grid.off")]):
+        _refused(capsys, argv + ["-o", str(folder)], str(tmp_path / "y"), "a_folder' is a folder; give a file path")
     _refused(capsys, ["decode", str(tmp_path / "missing.cds"), "-o", str(tmp_path / "m.off")],
              str(tmp_path / "m.off"), "missing.cds: no such file")
     # an existing output is left untouched when the input is bad
