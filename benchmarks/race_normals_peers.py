@@ -9,7 +9,9 @@ each one met), where this race pairs each structure with each peer a few millise
 A ratio under 1 is the structure faster; the verdict is against 1.0 for the peers (``met`` when
 the whole interval is under it) and against ``--target`` (issue 3's 1.5x) for the face list. Each structure's normals are checked against the face list's before
 timing; peers are timed as ``benchmarks/peers.py`` calls them (libigl area weighted, float64:
-their APIs) and skipped, by name, when not installed.
+their APIs) and skipped, by name, when not installed. Every side is its public call, argument
+checks included (``vertex_normals``, ``face_list_vertex_normals``, the peers' functions): a
+user's call against a user's call.
 
     .venv/bin/python benchmarks/race_normals_peers.py --meshes bunny.off,cheburashka.obj \\
         --structures cds6n,cds5n,cds4n,cds5n-o1 --peers libigl,openmesh,trimesh --rounds 40
@@ -65,7 +67,7 @@ def main(argv=None) -> int:
         raise SystemExit(f"unknown peer(s) {unknown}; known: {sorted(PEERS)}")
     for spec in a.meshes.split(","):
         m, parts = _meshes(spec)
-        pos, _, want, runs = face_list_baseline(m)
+        pos, _, want, runs = face_list_baseline(m, public=True)
         structures = []
         for name in a.structures.split(","):
             s = _structure(name, m, parts)
@@ -73,7 +75,7 @@ def main(argv=None) -> int:
                 print(f"# {spec} {name}: skipped (closes holes with dummy vertices)", flush=True)
                 continue
             p, ref = _in_order(s, pos, want)
-            own = jax.jit(lambda s, p: normals._vertex_normals.__wrapped__(s, p)).lower(s, p).compile()
+            own = normals.vertex_normals  # public calls on every side, as users (and the peers) call
             err = float(np.abs(np.asarray(own(s, p)) - ref).max())
             if not err < 1e-4:
                 raise SystemExit(f"{spec} {name}: normals differ from the face list's by {err}")
