@@ -596,7 +596,8 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
       canonical: sort the polygons by their first directed edge (canonical mode; default
         True). Reference mode keeps the reference's order and ignores it.
       row_ids: reference mode: the input index of each row of ``corners`` (default: its own),
-        for a piece of a larger input (the reference's half-edge ids are the whole input's).
+        for a piece of a larger input (the reference's half-edge ids are the whole input's):
+        ``(F,)`` integers, increasing, non-negative (else :class:`~jaxcds.errors.PolyllaError`).
 
     ``tables``: let the structure build per-run navigation tables (:func:`_tabulated`; pemb:
     twin, origin and first dart of every face, 41.5 bytes per vertex while the run lasts, its
@@ -652,6 +653,8 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         raise errors.PolyllaError(f"clockwise must be True, False or None, got {clockwise!r}")
     if corners is not None:
         cs = _checked_corners(corners, s.num_faces, pos.shape[0])
+    if row_ids is not None:
+        row_ids = _checked_row_ids(row_ids, s.num_faces)
     t0 = marks[0][0]
     with jax.enable_x64(True):
         pos_j = jnp.asarray(pos_s, jnp.float64)
@@ -868,6 +871,31 @@ def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
         raise errors.PolyllaError(f"corners row {int(bad[0])} {c[bad[0]].tolist()} refers to a vertex "
                                   f"outside [0, {num_vertices})")
     return c if c.dtype in (np.int32, np.int64) else c.astype(np.int64)
+
+
+def _checked_row_ids(row_ids, num_faces: int) -> np.ndarray:
+    """``row_ids`` as an ``(F,)`` int64 array of increasing, non-negative input row indices, or
+    :class:`PolyllaError` naming the first bad one. Unchecked, the reference walks' numba kernel
+    read past a short array (a wrong answer or a misleading "corners do not match"), truncated
+    floats, took booleans as 0/1, and failed with numba's TypingError on a scalar or 2-D array;
+    a negative or huge id (``3 id + 2`` past int64) collided with the kernel's ``-1``."""
+    try:
+        r = np.asarray(row_ids)
+    except ValueError as exc:  # ragged nested lists
+        raise errors.PolyllaError(f"row_ids are not an array: {exc}") from None
+    if r.shape != (num_faces,) or (r.size and not np.issubdtype(r.dtype, np.integer)):
+        raise errors.PolyllaError(f"row_ids must be ({num_faces},) integer input row indices (one "
+                                  f"per row of corners), got shape {r.shape} of {r.dtype}")
+    top = (np.iinfo(np.int64).max - 2) // 3  # the reference's half-edge id 3 i + j in int64
+    if r.size and (r.min() < 0 or r.max() > top):
+        k = int(np.argmax((r < 0) | (r > top)))
+        raise errors.PolyllaError(f"row_ids[{k}] = {int(r[k])} is outside [0, {top}]")
+    r = r.astype(np.int64)
+    if r.size > 1 and not bool(np.all(r[1:] > r[:-1])):
+        k = int(np.argmax(r[1:] <= r[:-1])) + 1
+        raise errors.PolyllaError(f"row_ids must be increasing: row_ids[{k}] = {int(r[k])} "
+                                  f"after row_ids[{k - 1}] = {int(r[k - 1])}")
+    return r
 
 
 def _all_clockwise(pos: np.ndarray, corners: np.ndarray) -> bool:

@@ -1118,3 +1118,21 @@ def test_entry_points_name_arguments_of_the_wrong_kind(tmp_path, monkeypatch):
     rep = P.run(tri, pathlib.Path(tmp_path / "out.off"))
     assert rep["output"] == str(tmp_path / "out.off") and rep["tables"] is True
     assert sorted(os.listdir(tmp_path)) == ["out.off"]
+
+
+@pytest.mark.parametrize("bad", ["short", "float", "str", "neg", "dup", "huge", "2d", "scalar",
+                                 "bool"])
+def test_row_ids_refused_by_name(bad):
+    """``row_ids`` were handed to the reference walks' numba kernel unchecked: a short array was
+    read past its end (wrong seed ids, or a misleading "corners do not match"), floats truncated,
+    booleans read as 0/1, duplicates accepted, a scalar or 2-D array raised numba's TypingError."""
+    tri = grid(4)
+    s = P.build_structure(tri, "halfedge")
+    F = s.num_faces
+    ok = np.arange(F) + 100
+    assert list(P.polylla(s, tri.points, corners=tri.input_faces, row_ids=ok).seed_edges[:1]) == [302]
+    row_ids = {"short": ok[:-3], "float": ok + 0.5, "str": ["a"] * F, "neg": ok - 105,
+               "dup": np.zeros(F, np.int64), "huge": ok + 2 ** 62, "2d": ok.reshape(-1, 1),
+               "scalar": 3, "bool": np.ones(F, bool)}[bad]
+    with pytest.raises(errors.PolyllaError, match="row_ids"):
+        P.polylla(s, tri.points, corners=tri.input_faces, row_ids=row_ids)
