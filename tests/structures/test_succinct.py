@@ -216,3 +216,25 @@ def test_match_all_takes_the_sort_route_when_asked(monkeypatch):
     monkeypatch.setattr(bp_mod, "matches_by_level", lambda *a: calls.append(1) or by_level(*a))
     np.testing.assert_array_equal(np.asarray(P.match_all()), searched)
     assert calls == [1]
+
+
+@pytest.mark.parametrize("bad", [1.7, [1.5], True, [True, False], "3"])
+def test_succinct_queries_refuse_non_integer_ids(bad):
+    """Positions and ranks were cast with ``jnp.asarray(i, int32)``: 1.7 read as 1, ``True`` as 1,
+    the string ``'3'`` as 3 (silently wrong answers); now InvalidIndexError naming the query."""
+    from jaxcds import errors
+    from jaxcds.structures.succinct import BalancedParens, BitVector
+
+    bv = BitVector.from_bits("0110100111")
+    p = BalancedParens.from_bits("(()(()))")
+    assert int(bv.rank1(3)) == 2 and int(p.match(3)) == 6
+    for name, call in [("BitVector.access", bv.access), ("BitVector.rank1", bv.rank1),
+                       ("BitVector.rank0", bv.rank0), ("BitVector.select", bv.select1),
+                       ("BitVector.select", bv.select0), ("BalancedParens.match", p.match),
+                       ("BalancedParens.enclose", p.enclose), ("BalancedParens.excess", p.excess),
+                       ("BalancedParens.find_close", p.find_close),
+                       ("BalancedParens.find_open", p.find_open),
+                       ("BalancedParens.rank_open", p.rank_open),
+                       ("BalancedParens.select_open", p.select_open)]:
+        with pytest.raises(errors.InvalidIndexError, match=name):
+            call(bad)

@@ -12,7 +12,9 @@ block ``b``. So the rank support costs 32 bits per 256 (0.125 bit per bit).
   (``select_steps`` halvings, the most any sample gap needs), then the word inside the block
   (prefix popcounts), then the bit inside the word (5 halving steps).
 
-Every query takes arrays of any shape, is branch-free (``jnp.where``) and jittable; the
+Every query takes arrays of any shape, is branch-free (``jnp.where``) and jittable; its
+positions and ranks are integers (floats, booleans and strings are refused with
+:class:`~jaxcds.errors.InvalidIndexError`, :func:`jaxcds.structures.base.id_arg`); the
 structure is a pytree (``words``, ``block_rank`` leaves; ``size`` static).
 """
 
@@ -29,6 +31,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.structures.base import id_arg
 
 __all__ = ["BitVector", "BLOCK_BITS", "BLOCK_WORDS", "COMPACT_CHUNK", "compacted", "pack_bits", "popcount"]
 
@@ -250,7 +253,7 @@ class BitVector:
     # ------------------------------------------------------------------ queries
     def access(self, i) -> jnp.ndarray:
         """Bit ``i`` as int32 0/1."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "BitVector.access: positions")
         w = self.words[i >> 5]
         return ((w >> (i & 31).astype(jnp.uint32)) & jnp.uint32(1)).astype(jnp.int32)
 
@@ -270,7 +273,7 @@ class BitVector:
 
     def rank1(self, i) -> jnp.ndarray:
         """Number of ones in ``[0, i)``, ``0 <= i <= size``."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "BitVector.rank1: positions")
         if self.word_rank is not None:
             w = i >> 5
             return self.word_rank[w] + popcount(self.words[w] & _low_mask(i & 31))
@@ -287,13 +290,14 @@ class BitVector:
 
     def rank0(self, i) -> jnp.ndarray:
         """Number of zeros in ``[0, i)``."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "BitVector.rank0: positions")
         return i - self.rank1(i)
 
     def rank(self, i, bit) -> jnp.ndarray:
         """``rank1`` where ``bit`` is 1, ``rank0`` where it is 0 (elementwise)."""
+        i = id_arg(i, "BitVector.rank: positions")
         r1 = self.rank1(i)
-        return jnp.where(jnp.asarray(bit) != 0, r1, jnp.asarray(i, jnp.int32) - r1)
+        return jnp.where(jnp.asarray(bit) != 0, r1, i - r1)
 
     def select(self, k, bit) -> jnp.ndarray:
         """Position of the ``k``-th (0-based) ``bit`` (elementwise 0/1). Out of range -> ``size``.
@@ -301,7 +305,7 @@ class BitVector:
         Binary search for the last block ``b`` with ``count_bit([0, 256 b)) <= k`` between the
         blocks of the samples ``k // 512`` and ``k // 512 + 1`` (``select_steps`` halvings, fixed
         at construction), then the word and the bit inside it."""
-        k = jnp.asarray(k, jnp.int32)
+        k = id_arg(k, "BitVector.select: ranks")
         one = jnp.broadcast_to(jnp.asarray(bit) != 0, k.shape)
         total = jnp.where(one, self.ones, self.zeros)
         nb = self.num_blocks
@@ -367,7 +371,9 @@ class BitVector:
         :func:`compacted`). pemb's ``mate`` knows ``i`` (the other half-edge) and ``r``, and its
         answer is within one word for about 3 darts in 4 (BFS tree). Lanes outside ``active``
         (default: all) get an unspecified position without any slow-route work."""
-        k = jnp.asarray(k, jnp.int32)
+        k = id_arg(k, "BitVector.select_near: ranks")
+        i = id_arg(i, "BitVector.select_near: positions")
+        r = id_arg(r, "BitVector.select_near: ranks of the positions")
         shape = jnp.broadcast_shapes(k.shape, jnp.shape(bit), jnp.shape(i), jnp.shape(r))
         k, i, r = (jnp.broadcast_to(jnp.asarray(x, jnp.int32), shape).reshape(-1) for x in (k, i, r))
         one = jnp.broadcast_to(jnp.asarray(bit) != 0, shape).reshape(-1)

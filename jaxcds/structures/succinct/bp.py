@@ -48,6 +48,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
+from jaxcds.structures.base import id_arg
 from jaxcds.structures.succinct.bitvector import (BLOCK_BITS, BLOCK_WORDS, COMPACT_CHUNK, UNROLL_FROM,
                                                   BitVector, _low_mask, compacted, popcount)
 
@@ -219,19 +220,19 @@ class BalancedParens:
     # ------------------------------------------------------------------ basic
     def excess(self, p) -> jnp.ndarray:
         """``E(p)``: opening minus closing parentheses among the first ``p`` symbols."""
-        p = jnp.asarray(p, jnp.int32)
+        p = id_arg(p, "BalancedParens.excess: positions")
         return 2 * self.bits.rank1(p) - p
 
     def is_open(self, i) -> jnp.ndarray:
-        return self.bits.access(i) == 1
+        return self.bits.access(id_arg(i, "BalancedParens.is_open: positions")) == 1
 
     def rank_open(self, i) -> jnp.ndarray:
         """Opening parentheses in ``[0, i)`` (preorder rank of the node opened at ``i``)."""
-        return self.bits.rank1(i)
+        return self.bits.rank1(id_arg(i, "BalancedParens.rank_open: positions"))
 
     def select_open(self, k) -> jnp.ndarray:
         """Position of the ``k``-th (0-based) ``(``; ``size`` if none."""
-        return self.bits.select1(k)
+        return self.bits.select1(id_arg(k, "BalancedParens.select_open: ranks"))
 
     # ------------------------------------------------------------------ block scan
     def _scan_words(self, blk, lo, hi, t, fw):
@@ -455,11 +456,11 @@ class BalancedParens:
 
     def fwd(self, i, t) -> jnp.ndarray:
         """First bit ``k >= i`` with ``E(k + 1) <= t``; ``size`` if none."""
-        return self._search(i, t, True)
+        return self._search(id_arg(i, "BalancedParens.fwd: positions"), t, True)
 
     def bwd(self, p, t) -> jnp.ndarray:
         """Last prefix position ``q <= p`` with ``E(q) <= t``; ``size`` if none."""
-        p = jnp.asarray(p, jnp.int32)
+        p = id_arg(p, "BalancedParens.bwd: positions")
         t = jnp.asarray(t, jnp.int32)
         r = self._search(p, t, False)
         r = jnp.where(r == self.size, jnp.where(t >= 0, 0, self.size), r)  # E(0) = 0
@@ -468,19 +469,19 @@ class BalancedParens:
     # ------------------------------------------------------------------ tree operations
     def find_close(self, i) -> jnp.ndarray:
         """Position of the ``)`` matching the ``(`` at ``i``."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "BalancedParens.find_close: positions")
         return self.fwd(i, self.excess(i))
 
     def find_open(self, j) -> jnp.ndarray:
         """Position of the ``(`` matching the ``)`` at ``j``."""
-        j = jnp.asarray(j, jnp.int32)
+        j = id_arg(j, "BalancedParens.find_open: positions")
         return self.bwd(j, self.excess(j + 1))
 
     def match(self, i, *, active=None, chunk: Optional[int] = None) -> jnp.ndarray:
         """The matching parenthesis of ``i``, whichever way it opens (one search: the two
         directions share one program, chosen elementwise; two stages, :meth:`_two_stage`).
         Lanes outside ``active`` (default: all) get an unspecified answer, cheaply."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "BalancedParens.match: positions")
         op = self.is_open(i)
         # '(' at i: fwd(i, E(i)); ')' at i: bwd(i, E(i + 1)) = bwd(i, E(i) - 1), never at i itself
         return self._two_stage(i, jnp.where(op, 0, -1), op, self._match_slow, chunk, active)
@@ -509,6 +510,8 @@ class BalancedParens:
         ``opens``; other lanes unspecified and spared the slow route. The forward half of
         :meth:`match`'s two stages (``fw`` a constant): :meth:`_near`, then the min-max tree
         for the misses only (compacted, :func:`compacted`)."""
+        i = id_arg(i, "BalancedParens.closes_of: positions")
+        opens = jnp.asarray(opens, bool)
         found, near = self._near(i, jnp.zeros_like(i), True)
         return compacted(lambda i: self._search(i, self.excess(i), True), opens & ~found, near,
                          (i,), chunk)
@@ -522,7 +525,7 @@ class BalancedParens:
         """Opening parenthesis of the innermost pair still open just before position ``i``
         (for ``(`` at ``i``: its parent); ``size`` if none (``i`` at depth 0). Two stages
         (:meth:`_two_stage`): ``bwd(i, E(i) - 1)`` is a backward search with ``d = -1``."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "BalancedParens.enclose: positions")
         return self._two_stage(i, -1, False, self._enclose_slow, chunk)
 
     def _enclose_slow(self, i, d, fw):
