@@ -238,3 +238,26 @@ def test_succinct_queries_refuse_non_integer_ids(bad):
                        ("BalancedParens.select_open", p.select_open)]:
         with pytest.raises(errors.InvalidIndexError, match=name):
             call(bad)
+
+
+@pytest.mark.parametrize("bits", [[0, 2, 1, 0], [1, -1, 0, 0], [1, 0.5, 1, 0], ["1", "0"], [[1, 0], [1]],
+                                  None, [1, None, 0, 0]])
+def test_succinct_builders_refuse_non_bits(bits):
+    """A cast to bool read 2, -1 and 0.5 as 1 (BalancedParens: 0.5 as 0), the strings '0' and
+    '1' both as 1 and None as one 0 bit; ragged lists raised numpy's ValueError."""
+    from jaxcds import errors
+    from jaxcds.structures.succinct import BalancedParens, BitVector
+
+    with pytest.raises(errors.EncodingError, match="BitVector.from_bits"):
+        BitVector.from_bits(bits)
+    with pytest.raises(errors.EncodingError, match="BalancedParens.from_bits"):
+        BalancedParens.from_bits(bits)
+
+
+@pytest.mark.parametrize("check", ["no", 0, None])
+def test_balanced_parens_check_must_be_bool(check):
+    from jaxcds import errors
+    from jaxcds.structures.succinct import BalancedParens
+
+    with pytest.raises(errors.ArgumentError, match="check"):
+        BalancedParens.from_bits("(", check=check)

@@ -177,6 +177,25 @@ def pack_bits(bits) -> np.ndarray:
         np.uint32)
 
 
+def bits_array(bits, what: str) -> np.ndarray:
+    """Host: ``bits`` (nested lists or an array of integers, booleans or floats) as a flat bool
+    array, or :class:`~jaxcds.errors.EncodingError` naming ``what`` and the first offset that
+    holds anything but 0 or 1 (a cast to bool read 2, -1, 0.5 and NaN as 1, the strings ``'0'``
+    and ``'1'`` both as 1, and ``None`` as one 0 bit)."""
+    try:
+        a = np.asarray(bits)
+    except ValueError as exc:  # ragged nested lists
+        raise errors.EncodingError(f"{what} are not an array of bits: {exc}") from None
+    if a.size and a.dtype.kind not in "biuf":
+        raise errors.EncodingError(f"{what} must be 0/1 values, got dtype {a.dtype}")
+    a = a.ravel()
+    bad = (a != 0) & (a != 1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise errors.EncodingError(f"{what} hold {a[k].item()!r} at offset {k}, expected 0 or 1")
+    return a.astype(bool)
+
+
 @pytree_dataclass
 class BitVector:
     """A static bit vector with rank and select.
@@ -200,14 +219,15 @@ class BitVector:
 
     @classmethod
     def from_bits(cls, bits) -> "BitVector":
-        """Build from a host 0/1 sequence (list, numpy array or a ``"0110..."`` string)."""
+        """Build from a host 0/1 sequence (list, numpy array or a ``"0110..."`` string);
+        any other value is :class:`~jaxcds.errors.EncodingError` naming its offset."""
         if isinstance(bits, str):
             bad = [i for i, c in enumerate(bits) if c not in "01"]
             if bad:
                 raise errors.EncodingError(
                     f"bit string has {bits[bad[0]]!r} at offset {bad[0]}, expected '0' or '1'")
             bits = np.frombuffer(bits.encode(), dtype=np.uint8) - ord("0")
-        b = np.asarray(bits).astype(bool).ravel()
+        b = bits_array(bits, "BitVector.from_bits: bits")
         words = pack_bits(b)
         nblocks = words.size // BLOCK_WORDS
         counts = np.bitwise_count(words).reshape(nblocks, BLOCK_WORDS).sum(axis=1)

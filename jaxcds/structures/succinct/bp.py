@@ -46,11 +46,13 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.base import id_arg
 from jaxcds.structures.succinct.bitvector import (BLOCK_BITS, BLOCK_WORDS, COMPACT_CHUNK, UNROLL_FROM,
-                                                  BitVector, _low_mask, compacted, popcount)
+                                                  BitVector, _low_mask, bits_array, compacted,
+                                                  popcount)
 
 __all__ = ["BalancedParens", "excess_oracle", "unbalanced_at", "matches_by_level", "CHUNK_MIN",
            "COMPACT_CHUNK", "MATCH_BY_SORT"]
@@ -176,14 +178,16 @@ class BalancedParens:
         """Build from a host 0/1 sequence (1 = ``(``) or a string of ``(``/``)`` or ``1``/``0``.
 
         Raises :class:`~jaxcds.errors.EncodingError` naming the offending offset if the
-        sequence is not balanced (``check=False`` skips the test for prefixes of sequences)."""
+        sequence is not balanced or holds a value other than 0/1 (``check=False``, a bool, skips
+        the balance test for prefixes of sequences)."""
         if isinstance(bits, str):
             table = {"(": 1, ")": 0, "1": 1, "0": 0}
             bad = [i for i, c in enumerate(bits) if c not in table]
             if bad:
                 raise errors.EncodingError(f"parenthesis string has {bits[bad[0]]!r} at offset {bad[0]}")
             bits = np.array([table[c] for c in bits], dtype=np.uint8)
-        b = np.asarray(bits).astype(np.uint8).ravel()
+        check = flag_arg(check, "BalancedParens.from_bits: check")
+        b = bits_array(bits, "BalancedParens.from_bits: bits").astype(np.uint8)
         bv = BitVector.from_bits(b)
         nb = bv.num_blocks
         # one pass, O(blocks) memory: the excess of every prefix as an int64 array (and its
