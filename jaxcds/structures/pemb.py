@@ -71,7 +71,7 @@ from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import load_mesh, trusted_faces, validate
-from jaxcds.structures.base import Int, MeshStructure, _jit_when_eager, by_table, shared_subexpression
+from jaxcds.structures.base import Int, MeshStructure, _jit_when_eager, by_table, id_arg, shared_subexpression
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct.bp import unbalanced_at
 
@@ -435,7 +435,7 @@ class PEMB(MeshStructure):
         """The other half-edge of ``i``'s edge (slides, "Example of Pemb query"). Lanes outside
         ``where`` (a mask, default all) get an unspecified value and skip the slow routes of the
         two-stage searches (callers that select the mate on some lanes only pass it)."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "mate: i")
         a = self.A.access(i)
         t = self.A.rank(i, a)
         j = jnp.where(a == 1, t, self.num_tree_parens + t)  # in B, or in B* after B
@@ -448,7 +448,7 @@ class PEMB(MeshStructure):
     def vertex(self, i: Int) -> Int:
         """The vertex (preorder id) the half-edge at position ``i`` leaves: the innermost tree node
         open before its ``rank1(A, i)``-th parenthesis of ``B`` (root 0 if none)."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "vertex: i")
         m = self._dart_mesh(i)
         q = self.P.enclose(self.A.rank1(i))
         return jnp.where(q >= self.P.size, self._root_vertex(m),
@@ -462,7 +462,7 @@ class PEMB(MeshStructure):
 
     def first(self, v: Int) -> Int:
         """First position of vertex ``v`` (the one after its ``(``; 0 for the root)."""
-        m, root, q = self._vertex_paren(v)
+        m, root, q = self._vertex_paren(id_arg(v, "first: v"))
         return jnp.where(root, self._walk_start(m), self.A.select1(q) + 1).astype(jnp.int32)
 
     def last(self, v: Int) -> Int:
@@ -470,6 +470,7 @@ class PEMB(MeshStructure):
         if that is a non-tree half-edge (the root's own), else the walk ended coming back up
         from the root's last child and the root's last half-edge is the one going down to it,
         ``mate(2m - 1)`` (that is ``prev_p(0)``)."""
+        v = id_arg(v, "last: v")
         m, root, q = self._vertex_paren(v)
         root_last = self.prev_p(jnp.zeros(jnp.shape(v), jnp.int32) + self._walk_start(m))
         return jnp.where(root, root_last, self.A.select1(self.P.find_close(q))).astype(jnp.int32)
@@ -477,7 +478,7 @@ class PEMB(MeshStructure):
     @shared_subexpression
     def next_p(self, i: Int) -> Int:
         """pemb ``next``: the next half-edge ccw around ``vertex(i)`` (cyclic)."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "next_p: i")
         m = self._dart_mesh(i)
         # a tree half-edge is followed by the walk of a subtree (down) or ends the vertex (up):
         # both continue after the mate; a non-tree one by the next position
@@ -489,7 +490,7 @@ class PEMB(MeshStructure):
     def prev_p(self, i: Int) -> Int:
         """pemb ``prev``: the previous half-edge around ``vertex(i)`` (cw, cyclic). Fixes the
         reference code's border bug: ``prev(first(v)) = last(v)`` for every ``v``."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "prev_p: i")
         m = self._dart_mesh(i)
         j = jnp.where(i == self._walk_start(m), self._walk_end(m) - 1, i - 1)
         tree = self.A.access(j) == 1
@@ -498,7 +499,7 @@ class PEMB(MeshStructure):
     def degree(self, v: Int) -> Int:
         """Number of half-edges leaving ``v`` (counted ccw from ``first(v)``, as the reference
         does; a ``while_loop`` bounded by the degree, batched)."""
-        v = jnp.asarray(v, jnp.int32)
+        v = id_arg(v, "degree: v")
         f0 = self.first(v)
 
         limit = 2 * self.num_edges + 1  # a safety net for ids that are not vertices
@@ -521,7 +522,7 @@ class PEMB(MeshStructure):
         left face, so that face is the innermost dual node open just after ``i``; it runs along a
         tree edge on the edge's right side, so the left face of a tree half-edge is the face the
         walk is in when it passes the other half, at ``mate(i)``."""
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "get_face: i")
         m = self._dart_mesh(i)
         tree = self.A.access(i) == 1
         x = jnp.where(tree, self.mate(i, where=tree), i)
@@ -538,7 +539,7 @@ class PEMB(MeshStructure):
         face). (Position ``2m - 1`` holds a dart of the root face only when the walk ends on a
         non-tree half-edge, as the ccw DFS tree's does; after a BFS tree's last subtree it ends
         on a tree half-edge.)"""
-        g = jnp.asarray(g, jnp.int32)
+        g = id_arg(g, "first_dual: g")
         m = self._pface_mesh(g)
         ntp = self.num_tree_parens
         q = self.P.select_open(ntp // 2 + jnp.maximum(g - 1 - m, 0))
@@ -836,17 +837,17 @@ class TableOperators:
     def mate(self, i: Int, where=None) -> Int:
         if self.tw is None:
             return super().mate(i, where)
-        return self.tw[jnp.asarray(i, jnp.int32)]
+        return self.tw[id_arg(i, "mate: i")]
 
     def first_dual(self, g: Int) -> Int:
         if self.fe is None:
             return super().first_dual(g)
-        return self.fe[jnp.asarray(g, jnp.int32)]
+        return self.fe[id_arg(g, "first_dual: g")]
 
     def vertex(self, i: Int) -> Int:
         if self.vb is None:
             return super().vertex(i)
-        i = jnp.asarray(i, jnp.int32)
+        i = id_arg(i, "vertex: i")
         return self._vb_answer(self.vb[self.A.rank1(i)], i)
 
     def dart_face_table(self) -> Int:

@@ -200,3 +200,21 @@ def test_pemb_unchecked_routes_cannot_crash():
         assert out[f"{route}:no_faces"][0] == "EmptyMeshError", out
         assert out[f"{route}:nm_edge"][0] == "NonManifoldEdgeError", out
         assert "edge (0, 1)" in out[f"{route}:nm_edge"][1]
+
+
+@pytest.mark.parametrize("method", ["mate", "vertex", "first", "last", "next_p", "prev_p", "degree",
+                                    "get_face", "first_dual"])
+def test_pemb_own_queries_refuse_ids_that_are_not_integers(method):
+    """Sweep 49d: pemb's own queries (the slides' vocabulary) cast their ids with
+    ``jnp.asarray(i, int32)``: 1.7 read as 1, True as 1 (silently wrong), or a refusal named after
+    an inner bit-vector method. Now refused by name, with and without the navigation tables."""
+    from jaxcds.generators import random_planar_triangulation
+
+    s = PEMB.from_mesh(random_planar_triangulation(12, seed=1))
+    for t in (s, s.with_tables()):
+        for bad in (1.7, True, "1", [0.5]):
+            with pytest.raises(errors.InvalidIndexError, match=rf"{method}: \w+"):
+                getattr(t, method)(bad)
+    if method in ("mate", "first"):  # lists and other integer kinds read as int32 ids
+        f = getattr(s, method)
+        np.testing.assert_array_equal(np.asarray(f([1, 2])), np.asarray(f(np.array([1, 2], ">i8"))))
