@@ -64,7 +64,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._arrays import to_device, traced_for_cpu
-from jaxcds._args import number_array, refuse_non_real
+from jaxcds._args import flag_arg, number_array, refuse_non_real
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, id_arg
@@ -544,8 +544,7 @@ def pack(meshes: Sequence[Any], structure: str = "halfedge", *, check: bool = Tr
     """
     from jaxcds.structures import registry
 
-    if not isinstance(check, (bool, np.bool_)):
-        raise errors.ArgumentError(f"pack: check must be True or False, got {check!r}")
+    check = flag_arg(check, "pack: check")
     ms = [_load(m) for m in _mesh_list(meshes, "pack")]
     if not ms:
         raise errors.EmptyMeshError("pack: no meshes given")

@@ -18,6 +18,7 @@ from typing import Any, Optional
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import flag_arg
 from jaxcds.codec import fileformat as ff
 from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n  # noqa: F401  (Paper6n: named in decode's docs)
 from jaxcds.codec.encode import encode_faces
@@ -34,8 +35,7 @@ def _flags(function: str, **flags) -> None:
     """:class:`ArgumentError` naming the first of ``flags`` that is not a bool (``'no'`` and
     ``None`` are truthy / falsy to Python: ``keep_order='no'`` stored the order)."""
     for flag, value in flags.items():
-        if not isinstance(value, (bool, np.bool_)):
-            raise errors.ArgumentError(f"{function}: {flag} must be True or False, got {value!r}")
+        flag_arg(value, f"{function}: {flag}")
 
 
 @dataclasses.dataclass(frozen=True)
