@@ -228,7 +228,7 @@ def check_dummy_mask(dummy: np.ndarray, faces: np.ndarray, offset: Optional[int]
 
 def check_writable(path: str | os.PathLike) -> str:
     """``path`` as a string if a file can be written there (its folder exists, no folder in its
-    place, no device, FIFO or socket there), else :class:`~jaxcds.errors.OutputError` naming it.
+    place, no device, FIFO, socket or read-only file there), else :class:`~jaxcds.errors.OutputError` naming it.
     Called before any work.
 
     Writes are a temporary file renamed over ``path``: on a device (``/dev/null``,
@@ -245,6 +245,8 @@ def check_writable(path: str | os.PathLike) -> str:
         raise errors.OutputError(f"output {path!r}: folder {folder!r} does not exist")
     if os.path.isdir(path):
         raise errors.OutputError(f"output {path!r} is a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):  # else found by the temporary file, after the work
+        raise errors.OutputError(f"output {path!r}: folder {folder!r} is not writable")
     try:
         mode = os.stat(path).st_mode
     except OSError:  # nothing there (or a dangling link): the rename creates the file
@@ -255,6 +257,12 @@ def check_writable(path: str | os.PathLike) -> str:
                 else "not a regular file")
         raise errors.OutputError(f"output {path!r} is {kind}, not a regular file: the atomic write "
                                  "(a temporary file renamed over it) would replace it; give a file path")
+    # the rename needs write access to the folder only, so a file its owner made read-only was
+    # replaced without a word, where ``open(path, 'w')`` (or a shell's ``>``) refuses it; as
+    # root, ``os.access`` allows everything, so the mode's write bits are read as well
+    if not (mode & 0o222) or not os.access(path, os.W_OK):
+        raise errors.OutputError(f"output {path!r} is read-only (mode {stat.S_IMODE(mode):04o}): not "
+                                 "replaced; make it writable or give another path")
     return path
 
 

@@ -545,3 +545,35 @@ def test_codec_file_functions_name_arguments_of_the_wrong_kind(tmp_path):
     with pytest.raises(errors.ArgumentError, match="decode_file: verify checks the structure"):
         decode_file(out, tmp_path / "m.off", verify=True)
     assert not (tmp_path / "m.off").exists()
+
+
+def test_a_read_only_output_is_refused_and_kept(tmp_path, monkeypatch):
+    """Stop 49 left: the atomic write (a rename, which needs only the folder's write access)
+    replaced a file its owner had made read-only, where ``open(path, 'w')`` refuses. Every writer
+    (``.cds``, decoded meshes, Polylla's OFF) now refuses it before any work, and keeps it; as
+    root ``os.access`` allows everything, so the mode's write bits decide. A folder that cannot
+    be written is refused up front too (it was found by the temporary file, after the work)."""
+    from jaxcds.codec import write_mesh_atomic
+    from jaxcds.polylla_io import write_polygon_off
+
+    m = icosphere(0)
+    old = tmp_path / "kept.off"
+    old.write_bytes(b"old")
+    os.chmod(old, 0o444)
+    for write in (lambda: write_cds(old, m), lambda: write_mesh_atomic(old, m),
+                  lambda: write_polygon_off(str(old), np.zeros((3, 2)), np.array([0, 3]), np.array([0, 1, 2]))):
+        with pytest.raises(errors.OutputError, match=r"kept.off' is read-only \(mode 0444\): not replaced"):
+            write()
+    link = tmp_path / "link.off"  # through a link, the file it names decides
+    link.symlink_to(old)
+    with pytest.raises(errors.OutputError, match="is read-only"):
+        ff.atomic_write_bytes(link, b"new")
+    assert old.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["kept.off", "link.off"]
+    os.chmod(old, 0o644)
+    ff.atomic_write_bytes(old, b"new")
+    assert old.read_bytes() == b"new"
+
+    real_access = os.access
+    monkeypatch.setattr(ff.os, "access", lambda p, m: False if os.path.isdir(p) else real_access(p, m))
+    with pytest.raises(errors.OutputError, match="is not writable"):
+        write_cds(tmp_path / "new.cds", m)
