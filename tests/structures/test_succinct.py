@@ -261,3 +261,36 @@ def test_balanced_parens_check_must_be_bool(check):
 
     with pytest.raises(errors.ArgumentError, match="check"):
         BalancedParens.from_bits("(", check=check)
+
+
+@pytest.mark.parametrize("bits", [[[1, 0], [1, 0]], np.ones((2, 2), np.uint8), 1, np.bool_(True)])
+def test_succinct_builders_refuse_anything_but_one_sequence(bits):
+    """Stop 49 left: a 2-D array was flattened row by row and a lone 0 or 1 read as one bit."""
+    from jaxcds import errors
+    from jaxcds.structures.succinct import BalancedParens, BitVector
+
+    with pytest.raises(errors.EncodingError, match=r"BitVector.from_bits: bits must be one sequence of bits \(1-D\), got shape"):
+        BitVector.from_bits(bits)
+    with pytest.raises(errors.EncodingError, match="BalancedParens.from_bits: bits must be one sequence"):
+        BalancedParens.from_bits(bits)
+
+
+@pytest.mark.parametrize("chunk", [0, -4, 2.5, True, "8"])
+def test_succinct_chunk_must_be_a_positive_integer(chunk, monkeypatch):
+    """Stop 49 left: ``chunk=0`` raised Python's ZeroDivisionError, a negative chunk or 2.5 JAX's
+    shape errors, and True ran as a chunk of 1 (the sort route of ``match_all`` did not look)."""
+    from jaxcds import errors
+    from jaxcds.structures.succinct import BalancedParens, BitVector
+    from jaxcds.structures.succinct import bp as bp_mod
+
+    b = np.concatenate([_balanced(3, 300, True), _balanced(4, 200, False)])
+    P = BalancedParens.from_bits(b)
+    i = np.arange(P.size, dtype=np.int32)
+    for call in (lambda: P.match_all(chunk=chunk), lambda: P.match(i, chunk=chunk),
+                 lambda: P.enclose(i, chunk=chunk)):
+        with pytest.raises(errors.ArgumentError, match="chunk must be None or a positive integer"):
+            call()
+    monkeypatch.setattr(bp_mod, "MATCH_BY_SORT", True)
+    with pytest.raises(errors.ArgumentError, match="chunk must be None or a positive integer"):
+        P.match_all(chunk=chunk)
+    assert BitVector.from_bits([1, 0, 1]).size == 3 and P.size == b.size

@@ -98,6 +98,16 @@ def _compact_indices(mask, size: int):
     return idx, jnp.sum(cnt, dtype=jnp.int32)
 
 
+def chunk_arg(chunk):
+    """``chunk`` if ``None`` or a positive integer, else :class:`~jaxcds.errors.ArgumentError`."""
+    from jaxcds._args import is_integer
+
+    if chunk is not None and (not is_integer(chunk) or chunk < 1):
+        raise errors.ArgumentError(f"chunk must be None or a positive integer (lanes per batch of "
+                                   f"the slow route), got {chunk!r}")
+    return chunk
+
+
 def compacted(slow, miss, fast, args, chunk: Optional[int] = None):
     """``fast`` where ``~miss``; ``slow(*args)`` on the lanes where ``miss`` (1-D arrays).
 
@@ -106,7 +116,13 @@ def compacted(slow, miss, fast, args, chunk: Optional[int] = None):
     rate; a chunk's loop state stays in cache), the answers scattered back. ``chunk`` defaults to
     :data:`COMPACT_CHUNK`, or a quarter of the batch (power of two) for smaller batches; a batch
     of at most :data:`SELECT_ALL_BELOW` lanes runs ``slow`` alone (one fixed program: what
-    ``vmap`` of a scalar query sees)."""
+    ``vmap`` of a scalar query sees).
+
+    Raises:
+      ArgumentError: ``chunk`` is not ``None`` or a positive integer (the public ``chunk=`` of
+        ``match_all``, ``enclose``, ``select``... all reach here: 0 raised Python's
+        ZeroDivisionError, a negative chunk or 2.5 JAX's shape errors, True ran as 1)."""
+    chunk = chunk_arg(chunk)
     n = miss.shape[0]
     if n <= SELECT_ALL_BELOW:
         # tiny batches (scalars under vmap, the verifier's compositions of dozens of operators):
@@ -178,17 +194,19 @@ def pack_bits(bits) -> np.ndarray:
 
 
 def bits_array(bits, what: str) -> np.ndarray:
-    """Host: ``bits`` (nested lists or an array of integers, booleans or floats) as a flat bool
-    array, or :class:`~jaxcds.errors.EncodingError` naming ``what`` and the first offset that
-    holds anything but 0 or 1 (a cast to bool read 2, -1, 0.5 and NaN as 1, the strings ``'0'``
-    and ``'1'`` both as 1, and ``None`` as one 0 bit)."""
+    """Host: ``bits`` (a list or a 1-D array of integers, booleans or floats) as a bool array, or
+    :class:`~jaxcds.errors.EncodingError` naming ``what`` and the first offset that holds
+    anything but 0 or 1 (a cast to bool read 2, -1, 0.5 and NaN as 1, the strings ``'0'`` and
+    ``'1'`` both as 1, and ``None`` as one 0 bit), or the shape of anything but one sequence (a
+    2-D array was flattened row by row, a lone 0 or 1 read as a one-bit sequence)."""
     try:
         a = np.asarray(bits)
     except ValueError as exc:  # ragged nested lists
         raise errors.EncodingError(f"{what} are not an array of bits: {exc}") from None
     if a.size and a.dtype.kind not in "biuf":
         raise errors.EncodingError(f"{what} must be 0/1 values, got dtype {a.dtype}")
-    a = a.ravel()
+    if a.ndim != 1:
+        raise errors.EncodingError(f"{what} must be one sequence of bits (1-D), got shape {a.shape}")
     bad = (a != 0) & (a != 1)
     if bad.any():
         k = int(np.argmax(bad))

@@ -51,8 +51,8 @@ from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.base import id_arg
 from jaxcds.structures.succinct.bitvector import (BLOCK_BITS, BLOCK_WORDS, COMPACT_CHUNK, UNROLL_FROM,
-                                                  BitVector, _low_mask, bits_array, compacted,
-                                                  popcount)
+                                                  BitVector, _low_mask, bits_array, chunk_arg,
+                                                  compacted, popcount)
 
 __all__ = ["BalancedParens", "excess_oracle", "unbalanced_at", "matches_by_level", "CHUNK_MIN",
            "COMPACT_CHUNK", "MATCH_BY_SORT"]
@@ -500,6 +500,7 @@ class BalancedParens:
         (compacted, :func:`compacted`). Used by structures that build a per-phase table of all
         matches (pemb's :meth:`~jaxcds.structures.pemb.PEMB.with_tables`). With
         :data:`MATCH_BY_SORT`, one sort by level instead (:func:`matches_by_level`)."""
+        chunk_arg(chunk)  # checked on the sort route too, which does not use it
         n = self.size
         i = jnp.arange(n, dtype=jnp.int32)
         op = self.is_open(i)
