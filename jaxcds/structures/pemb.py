@@ -67,12 +67,13 @@ import numba
 import numpy as np
 
 from jaxcds import _mappings, errors
-from jaxcds._args import flag_arg
+from jaxcds._args import flag_arg, is_integer
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, _jit_when_eager, by_table, id_arg, shared_subexpression
 from jaxcds.structures.succinct import BalancedParens, BitVector
+from jaxcds.structures.succinct.bitvector import bits_array
 from jaxcds.structures.succinct.bp import unbalanced_at
 
 __all__ = ["PEMB", "encode_rotation_system", "rotation_system_from_faces", "from_mesh"]
@@ -232,6 +233,21 @@ def _rotation_system(f: np.ndarray, num_vertices: int):
 
 
 # ---------------------------------------------------------------------------------- structure
+
+def _id_list(values, name: str, top: int, what: str) -> np.ndarray:
+    """``values`` as a 1-D int32 array of ids in ``[0, top)``, or
+    :class:`~jaxcds.errors.EncodingError` naming ``name`` and the first bad entry (a cast to int32
+    read 1.5 as 1 and kept ids out of range)."""
+    a = np.asarray(values) if not isinstance(values, (str, bytes)) else np.asarray([values])
+    if a.ndim != 1 or (a.size and (a.dtype.kind not in "iu")):
+        raise errors.EncodingError(f"pemb: {name} must be a sequence of {what} (integers), got "
+                                   f"dtype {a.dtype} shape {a.shape}")
+    bad = (a < 0) | (a >= top)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise errors.EncodingError(f"pemb: {name}[{k}] = {int(a[k])} is outside [0, {top}) ({what})")
+    return a.astype(np.int32)
+
 @pytree_dataclass
 class PEMB(MeshStructure):
     """Succinct planar embedding (Ferres et al. 2017) exposed through the half-edge protocol.
@@ -356,17 +372,24 @@ class PEMB(MeshStructure):
     def from_bits(cls, A, B, B_star, *, order=None, holes=None, num_faces=None) -> "PEMB":
         """Wrap the three bit vectors (1 = tree edge in ``A``; 1 = ``(`` in ``B``, ``B*``; also
         accepted: strings in the slides' convention, where ``0`` is ``(``). Without ``holes``
-        every pemb face is a face of the structure (``num_faces = f``)."""
-        def parse(x, paren):
+        every pemb face is a face of the structure (``num_faces = f``).
+
+        Raises:
+          EncodingError: a sequence holds anything but 0 and 1 (named, with its offset) or is not
+            one sequence; the counts of ``A``, ``B`` and ``B*`` disagree; ``B`` or ``B*`` is
+            unbalanced; ``holes`` are not distinct pemb face ids; ``order`` is not a
+            permutation of the ``n`` vertices; ``num_faces`` is not the count of triangles."""
+        def parse(x, paren, name):
             if isinstance(x, str):
                 arr = np.frombuffer(x.encode(), np.uint8) - ord("0")
                 if np.any(arr > 1):
                     k = int(np.argmax(arr > 1))
-                    raise errors.EncodingError(f"bit string has {x[k]!r} at offset {k}")
+                    raise errors.EncodingError(f"pemb: bit string {name} has {x[k]!r} at offset {k}")
                 return (1 - arr) if paren else arr  # slides: 0 = '('
-            return np.asarray(x, np.uint8).ravel()
+            # a cast to uint8 read 0.5 as 0 and 2.0 as 2, and a 2-D array was flattened
+            return bits_array(x, f"pemb: the bits of {name}").astype(np.uint8)
 
-        a, b, bs = parse(A, False), parse(B, True), parse(B_star, True)
+        a, b, bs = parse(A, False, "A"), parse(B, True, "B"), parse(B_star, True, "B*")
         m2 = a.size
         if m2 % 2 or int(a.sum()) != b.size or m2 - int(a.sum()) != bs.size:
             raise errors.EncodingError(
@@ -378,13 +401,27 @@ class PEMB(MeshStructure):
             k = unbalanced_at(seq)
             if k is not None:
                 raise errors.EncodingError(f"pemb: {name} is unbalanced at offset {k}")
-        holes = np.zeros(0, np.int32) if holes is None else np.sort(np.asarray(holes, np.int32))
+        holes = (np.zeros(0, np.int32) if holes is None
+                 else np.sort(_id_list(holes, "holes", f_total, "pemb face ids (B*)")))
+        if holes.size > 1 and np.any(holes[1:] == holes[:-1]):
+            k = int(np.argmax(holes[1:] == holes[:-1]))
+            raise errors.EncodingError(f"pemb: holes name face {int(holes[k])} twice")
         if num_faces is None:
             num_faces = f_total - holes.size
-        if num_faces != f_total - holes.size:
+        if not is_integer(num_faces) or num_faces != f_total - holes.size:
             raise errors.EncodingError(
-                f"pemb: {f_total} faces in B* but {num_faces} triangles + {holes.size} border loops")
-        order = np.arange(n, dtype=np.int32) if order is None else np.asarray(order, np.int32)
+                f"pemb: {f_total} faces in B* but {num_faces!r} triangles + {holes.size} border loops")
+        if order is None:
+            order = np.arange(n, dtype=np.int32)
+        else:  # per-vertex data is read through it: a repeat or a gap would misplace vertices
+            order = _id_list(order, "order", n, "input vertex ids")
+            if order.size != n:
+                raise errors.EncodingError(f"pemb: order has {order.size} entries for {n} vertices")
+            seen = np.zeros(n, bool)
+            seen[order] = True
+            if not seen.all():
+                raise errors.EncodingError(f"pemb: order is not a permutation of the {n} vertices "
+                                           f"(vertex {int(np.argmin(seen))} is missing)")
         P = BalancedParens.from_bits(np.concatenate([b, bs]), check=False)  # both checked above
         return cls(A=BitVector.from_bits(a), P=P, holes=to_device(holes, copy=True), order=to_device(order, copy=True),
                    num_vertices=int(n), num_faces=int(num_faces), num_edges=m2 // 2,

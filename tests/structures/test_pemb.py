@@ -116,6 +116,55 @@ def test_from_bits_names_the_unbalanced_sequence_and_offset():
         PEMB.from_bits(a, np.array([1, 1], np.uint8), np.array([0, 0], np.uint8))
 
 
+
+def _bits_of(s):
+    """``(A, B, B*)`` of a built PEMB as host uint8 arrays (1 = tree edge, 1 = '(')."""
+    a = np.asarray(s.A.access(jnp.arange(s.A.size))).astype(np.uint8)
+    p = np.asarray(s.P.is_open(jnp.arange(s.P.size))).astype(np.uint8)
+    return a, p[:s.num_tree_parens], p[s.num_tree_parens:]
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(A="half"), r"pemb: the bits of A hold 0.5 at offset \d+, expected 0 or 1"),
+    (dict(B="minus"), r"pemb: the bits of B hold -1 at offset 1"),
+    (dict(A="2d"), r"pemb: the bits of A must be one sequence of bits \(1-D\)"),
+    (dict(A=None), r"pemb: the bits of A must be 0/1 values"),
+    (dict(holes=[99]), r"pemb: holes\[0\] = 99 is outside \[0, 20\)"),
+    (dict(holes=[-1]), r"pemb: holes\[0\] = -1 is outside"),
+    (dict(holes=[0.5]), r"pemb: holes must be a sequence of pemb face ids"),
+    (dict(holes=[0, 0], num_faces=18), r"pemb: holes name face 0 twice"),
+    (dict(order="repeat"), r"pemb: order is not a permutation of the 12 vertices \(vertex 1 is missing\)"),
+    (dict(order=[0, 1]), r"pemb: order has 2 entries for 12 vertices"),
+    (dict(order="half"), r"pemb: order must be a sequence of input vertex ids"),
+    (dict(num_faces=2.5), r"pemb: 20 faces in B\* but 2.5 triangles"),
+    (dict(num_faces=True), r"pemb: 20 faces in B\* but True triangles"),
+])
+def test_from_bits_refuses_what_it_would_misread(change, message):
+    """Stop 50: ``from_bits`` cast its sequences to uint8 (0.5 read as 0, a 2-D array
+    flattened), and took ``holes`` out of range or repeated and an ``order`` that is not a
+    permutation (per-vertex data read through it would be misplaced), 1.5 read as 1; ``None``
+    raised Python's TypeError. Each is an EncodingError naming the argument and the entry."""
+    from jaxcds.generators import icosphere
+
+    m = icosphere(0)
+    s = PEMB.from_faces(np.asarray(m.faces), m.num_vertices)
+    a, b, bs = _bits_of(s)
+    assert PEMB.from_bits(a, b, bs).num_faces == 20  # the unchanged bits are taken
+    args = dict(A=a, B=b, B_star=bs)
+    for key, value in change.items():
+        if value == "half":
+            value = (np.arange(s.num_vertices) + 0.5) if key == "order" else np.where(a == 0, 0.5, 1.0)
+        elif value == "minus":
+            value = b.astype(np.int64) * 1
+            value[1] = -1
+        elif value == "2d":
+            value = a.reshape(2, -1)
+        elif value == "repeat":
+            value = np.zeros(s.num_vertices, np.int64)
+        args[key] = value
+    with pytest.raises(errors.EncodingError, match=message):
+        PEMB.from_bits(args.pop("A"), args.pop("B"), args.pop("B_star"), **args)
+
 # ------------------------------------------------------- the original implementation's bits
 PEMB_ORIGINAL = pathlib.Path(__file__).resolve().parents[1] / "data" / "pemb_original"
 
