@@ -40,7 +40,7 @@ from jaxcds import errors
 
 __all__ = [
     "RED", "BLUE", "BLACK", "COLOUR_NAMES",
-    "SchnyderWood", "schnyder_wood", "check_schnyder_wood", "schnyder_wood_reference",
+    "SchnyderWood", "schnyder_wood", "check_schnyder_wood", "check_wood_arrays", "schnyder_wood_reference",
     "mesh_darts", "prepare_mesh", "WoodOut", "schnyder_out", "label_wood",
 ]
 
@@ -794,6 +794,116 @@ def schnyder_wood(faces, num_vertices: int, root_face: Optional[int] = None,
 # Local Schnyder rule (Definition 1) as a cyclic pattern of (outgoing, colour) groups, ccw,
 # starting at the outgoing red edge: out red, in black*, out blue, in red*, out black, in blue*.
 _PATTERN = ((True, RED), (False, BLACK), (True, BLUE), (False, RED), (True, BLACK), (False, BLUE))
+
+
+def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
+    """Raise :class:`~jaxcds.errors.StructureError` naming the first entry of ``wood`` that the
+    CDS builders' kernels cannot take (``ArgumentError`` if it is not a :class:`SchnyderWood`).
+
+    Vectorised, O(n log n) (one sort to pair the two sides of every edge), so the public
+    ``from_wood`` constructors can afford it on a wood they did not make; the builders skip it
+    on their own. Checked: the outer vertices, ``out`` (``n`` exactly at the six absent slots of
+    Sec. 2.1), the CSR rotations (offsets, every neighbour and colour in range, each rotation
+    starting at ``out[u, red]``, at ``V_red`` at ``V_blue``), each edge's two sides agreeing on
+    its colour and orientation, and the local Schnyder rule at every inner vertex (Definition
+    1). A hand-made wood out of range made the numba kernels read and write out of bounds:
+    interpreter crashes (stop 50). Not checked: planarity of the rotations and maximality (no
+    clockwise triangle); :func:`check_schnyder_wood` (with the faces) checks the latter."""
+    from jaxcds._args import is_integer
+
+    if not isinstance(wood, SchnyderWood):
+        raise errors.ArgumentError(f"{what}: expected a SchnyderWood (jaxcds.construct.schnyder."
+                                   f"schnyder_wood), got {type(wood).__name__}")
+
+    def bad(msg):
+        raise errors.StructureError(f"{what}: {msg}")
+
+    n = wood.num_vertices
+    if not is_integer(n) or n < 3:
+        bad(f"num_vertices must be an integer >= 3, got {n!r}")
+    outer = (wood.v_red, wood.v_blue, wood.v_black)
+    for name, v in zip(("v_red", "v_blue", "v_black"), outer):
+        if not is_integer(v) or not 0 <= v < n:
+            bad(f"{name} = {v!r} is not a vertex in [0, {n})")
+    if len(set(int(v) for v in outer)) != 3:
+        bad(f"the outer vertices {tuple(int(v) for v in outer)} are not distinct")
+    m = 6 * n - 12  # rotation entries: both sides of the 3n - 6 edges
+    arrays = {}
+    for name, shape in (("out", (n, 3)), ("offsets", (n + 1,)), ("neighbors", (m,)),
+                        ("colour", (m,)), ("outgoing", (m,))):
+        a = getattr(wood, name)
+        if not isinstance(a, np.ndarray) or a.shape != shape or a.dtype.kind not in ("b" if name == "outgoing" else "iu"):
+            got = (f"{a.dtype} {a.shape}" if isinstance(a, np.ndarray) else type(a).__name__)
+            kind = "bool" if name == "outgoing" else "integer"
+            bad(f"{name} must be a numpy {kind} array of shape {shape}, got {got}")
+        arrays[name] = a.astype(bool) if name == "outgoing" else a.astype(np.int64)
+    out, off, nb, col, og = (arrays[k] for k in ("out", "offsets", "neighbors", "colour", "outgoing"))
+    R, Bl, Bk = (int(v) for v in outer)
+    absent = np.zeros((n, 3), bool)
+    absent[R, :] = True
+    absent[Bl, [BLUE, BLACK]] = True
+    absent[Bk, BLACK] = True
+    wrong = (out < 0) | (out > n) | ((out == n) != absent)
+    if wrong.any():
+        u, c = np.argwhere(wrong)[0]
+        bad(f"out[{u}, {COLOUR_NAMES[c]}] = {int(out[u, c])}: "
+            + ("absent (n) exactly at the six outer slots of Sec. 2.1" if 0 <= out[u, c] <= n
+               else f"outside [0, {n}]"))
+    if off[0] != 0 or off[-1] != m or np.any(np.diff(off) < 3):
+        k = 0 if off[0] != 0 else (n if off[-1] != m else int(np.argmax(np.diff(off) < 3)))
+        bad(f"offsets[{k}] = {int(off[k])}: offsets must run from 0 to {m} (6n - 12), each vertex "
+            "holding at least 3 neighbours")
+    for name, a, top in (("neighbors", nb, n), ("colour", col, 3)):
+        w = (a < 0) | (a >= top)
+        if w.any():
+            k = int(np.argmax(w))
+            bad(f"{name}[{k}] = {int(a[k])} is outside [0, {top})")
+    u = np.repeat(np.arange(n, dtype=np.int64), np.diff(off))
+    # each entry agrees with out: u -> x outgoing of colour c, or x -> u incoming
+    w = np.where(og, out[u, col] != nb, out[nb, col] != u)
+    if w.any():
+        k = int(np.argmax(w))
+        bad(f"rotation entry {k} of vertex {int(u[k])}: edge to {int(nb[k])} marked "
+            f"{'outgoing' if og[k] else 'incoming'} {COLOUR_NAMES[int(col[k])]} disagrees with out")
+    count = np.bincount(u[og] * 3 + col[og], minlength=3 * n)
+    once = count == (~absent).ravel()  # (entries of absent slots disagree with out, above)
+    if not once.all():
+        k = int(np.argmax(~once))
+        bad(f"vertex {k // 3}: its rotation lists its outgoing {COLOUR_NAMES[k % 3]} edge "
+            f"{'more than once' if count[k] else 'nowhere'}")
+    # both sides of every edge present once: outgoing (u, x, c) and incoming (x, u, c) pair up
+    keys_out = np.sort((u * n + nb)[og] * 3 + col[og])
+    keys_in = np.sort((nb * n + u)[~og] * 3 + col[~og])
+    if keys_out.size != keys_in.size or not np.array_equal(keys_out, keys_in):
+        bad("the two sides of the edges do not pair up (an edge is listed once, twice, or with "
+            "two colours)")
+    first = off[:-1]
+    start = np.where(np.arange(n) == R, Bl, out[np.arange(n), RED])
+    w = nb[first] != start
+    if w.any():
+        k = int(np.argmax(w))
+        bad(f"the rotation of vertex {k} starts at {int(nb[first[k]])}, not at "
+            f"{'V_blue' if k == R else 'its outgoing red edge'} ({int(start[k])})")
+    # local rule at inner vertices: codes out red 0, in black 1, out blue 2, in red 3, out black
+    # 4, in blue 5 never decrease along a rotation (the three outgoing are there once, by out)
+    code = np.where(og, 2 * col, (2 * col + 3) % 6)
+    inner = (u != R) & (u != Bl) & (u != Bk)
+    step = np.ones(m, bool)
+    step[1:] = (code[1:] >= code[:-1]) | (u[1:] != u[:-1])
+    w = ~step & inner
+    if w.any():
+        k = int(np.argmax(w))
+        bad(f"vertex {int(u[k])}: its ccw rotation breaks the local Schnyder rule (Definition 1) "
+            f"at entry {k - int(off[u[k]])}")
+    # outer vertices: every edge to an inner vertex incoming, of the vertex's own colour
+    own = np.full(n, -1, np.int64)
+    own[[R, Bl, Bk]] = [RED, BLUE, BLACK]
+    to_inner = (nb != R) & (nb != Bl) & (nb != Bk)
+    w = ~inner & to_inner & (og | (col != own[u]))
+    if w.any():
+        k = int(np.argmax(w))
+        bad(f"outer vertex {int(u[k])}: its edge to {int(nb[k])} is not incoming "
+            f"{COLOUR_NAMES[int(own[u[k]])]}")
 
 
 def check_schnyder_wood(wood: SchnyderWood, faces: Optional[np.ndarray] = None,

@@ -504,6 +504,18 @@ def _build_rows(wood: SchnyderWood, kind: int, label=None, even=None):
     return refs.view(np.int32), fblue, static
 
 
+def _checked_wood(cls, wood, check) -> None:
+    """``from_wood``'s argument checks: ``check`` a bool and, when True, ``wood`` through
+    :func:`~jaxcds.construct.schnyder.check_wood_arrays` (a hand-made wood out of range crashed
+    the interpreter in the numba kernels). ``build_cds`` passes its own wood with
+    ``check=False``."""
+    from jaxcds._args import flag_arg
+    from jaxcds.construct.schnyder import check_wood_arrays
+
+    if flag_arg(check, f"{cls.__name__}.from_wood: check"):
+        check_wood_arrays(wood, f"{cls.__name__}.from_wood")
+
+
 def _put(x: np.ndarray):
     """A host table as a device array: keeps the int32 dtype and, unlike ``jnp.asarray``,
     compiles nothing per new shape (30-150 ms per array on a small mesh; :mod:`jaxcds._arrays`)."""
@@ -1599,9 +1611,12 @@ class CDS6n(_CDS):
         return tuple(out)
 
     @classmethod
-    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS6n":
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False, check: bool = True) -> "CDS6n":
         """Build from a (maximal, for the face map) Schnyder wood in linear time (one numba
-        pass, :func:`_cds_rows`)."""
+        pass, :func:`_cds_rows`). Every CDS's ``from_wood`` first checks a wood it did not make
+        (``check=True``: :func:`~jaxcds.construct.schnyder.check_wood_arrays`, O(n log n),
+        ``StructureError`` naming the entry); the builders pass theirs with ``check=False``."""
+        _checked_wood(cls, wood, check)
         refs, fblue, static = _build_rows(wood, _KIND_6N)
         return cls(refs=_put(refs), F_blue=_put(fblue),
                    boundaries_closed=bool(boundaries_closed), **static)
@@ -1854,8 +1869,9 @@ class CDS5n(_CDS):
         return self._lf_red_p(u, r), self._lf_blue_p(r), self._lf_black_p(r)
 
     @classmethod
-    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5n":
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False, check: bool = True) -> "CDS5n":
         """Build from a maximal Schnyder wood in linear time."""
+        _checked_wood(cls, wood, check)
         if not wood.maximal:
             raise errors.StructureError("CDS5n needs the maximal Schnyder wood (Thm 4)")
         refs, fblue, static = _build_rows(wood, _KIND_5N)
@@ -1904,9 +1920,10 @@ class CDS4n(CDS5n):
         return jnp.where(sib, _dart(um, RED, 0), self._lf_black_r(row))
 
     @classmethod
-    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS4n":
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False, check: bool = True) -> "CDS4n":
         """Relabel ``wood`` by cwBFS (Sec. 2.3) and build, in linear time: the labels are applied
         while the rows are written (:func:`_cds_rows`), no relabelled wood is built."""
+        _checked_wood(cls, wood, check)
         if not wood.maximal:
             raise errors.StructureError("CDS4n needs the maximal Schnyder wood (Thm 5)")
         order, label, _ = _cwbfs_checked(wood)
@@ -2095,7 +2112,8 @@ class CDS5nO1(CDS4n):
         return [jnp.where(self.edge_valid(3 * u + c), t, self.num_vertices) for c, t in enumerate(ts)]
 
     @classmethod
-    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False) -> "CDS5nO1":
+    def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False, check: bool = True) -> "CDS5nO1":
+        _checked_wood(cls, wood, check)
         if not wood.maximal:
             raise errors.StructureError("CDS5n-O(1) needs the maximal Schnyder wood (Thm 6)")
         # cwBFS labels applied while the rows are written, D from the cwBFS itself, W from the
@@ -2152,7 +2170,7 @@ def build_cds(cls, mesh, root_face: Optional[int] = None, progress: Optional[boo
     bar.step()
     wood = schnyder_wood(m.faces, m.num_vertices, root_face=root_face, maximal=True)
     bar.step()
-    s = cls.from_wood(wood, boundaries_closed=closed or m.closed_boundaries)
+    s = cls.from_wood(wood, boundaries_closed=closed or m.closed_boundaries, check=False)  # its own wood
     bar.step()
     return with_dummy_vertices(s, m.dummy_vertices)
 

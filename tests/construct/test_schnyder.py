@@ -9,14 +9,15 @@ shared mesh, icospheres and random planar triangulations.
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from jaxcds import errors
-from jaxcds.construct.schnyder import (BLACK, BLUE, RED, check_schnyder_wood, schnyder_wood,
-                                       schnyder_wood_reference)
+from jaxcds.construct.schnyder import (BLACK, BLUE, RED, check_schnyder_wood, check_wood_arrays,
+                                       schnyder_wood, schnyder_wood_reference)
 from jaxcds.generators import icosphere, random_planar_triangulation_faces
 from jaxcds.mesh import close_boundaries, validate
 from jaxcds.structures.halfedge import HalfEdge
@@ -45,6 +46,7 @@ def test_octahedron_by_hand():
     np.testing.assert_array_equal(w.out, want)
     np.testing.assert_array_equal(w.conquest_order, [2, 1, 5, 3])
     assert check_schnyder_wood(w, f) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
     # rotation of inner vertex 1, ccw from its red edge: out red 5, in black 3 (3 -> 1 black),
     # out blue 4, in red: none, out black 2, in blue: none
     a, b = w.offsets[1], w.offsets[2]
@@ -63,6 +65,7 @@ def test_cube_by_hand():
     assert np.all(w.out[inner] < 8)
     np.testing.assert_array_equal(w.out, schnyder_wood_reference(m.faces, 8))
     assert check_schnyder_wood(w, m.faces) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
 
 
 # ---------------------------------------------------------------- structure of the result
@@ -106,16 +109,21 @@ def test_checker_rejects_corrupted_woods():
     m = icosphere(1)
     w = schnyder_wood(m.faces, m.num_vertices)
     assert check_schnyder_wood(w, m.faces) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
     u = next(x for x in range(m.num_vertices) if x not in w.outer)
     # swap the colours of two outgoing edges of u: local rule and colours break
     out = w.out.copy()
     out[u, [RED, BLUE]] = out[u, [BLUE, RED]]
     bad = dataclasses.replace(w, out=out)
     assert check_schnyder_wood(bad, m.faces)
+    with pytest.raises(errors.StructureError, match=f"rotation entry .* of vertex {u}"):
+        check_wood_arrays(bad)
     col = w.colour.copy()
     j = w.offsets[u]
     col[j] = BLACK
     assert check_schnyder_wood(dataclasses.replace(w, colour=col), m.faces)
+    with pytest.raises(errors.StructureError, match=f"rotation entry {j} of vertex {u}"):
+        check_wood_arrays(dataclasses.replace(w, colour=col))
 
 
 def test_non_maximal_wood_is_valid_but_has_cw_triangles():
@@ -124,10 +132,12 @@ def test_non_maximal_wood_is_valid_but_has_cw_triangles():
     m = icosphere(2)
     w = schnyder_wood(m.faces, m.num_vertices, maximal=False)
     assert check_schnyder_wood(w, m.faces, maximal=False) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
     cw = check_schnyder_wood(w, m.faces, maximal=True)
     assert cw and all("clockwise" in p for p in cw)
     wm = schnyder_wood(m.faces, m.num_vertices, maximal=True)
     assert check_schnyder_wood(wm, m.faces, maximal=True) == []
+    check_wood_arrays(wm)  # the vectorised checks take every valid wood
 
 
 # ---------------------------------------------------------------- meshes
@@ -139,6 +149,7 @@ def test_maximal_wood_on_shared_meshes(name):
     validate(m, closed=True, connected=True)
     w = schnyder_wood(m.faces, m.num_vertices)
     assert check_schnyder_wood(w, m.faces) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
     assert w.num_edges == 3 * m.num_vertices - 6
 
 
@@ -149,6 +160,7 @@ def test_icospheres_match_reference(k):
         w = schnyder_wood(m.faces, m.num_vertices, root_face=root)
         np.testing.assert_array_equal(w.out, schnyder_wood_reference(m.faces, m.num_vertices, root))
         assert check_schnyder_wood(w, m.faces) == []
+        check_wood_arrays(w)  # the vectorised checks take every valid wood
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -159,6 +171,7 @@ def test_random_triangulations_match_reference(n, seed, root):
     w = schnyder_wood(f, n, root_face=r)
     np.testing.assert_array_equal(w.out, schnyder_wood_reference(f, n, r))
     assert check_schnyder_wood(w, f) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
     w2 = schnyder_wood(f, n, root_face=r, maximal=False)
     assert check_schnyder_wood(w2, f, maximal=False) == []
 
@@ -168,6 +181,7 @@ def test_random_triangulation_5000():
     f = random_planar_triangulation_faces(5000, 11)
     w = schnyder_wood(f, 5000)
     assert check_schnyder_wood(w, f) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
 
 
 def test_rotations_around_a_hub_take_linear_steps():
@@ -252,4 +266,94 @@ def test_prepare_mesh_closes_holes():
     assert closed and m.num_vertices == 5 and m.num_faces == 6
     w = schnyder_wood(m.faces, m.num_vertices)
     assert check_schnyder_wood(w, m.faces) == []
+    check_wood_arrays(w)  # the vectorised checks take every valid wood
 
+
+
+_WOOD_FUZZ = r"""
+import collections, dataclasses, json, sys
+import numpy as np
+from jaxcds import errors
+from jaxcds.construct.schnyder import schnyder_wood
+from jaxcds.generators import icosphere
+from jaxcds.structures.cds import CDS4n, CDS5n, CDS5nO1, CDS6n
+
+m = icosphere(1)
+w0 = schnyder_wood(m.faces, m.num_vertices)
+n = w0.num_vertices
+named = []
+for field, value in (("out", ("out", 5, 0, 10 ** 6)), ("neighbors", ("neighbors", 3, None, 10 ** 7)),
+                     ("offsets", ("offsets", -1, None, 6 * n + 988)), ("colour", ("colour", 2, None, 9)),
+                     ("v_red", ("v_red", None, None, 10 ** 6))):
+    name, i, j, v = value
+    if i is None:
+        w = dataclasses.replace(w0, **{name: v})
+    else:
+        a = getattr(w0, name).copy()
+        a[(i, j) if j is not None else i] = v
+        w = dataclasses.replace(w0, **{name: a})
+    for cls in (CDS6n, CDS5n, CDS4n, CDS5nO1):
+        try:
+            cls.from_wood(w)
+            named.append("accepted")
+        except errors.StructureError as exc:
+            named.append(str(exc))
+rng = np.random.default_rng(5)
+fuzz = collections.Counter()
+fields = ("neighbors", "colour", "outgoing", "out", "offsets")
+for t in range(60):  # single entries changed in range: typed errors, never a crash
+    k = t % 5
+    a = getattr(w0, fields[k]).copy()
+    if k == 2:
+        j = rng.integers(a.size)
+        a[j] = ~a[j]
+    elif k == 3:
+        a[rng.integers(n), rng.integers(3)] = rng.integers(n + 1)
+    elif k == 4:
+        a[rng.integers(1, n)] += rng.integers(-2, 3)
+    else:
+        a[rng.integers(a.size)] = rng.integers(n if k == 0 else 3)
+    w = dataclasses.replace(w0, **{fields[k]: a})
+    same = np.array_equal(a, getattr(w0, fields[k]))
+    for cls in (CDS6n, CDS5n, CDS4n, CDS5nO1):
+        try:
+            cls.from_wood(w)
+            fuzz["accepted unchanged" if same else "ACCEPTED CHANGED"] += 1
+        except errors.StructureError:
+            fuzz["refused"] += 1
+print(json.dumps({"named": named, "fuzz": dict(fuzz)}))
+"""
+
+
+def test_from_wood_checks_a_wood_it_did_not_make():
+    """Stop 50: every CDS's ``from_wood`` ran its numba kernels on a hand-made wood as given; an
+    entry out of range (``out``, ``neighbors``, ``offsets``, ``v_red``) read or wrote out of
+    bounds: segmentation faults and LLVM aborts. ``check_wood_arrays`` now names the entry
+    (StructureError) first; single entries changed in range are refused too, or unchanged. Run
+    in a subprocess, so the old crash fails this test instead of ending the run."""
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _WOOD_FUZZ], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    got = json.loads(out.stdout.splitlines()[-1])
+    expect = [r"out\[5, red\] = 1000000: outside \[0, 42\]", r"neighbors\[3\] = 10000000 is outside \[0, 42\)",
+              r"offsets\[42\] = 1240: offsets must run from 0 to 240", r"colour\[2\] = 9 is outside \[0, 3\)",
+              r"v_red = 1000000 is not a vertex in \[0, 42\)"]
+    for k, message in enumerate(got["named"]):
+        cls = ("CDS6n", "CDS5n", "CDS4n", "CDS5nO1")[k % 4]
+        assert re.match(rf"{cls}\.from_wood: {expect[k // 4]}", message), message
+    assert got["fuzz"].get("ACCEPTED CHANGED", 0) == 0 and got["fuzz"]["refused"] >= 150, got["fuzz"]
+
+
+def test_from_wood_check_is_a_bool_and_takes_only_woods():
+    from jaxcds.structures.cds import CDS6n
+
+    m = icosphere(0)
+    w = schnyder_wood(m.faces, m.num_vertices)
+    assert CDS6n.from_wood(w, check=False).num_vertices == 12 == CDS6n.from_wood(w).num_vertices
+    with pytest.raises(errors.ArgumentError, match="CDS6n.from_wood: check must be True or False"):
+        CDS6n.from_wood(w, check="no")
+    with pytest.raises(errors.ArgumentError, match="CDS6n.from_wood: expected a SchnyderWood"):
+        CDS6n.from_wood(m)
