@@ -1470,7 +1470,7 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
         fi = int(degenerate[0])
         found.append(errors.DegenerateFaceError(
             f"{src}: face {fi} repeats a vertex {f[fi].tolist()} ({degenerate.size} degenerate faces)"
-            f"{_weld_hint(mesh, f[degenerate])}"))
+            f"{_weld_hint(mesh, f[degenerate], 'faces')}"))
     et = edge_table(mesh.faces) if et is None else et
     partner, ok = kernels.duplicate_faces(f, et.order, et.starts, 64)
     if not ok:  # a huge non-manifold edge: sort the faces instead of comparing pairs
@@ -1480,14 +1480,14 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
         fi = int(dup[0])
         found.append(errors.DuplicateFaceError(
             f"{src}: faces {fi} and {int(partner[fi])} use the same vertices {f[fi].tolist()} "
-            f"({dup.size} faces in duplicate groups){_weld_hint(mesh, f[dup])}"))
+            f"({dup.size} faces in duplicate groups){_weld_hint(mesh, f[dup], 'faces')}"))
     nm = np.nonzero(et.count > 2)[0]
     if nm.size:
         a, b = (int(x) for x in et.edges[nm[0]])
         found.append(errors.NonManifoldEdgeError(
             f"{src}: edge ({a}, {b}) is shared by {int(et.count[nm[0]])} faces "
             f"({nm.size} non-manifold edges); a manifold edge has at most 2"
-            f"{_weld_hint(mesh, et.edges[nm])}"))
+            f"{_weld_hint(mesh, et.edges[nm], 'edges')}"))
     two = et.count == 2
     same_dir = np.nonzero(two & (et.forward != 1))[0]
     if same_dir.size:
@@ -1502,7 +1502,7 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
                   "orientable surface")
         found.append(errors.InconsistentOrientationError(
             f"{src}: faces {faces_on.tolist()} both traverse edge ({a}, {b}) in the same direction "
-            f"({same_dir.size} such edges); {advice}{_weld_hint(mesh, et.edges[same_dir])}"))
+            f"({same_dir.size} such edges); {advice}{_weld_hint(mesh, et.edges[same_dir], 'edges')}"))
     if not nm.size and not degenerate.size:
         fans = _fans_per_vertex(f, et, mesh.num_vertices)
         bad_v = np.nonzero(fans > 1)[0]
@@ -1513,22 +1513,36 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
     return found
 
 
-def _weld_hint(mesh: TriMesh, involved: np.ndarray) -> str:
+def _weld_hint(mesh: TriMesh, involved: np.ndarray, items: str = "vertices") -> str:
     """``""`` unless some of the vertex ids ``involved`` in a defect were made by
     :func:`load_mesh`'s welding (``mesh.welded_ids``); then the clause that says so and how to
     load the file without it. Why: a merge of coincident vertices is a common cause of a defect
     the file itself does not have (two bodies that touch at a point or along an edge, a thin
-    sliver whose corners share a position), and the message would otherwise point at the file."""
+    sliver whose corners share a position), and the message would otherwise point at the file.
+
+    ``involved`` holds one row of vertex ids per defective item (a face, an edge; a vertex is a
+    row of one), ``items`` names them: where some item touches no merged vertex, welding did not
+    make that one, and the clause says that ``--no-weld`` alone will not clear the defect (a file
+    with faces of mixed orientation and a few seam vertices was pointed at ``--no-weld``)."""
     if mesh.welded_ids is None or not mesh.welded_ids.size:
         return ""
-    ids = np.unique(np.asarray(involved, np.int64).ravel())
+    rows = np.asarray(involved, np.int64)
+    rows = rows.reshape(rows.shape[0], -1) if rows.ndim else rows.reshape(1, 1)
+    ids = np.unique(rows.ravel())
     hit = ids[np.isin(ids, mesh.welded_ids)]
     if not hit.size:
         return ""
-    which = f"vertex {int(hit[0])}" if hit.size == 1 else f"{hit.size} of them, e.g. vertex {int(hit[0])},"
-    return (f"; {which} merged input vertices that share a position (load_mesh welds coincident "
-            "vertices, for texture seams): load_mesh(path, weld=False), or --no-weld on the "
-            "command line, keeps them apart")
+    which = (f"vertex {int(hit[0])}" if hit.size == 1 else
+             f"{hit.size} of the vertices involved, e.g. vertex {int(hit[0])},")
+    clause = (f"; {which} merged input vertices that share a position (load_mesh welds coincident "
+              "vertices, for texture seams): load_mesh(path, weld=False), or --no-weld on the "
+              "command line, keeps them apart")
+    apart = int(np.sum(~np.isin(rows, mesh.welded_ids).any(axis=1)))
+    if apart:
+        verb = "touches" if apart == 1 else "touch"
+        clause += (f", but {apart} of the {rows.shape[0]} {items} {verb} no merged vertex: the "
+                   "file has this defect itself, so that alone will not clear it")
+    return clause
 
 
 def _duplicate_faces_by_sorting(f: np.ndarray) -> np.ndarray:

@@ -90,6 +90,34 @@ def test_a_defect_that_welding_made_says_so_and_how_to_avoid_it():
     assert isinstance(d, errors.NonManifoldVertexError) and "weld" not in str(d), d
 
 
+def test_a_defect_the_file_has_itself_is_not_put_on_welding_alone():
+    """An octahedron written with two seam vertices (6 and 7 copy 0 and 5) and two opposite
+    faces flipped: the flips are the file's own, welding only touched four of their six edges.
+    The clause about the merged vertices said "2 of them" after "6 such edges" (read as two of
+    the edges) and pointed at --no-weld, which leaves the flips (sweep 50a, CGAL's
+    oblong-shuffled.off: 625 edges, 2 seam vertices). A defect welding made keeps the plain
+    clause."""
+    v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1],
+                  [1, 0, 0], [0, 0, -1]], float)
+    f = np.array([[0, 4, 2], [2, 1, 4], [1, 3, 4], [3, 6, 4],  # (0, 2, 4) flipped
+                  [2, 0, 5], [1, 2, 7], [3, 5, 1], [0, 3, 5]])  # (3, 1, 5) flipped
+    m = load_mesh(v, f)
+    assert m.welded == 2 and m.welded_ids.tolist() == [0, 5]
+    (d,) = find_defects(m)
+    assert isinstance(d, errors.InconsistentOrientationError), d
+    text = str(d)
+    assert "(6 such edges)" in text and "2 of the vertices involved, e.g. vertex 0," in text, text
+    assert "2 of the 6 edges touch no merged vertex" in text and "will not clear it" in text, text
+    (d,) = find_defects(load_mesh(v, f, weld=False))  # indeed: still flipped, no clause
+    assert isinstance(d, errors.InconsistentOrientationError) and "weld" not in str(d), d
+    (d,) = find_defects(load_mesh(v[:7], np.where(f == 7, 5, f)))  # one seam vertex
+    assert "; vertex 0 merged input vertices" in str(d), d
+    assert "4 of the 6 edges touch no merged vertex" in str(d), d
+    v2, f2 = _touching_tetrahedra(True)  # made by welding alone: no such sentence
+    (d,) = find_defects(load_mesh(v2, f2))
+    assert "merged input vertices" in str(d) and "will not clear it" not in str(d), d
+
+
 def test_welding_is_named_in_the_shared_cow():
     """cow.off as shipped: one non-manifold edge, made by welding two vertices of one position
     (the shared README: "must be refused clearly"); unwelded, it is a closed genus-0 manifold."""
