@@ -712,11 +712,13 @@ def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
     (the encoder does); its content on return is garbage. ``blk``: optional ``(n, 3)`` int32
     filled with each vertex's red-children block and black in-degree (see
     :func:`_conquest_csr`; the encoder's input)."""
-    f = np.ascontiguousarray(faces, dtype=np.int32)
+    from jaxcds.mesh import trusted_faces
+
+    # the mesh's own checks of ids and shape: a cast to int32 read a face (0.5, 1.5, 2.5) as
+    # (0, 1, 2) and int(num_vertices) 42.9 as 42
+    f = trusted_faces(faces, num_vertices, "schnyder_wood")
     n = int(num_vertices)
     nf = int(f.shape[0])
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise errors.InvalidIndexError(f"faces must be (F, 3), got shape {f.shape}")
     if n < 3 or nf != 2 * n - 4:
         chi = n - 3 * nf // 2 + nf
         genus = f"genus {(2 - chi) // 2} if closed and connected, " if chi % 2 == 0 and chi <= 2 else ""

@@ -357,3 +357,23 @@ def test_from_wood_check_is_a_bool_and_takes_only_woods():
         CDS6n.from_wood(w, check="no")
     with pytest.raises(errors.ArgumentError, match="CDS6n.from_wood: expected a SchnyderWood"):
         CDS6n.from_wood(m)
+
+
+@pytest.mark.parametrize("faces, n, error, message", [
+    ("half", 42, errors.InvalidIndexError, r"schnyder_wood: face indices must be integers, got float64"),
+    ("big", 42, errors.InvalidIndexError, r"schnyder_wood: face 3 refers to vertex 1000000, outside \[0, 42\)"),
+    (None, 42.9, errors.ArgumentError, r"schnyder_wood: num_vertices must be an integer"),
+    (None, True, errors.ArgumentError, r"schnyder_wood: num_vertices must be an integer"),
+])
+def test_schnyder_wood_takes_the_meshs_face_checks(faces, n, error, message):
+    """Stop 50: ``schnyder_wood`` cast its faces to int32 (a face (0.5, 1.5, 2.5) read as
+    (0, 1, 2): a wood of another mesh) and ``int(num_vertices)`` read 42.9 as 42."""
+    m = icosphere(1)
+    f = np.asarray(m.faces)
+    if faces == "half":
+        f = f + 0.5
+    elif faces == "big":
+        f = f.copy()
+        f[3, 1] = 10 ** 6
+    with pytest.raises(error, match=message):
+        schnyder_wood(f, n)
