@@ -1523,7 +1523,8 @@ def _weld_hint(mesh: TriMesh, involved: np.ndarray, items: str = "vertices") -> 
     ``involved`` holds one row of vertex ids per defective item (a face, an edge; a vertex is a
     row of one), ``items`` names them: where some item touches no merged vertex, welding did not
     make that one, and the clause says that ``--no-weld`` alone will not clear the defect (a file
-    with faces of mixed orientation and a few seam vertices was pointed at ``--no-weld``)."""
+    with faces of mixed orientation and a few seam vertices was pointed at ``--no-weld``). An STL
+    source is welded by necessity (its triangles share no corners): no ``--no-weld`` advice."""
     if mesh.welded_ids is None or not mesh.welded_ids.size:
         return ""
     rows = np.asarray(involved, np.int64)
@@ -1534,6 +1535,12 @@ def _weld_hint(mesh: TriMesh, involved: np.ndarray, items: str = "vertices") -> 
         return ""
     which = (f"vertex {int(hit[0])}" if hit.size == 1 else
              f"{hit.size} of the vertices involved, e.g. vertex {int(hit[0])},")
+    if str(mesh.source).lower().endswith(".stl"):
+        # an STL keeps every triangle's corners apart: welding is how it has any connectivity,
+        # and --no-weld would leave a soup of lone triangles (CGAL's pig.stl was pointed at it)
+        return (f"; {which} merged input vertices that share a position, as an STL file needs "
+                "(it stores every triangle's corners apart; --no-weld would leave each triangle "
+                "on its own): the surface the file describes has this defect")
     clause = (f"; {which} merged input vertices that share a position (load_mesh welds coincident "
               "vertices, for texture seams): load_mesh(path, weld=False), or --no-weld on the "
               "command line, keeps them apart")

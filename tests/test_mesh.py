@@ -118,6 +118,23 @@ def test_a_defect_the_file_has_itself_is_not_put_on_welding_alone():
     assert "merged input vertices" in str(d) and "will not clear it" not in str(d), d
 
 
+def test_a_welding_defect_of_an_stl_is_not_pointed_at_no_weld(tmp_path):
+    """An STL stores every triangle's corners apart: welding is its only connectivity, and
+    --no-weld gives a soup of lone triangles. Two tetrahedra touching at a corner, written as
+    STL, are a bow-tie once welded; the clause said --no-weld "keeps them apart" (sweep 50a,
+    CGAL's pig.stl: 421 such vertices). It now says the file's surface has the defect."""
+    import trimesh
+
+    v, f = _touching_tetrahedra(True)
+    path = tmp_path / "two.stl"
+    trimesh.Trimesh(v, f, process=False).export(str(path))
+    (d,) = find_defects(load_mesh(str(path)))
+    assert isinstance(d, errors.NonManifoldVertexError), d
+    assert "as an STL file needs" in str(d) and "--no-weld would leave each triangle" in str(d), d
+    assert "keeps them apart" not in str(d), d
+    assert load_mesh(str(path), weld=False).num_faces == 8
+
+
 def test_welding_is_named_in_the_shared_cow():
     """cow.off as shipped: one non-manifold edge, made by welding two vertices of one position
     (the shared README: "must be refused clearly"); unwelded, it is a closed genus-0 manifold."""
