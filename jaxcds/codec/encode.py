@@ -422,7 +422,12 @@ def encode_schnyder(wood, *, mixed: bool = False) -> tuple[Words, np.ndarray]:
     :class:`~jaxcds.construct.schnyder.WoodOut` -- from its ccw rotations and ``out`` (no twin
     computation); ``mixed`` writes the streamable word of Sec. 3.3 directly. One linear pass
     writes the packed bits (no 0/1 byte array, no ``np.packbits``). Returns ``(words, order)``
-    as :func:`encode_wood`."""
+    as :func:`encode_wood`. A wood it did not make is checked first
+    (:func:`~jaxcds.construct.schnyder.check_wood_arrays`: ``StructureError`` naming the entry;
+    one out of range crashed the encoder's kernel)."""
+    from jaxcds.construct.schnyder import check_wood_arrays
+
+    check_wood_arrays(wood, "encode_schnyder")
     n = int(wood.num_vertices)
     if n < 4:
         raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")

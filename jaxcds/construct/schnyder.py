@@ -800,7 +800,9 @@ _PATTERN = ((True, RED), (False, BLACK), (True, BLUE), (False, RED), (True, BLAC
 
 def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
     """Raise :class:`~jaxcds.errors.StructureError` naming the first entry of ``wood`` that the
-    CDS builders' kernels cannot take (``ArgumentError`` if it is not a :class:`SchnyderWood`).
+    CDS builders' kernels cannot take (``ArgumentError`` if it is not a :class:`SchnyderWood`
+    or a :class:`WoodOut`; of a ``WoodOut``, without colours, the checks up to the rotations
+    listing both sides of every edge of ``out``).
 
     Vectorised, O(n log n) (one sort to pair the two sides of every edge), so the public
     ``from_wood`` constructors can afford it on a wood they did not make; the builders skip it
@@ -813,9 +815,10 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
     clockwise triangle); :func:`check_schnyder_wood` (with the faces) checks the latter."""
     from jaxcds._args import is_integer
 
-    if not isinstance(wood, SchnyderWood):
+    if not isinstance(wood, (SchnyderWood, WoodOut)):
         raise errors.ArgumentError(f"{what}: expected a SchnyderWood (jaxcds.construct.schnyder."
                                    f"schnyder_wood), got {type(wood).__name__}")
+    lean = isinstance(wood, WoodOut)  # no colours: rotations start anywhere, the rule unchecked
 
     def bad(msg):
         raise errors.StructureError(f"{what}: {msg}")
@@ -832,14 +835,14 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
     m = 6 * n - 12  # rotation entries: both sides of the 3n - 6 edges
     arrays = {}
     for name, shape in (("out", (n, 3)), ("offsets", (n + 1,)), ("neighbors", (m,)),
-                        ("colour", (m,)), ("outgoing", (m,))):
+                        ("colour", (m,)), ("outgoing", (m,)))[:3 if lean else 5]:
         a = getattr(wood, name)
         if not isinstance(a, np.ndarray) or a.shape != shape or a.dtype.kind not in ("b" if name == "outgoing" else "iu"):
             got = (f"{a.dtype} {a.shape}" if isinstance(a, np.ndarray) else type(a).__name__)
             kind = "bool" if name == "outgoing" else "integer"
             bad(f"{name} must be a numpy {kind} array of shape {shape}, got {got}")
         arrays[name] = a.astype(bool) if name == "outgoing" else a.astype(np.int64)
-    out, off, nb, col, og = (arrays[k] for k in ("out", "offsets", "neighbors", "colour", "outgoing"))
+    out, off, nb = (arrays[k] for k in ("out", "offsets", "neighbors"))
     R, Bl, Bk = (int(v) for v in outer)
     absent = np.zeros((n, 3), bool)
     absent[R, :] = True
@@ -855,12 +858,22 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
         k = 0 if off[0] != 0 else (n if off[-1] != m else int(np.argmax(np.diff(off) < 3)))
         bad(f"offsets[{k}] = {int(off[k])}: offsets must run from 0 to {m} (6n - 12), each vertex "
             "holding at least 3 neighbours")
-    for name, a, top in (("neighbors", nb, n), ("colour", col, 3)):
+    for name, top in (("neighbors", n), ("colour", 3))[:1 if lean else 2]:
+        a = arrays[name]
         w = (a < 0) | (a >= top)
         if w.any():
             k = int(np.argmax(w))
             bad(f"{name}[{k}] = {int(a[k])} is outside [0, {top})")
     u = np.repeat(np.arange(n, dtype=np.int64), np.diff(off))
+    # every rotation entry u -> x is one side of an edge of out, and each side is listed once
+    src, c = np.nonzero(~absent)
+    tgt = out[src, c]
+    sides = np.sort(np.concatenate([src * n + tgt, tgt * n + src]))
+    if not np.array_equal(np.sort(u * n + nb), sides):
+        bad("the rotations do not list both sides of every edge of out exactly once")
+    if lean:
+        return
+    col, og = arrays["colour"], arrays["outgoing"]
     # each entry agrees with out: u -> x outgoing of colour c, or x -> u incoming
     w = np.where(og, out[u, col] != nb, out[nb, col] != u)
     if w.any():
@@ -914,7 +927,14 @@ def check_schnyder_wood(wood: SchnyderWood, faces: Optional[np.ndarray] = None,
     edge per colour at each inner vertex, the local ccw rule, edges at the outer vertices
     incoming and of their colour (with the Sec. 2.1 outer edges), edge colours and
     orientations agreeing on both sides -- and, if ``maximal``, that no triangle of ``faces`` is
-    a clockwise oriented cycle. A plain Python loop: the slow, obviously-correct reference."""
+    a clockwise oriented cycle. A plain Python loop: the slow, obviously-correct reference.
+    A wood that :func:`check_wood_arrays` refuses is one problem, its message (arrays out of
+    range or mis-shaped raised numpy's IndexError here); the loop below then lists what remains
+    of Definition 1 on the woods it takes, and the clockwise triangles."""
+    try:
+        check_wood_arrays(wood, "check_schnyder_wood")
+    except errors.StructureError as exc:
+        return [str(exc)]
     n = wood.num_vertices
     R, Bl, Bk = wood.v_red, wood.v_blue, wood.v_black
     probs: list[str] = []

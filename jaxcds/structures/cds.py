@@ -97,7 +97,7 @@ from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds._progress import PROGRESS_MIN_VERTICES  # noqa: F401  (re-exported)
 from jaxcds._progress import Progress as _Progress
 from jaxcds._progress import want_progress as _want_progress
-from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, schnyder_wood
+from jaxcds.construct.schnyder import BLACK, BLUE, RED, SchnyderWood, check_wood_arrays, schnyder_wood
 from jaxcds.structures import registry
 from jaxcds.structures.base import Int, MeshStructure, check_id_space, interleave_rows, split_padding
 from jaxcds.structures import base as _base
@@ -150,6 +150,7 @@ def edge_fronts(wood: SchnyderWood):
     (``-1`` for absent edges): ``LF[u, c]`` = the dart ``(v, w)`` of ``LeftFront(u_c)``,
     ``RF[u, c]`` = the dart ``(z, v)`` of ``RightFront(u_c)``, ``LF2[u, c]`` = the dart ``(v, q)``
     one more step cw around ``v`` (Sec. 2.2's ``q``)."""
+    check_wood_arrays(wood, "edge_fronts")
     return _fronts(wood.offsets, wood.neighbors, wood.colour, wood.outgoing, wood.out,
                    wood.num_vertices)
 
@@ -201,6 +202,7 @@ def cw_bfs_order(wood: SchnyderWood) -> np.ndarray:
     """cwBFS of the red tree (Sec. 2.3): ``order[i]`` = vertex with label ``i``. The children of a
     vertex get consecutive labels, cw around it starting after its outgoing black edge (at
     ``V_red``: ``V_black`` first, ``V_blue`` last)."""
+    check_wood_arrays(wood, "cw_bfs_order")
     order, _, count, _ = _cwbfs(wood.offsets, wood.neighbors, wood.colour, wood.outgoing,
                                 wood.num_vertices, wood.v_red)
     if count != wood.num_vertices:
@@ -210,11 +212,17 @@ def cw_bfs_order(wood: SchnyderWood) -> np.ndarray:
 
 
 def relabel_wood(wood: SchnyderWood, order: np.ndarray) -> SchnyderWood:
-    """The same wood with vertex ``order[i]`` renamed ``i`` (rotation arrays permuted too)."""
+    """The same wood with vertex ``order[i]`` renamed ``i`` (rotation arrays permuted too);
+    ``order`` must be a permutation of the vertices (``StructureError`` otherwise)."""
     import dataclasses
 
+    check_wood_arrays(wood, "relabel_wood")
     n = wood.num_vertices
-    order = np.asarray(order, dtype=np.int64)
+    o = np.asarray(order)
+    if o.shape != (n,) or o.dtype.kind not in "iu" or not np.array_equal(np.sort(o), np.arange(n)):
+        raise errors.StructureError(f"relabel_wood: order must be a permutation of the {n} vertices "
+                                    f"(integers), got dtype {o.dtype} shape {o.shape}")
+    order = o.astype(np.int64)
     label = np.empty(n, dtype=np.int64)
     label[order] = np.arange(n)
     out = np.full((n, 3), n, dtype=np.int32)
@@ -248,6 +256,7 @@ def face_slots(wood: SchnyderWood, lf: np.ndarray, rf: np.ndarray, inc: Optional
 
     Every face gets the slot of the first rule that applies: red (left of a red edge, slot of its
     source), black (left of a black edge, ``n +`` source), blue (``n + F_blue[source]``)."""
+    check_wood_arrays(wood, "face_slots")
     n = wood.num_vertices
     lfc = np.where(lf >= 0, _col(lf), -1)
     vk, vr = wood.v_black, wood.v_red
@@ -500,7 +509,7 @@ def _build_rows(wood: SchnyderWood, kind: int, label=None, even=None):
     unused = (relab(wood.v_red),) + tuple(int(n + x) for x in free[n_need:n_free])
     static = dict(num_vertices=n, num_faces=2 * n - 4, v_red=relab(wood.v_red),
                   v_blue=relab(wood.v_blue), v_black=relab(wood.v_black), unused_slots=unused,
-                  target_rounds=target_rounds(wood))
+                  target_rounds=_target_rounds(wood))
     return refs.view(np.int32), fblue, static
 
 
@@ -510,7 +519,6 @@ def _checked_wood(cls, wood, check) -> None:
     the interpreter in the numba kernels). ``build_cds`` passes its own wood with
     ``check=False``."""
     from jaxcds._args import flag_arg
-    from jaxcds.construct.schnyder import check_wood_arrays
 
     if flag_arg(check, f"{cls.__name__}.from_wood: check"):
         check_wood_arrays(wood, f"{cls.__name__}.from_wood")
@@ -551,6 +559,12 @@ def target_rounds(wood: SchnyderWood) -> int:
     ``bit_length(F - 1)`` for ``F`` the longest incoming fan of one colour (exterior edges
     included). A chain of ``LeftFront`` steps stays in one fan, so it is at most ``F - 1`` steps
     long, and ``r`` rounds resolve every chain of at most ``2^r - 1`` steps."""
+    check_wood_arrays(wood, "target_rounds")
+    return _target_rounds(wood)
+
+
+def _target_rounds(wood: SchnyderWood) -> int:
+    """:func:`target_rounds` of a wood the builders made (unchecked)."""
     return int(max(_longest_fan(np.ascontiguousarray(wood.out), wood.num_vertices) - 1, 0)).bit_length()
 
 

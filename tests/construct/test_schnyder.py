@@ -321,15 +321,39 @@ for t in range(60):  # single entries changed in range: typed errors, never a cr
             fuzz["accepted unchanged" if same else "ACCEPTED CHANGED"] += 1
         except errors.StructureError:
             fuzz["refused"] += 1
-print(json.dumps({"named": named, "fuzz": dict(fuzz)}))
+from jaxcds.codec.encode import encode_schnyder
+from jaxcds.construct.schnyder import check_schnyder_wood, schnyder_out
+from jaxcds.structures import cds
+
+nb = w0.neighbors.copy()
+nb[3] = 10 ** 7
+w = dataclasses.replace(w0, neighbors=nb)
+lean = schnyder_out(m.faces, n)
+lean = dataclasses.replace(lean, neighbors=nb)
+functions = []
+for name, call in (("edge_fronts", lambda: cds.edge_fronts(w)), ("cw_bfs_order", lambda: cds.cw_bfs_order(w)),
+                   ("relabel_wood", lambda: cds.relabel_wood(w, np.arange(n))),
+                   ("target_rounds", lambda: cds.target_rounds(w)),
+                   ("face_slots", lambda: cds.face_slots(w, *cds.edge_fronts(w0)[:2])),
+                   ("encode_schnyder", lambda: encode_schnyder(w)), ("encode_schnyder", lambda: encode_schnyder(lean)),
+                   ("relabel_wood", lambda: cds.relabel_wood(w0, np.zeros(n, np.int64)))):
+    try:
+        call()
+        functions.append("accepted " + name)
+    except errors.StructureError as exc:
+        functions.append(str(exc))
+functions.append(check_schnyder_wood(w, m.faces))
+print(json.dumps({"named": named, "fuzz": dict(fuzz), "functions": functions}))
 """
 
 
 def test_from_wood_checks_a_wood_it_did_not_make():
     """Stop 50: every CDS's ``from_wood`` ran its numba kernels on a hand-made wood as given; an
     entry out of range (``out``, ``neighbors``, ``offsets``, ``v_red``) read or wrote out of
-    bounds: segmentation faults and LLVM aborts. ``check_wood_arrays`` now names the entry
-    (StructureError) first; single entries changed in range are refused too, or unchanged. Run
+    bounds: segmentation faults and LLVM aborts, and so did ``cw_bfs_order`` and
+    ``encode_schnyder`` (the others gave garbage or numpy's IndexError). ``check_wood_arrays``
+    now names the entry (StructureError) first; single entries changed in range are refused
+    too, or unchanged. Run
     in a subprocess, so the old crash fails this test instead of ending the run."""
     import json
     import subprocess
@@ -345,6 +369,14 @@ def test_from_wood_checks_a_wood_it_did_not_make():
         cls = ("CDS6n", "CDS5n", "CDS4n", "CDS5nO1")[k % 4]
         assert re.match(rf"{cls}\.from_wood: {expect[k // 4]}", message), message
     assert got["fuzz"].get("ACCEPTED CHANGED", 0) == 0 and got["fuzz"]["refused"] >= 150, got["fuzz"]
+    # the module's other functions of a wood: cw_bfs_order and encode_schnyder crashed too
+    *functions, problems = got["functions"]
+    names = ["edge_fronts", "cw_bfs_order", "relabel_wood", "target_rounds", "face_slots",
+             "encode_schnyder", "encode_schnyder"]
+    for name, message in zip(names, functions):
+        assert message == f"{name}: neighbors[3] = 10000000 is outside [0, 42)", message
+    assert functions[-1].startswith("relabel_wood: order must be a permutation of the 42 vertices")
+    assert problems == ["check_schnyder_wood: neighbors[3] = 10000000 is outside [0, 42)"]
 
 
 def test_from_wood_check_is_a_bool_and_takes_only_woods():
