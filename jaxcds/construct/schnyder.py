@@ -750,6 +750,11 @@ def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
     want_blk = blk is not None
     if not want_blk:
         blk = np.zeros((1, 3), dtype=np.int32)
+    elif (not isinstance(blk, np.ndarray) or blk.shape != (n, 3) or blk.dtype != np.int32
+          or not blk.flags.c_contiguous or not blk.flags.writeable):  # the kernel writes (n, 3) int32 rows
+        got = f"{blk.dtype} {blk.shape}" if isinstance(blk, np.ndarray) else type(blk).__name__
+        raise errors.ArgumentError(f"schnyder_out: blk must be a writable C-contiguous ({n}, 3) int32 "
+                                   f"array, got {got}")
     done = _conquest_csr(offsets0, nb0, n, v_red, v_blue, v_black, bool(maximal), out, order, work, blk, want_blk)
     if done != n - 2:
         raise errors.UnsupportedTopologyError(
@@ -763,7 +768,15 @@ def schnyder_out(faces, num_vertices: int, root_face: Optional[int] = None,
 
 def label_wood(w: WoodOut) -> SchnyderWood:
     """The :class:`SchnyderWood` of a :class:`WoodOut`: every rotation turned to start at the
-    outgoing red edge and each entry labelled with its colour and direction (one linear pass)."""
+    outgoing red edge and each entry labelled with its colour and direction (one linear pass).
+    A ``WoodOut`` it did not make is checked first (:func:`check_wood_arrays`; a neighbour out of
+    range crashed the kernel); :func:`schnyder_wood` labels its own unchecked."""
+    check_wood_arrays(w, "label_wood")
+    return _label_wood(w)
+
+
+def _label_wood(w: WoodOut) -> SchnyderWood:
+    """:func:`label_wood` of a wood this module made (unchecked)."""
     n = w.num_vertices
     nb, col, og, bad = _finish_rotations(w.offsets, w.neighbors, w.out, n, w.v_red, w.v_blue)
     if bad >= 0:
@@ -789,7 +802,7 @@ def schnyder_wood(faces, num_vertices: int, root_face: Optional[int] = None,
       UnsupportedTopologyError: the faces do not form a planar triangulation (wrong Euler count,
         border edges, or the conquest got stuck), naming what failed.
     """
-    return label_wood(schnyder_out(faces, num_vertices, root_face=root_face, maximal=maximal))
+    return _label_wood(schnyder_out(faces, num_vertices, root_face=root_face, maximal=maximal))
 
 
 # ---------------------------------------------------------------------------------- checker

@@ -409,3 +409,30 @@ def test_schnyder_wood_takes_the_meshs_face_checks(faces, n, error, message):
         f[3, 1] = 10 ** 6
     with pytest.raises(error, match=message):
         schnyder_wood(f, n)
+
+
+def test_label_wood_and_schnyder_out_blk_check_their_arrays():
+    """Stop 50: ``label_wood`` ran its kernel on a hand-made WoodOut (a neighbour out of range: a
+    segmentation fault) and ``schnyder_out(blk=...)`` wrote ``(n, 3)`` rows into whatever array
+    it was given (a (2, 3) one: a segmentation fault). Run in a subprocess, so the old crash
+    fails this test instead of ending the run."""
+    import subprocess
+    import sys
+
+    code = ("import dataclasses, numpy as np\nfrom jaxcds import errors\n"
+            "from jaxcds.construct.schnyder import label_wood, schnyder_out\n"
+            "from jaxcds.generators import icosphere\n"
+            "m = icosphere(1)\nw = schnyder_out(m.faces, m.num_vertices)\n"
+            "assert label_wood(w).num_vertices == 42\n"
+            "nb = w.neighbors.copy()\nnb[3] = 10 ** 7\n"
+            "for call in (lambda: label_wood(dataclasses.replace(w, neighbors=nb)),\n"
+            "             lambda: schnyder_out(m.faces, 42, blk=np.zeros((2, 3), np.int32)),\n"
+            "             lambda: schnyder_out(m.faces, 42, blk=np.zeros((42, 3), np.int64))):\n"
+            "    try:\n        call()\n        print('accepted')\n"
+            "    except (errors.StructureError, errors.ArgumentError) as exc:\n        print(exc)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.splitlines() == [
+        "label_wood: neighbors[3] = 10000000 is outside [0, 42)",
+        "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int32 (2, 3)",
+        "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int64 (42, 3)"], out.stdout
