@@ -80,8 +80,12 @@ def _twins(faces, n, twin):
 
 
 def dart_twins(faces: np.ndarray, num_vertices: int) -> np.ndarray:
-    """``(3F,)`` int32 twins of the darts ``3f + i`` of a closed, oriented, manifold mesh."""
-    faces = np.ascontiguousarray(faces, dtype=np.int32)
+    """``(3F,)`` int32 twins of the darts ``3f + i`` of a closed, oriented, manifold mesh.
+    ``faces`` must be an integer ``(F, 3)`` array of ids in ``[0, num_vertices)``
+    (:func:`jaxcds.mesh.trusted_faces`: an id out of range crashed the counting sort's kernel)."""
+    from jaxcds.mesh import trusted_faces
+
+    faces = trusted_faces(faces, num_vertices, "dart_twins")
     twin = np.empty(faces.shape[0] * 3, dtype=np.int32)
     bad = _twins(faces, int(num_vertices), twin)
     if bad >= 0:
@@ -196,19 +200,23 @@ def encode_wood(faces: np.ndarray, num_vertices: int, red_parent: np.ndarray, bl
       ``(words, order)``: the separate words (red then black) and ``order[i]`` = input id of the
       vertex numbered ``i`` by the traversal (decoded vertex ``i`` is input vertex ``order[i]``).
     """
+    from jaxcds.mesh import trusted_faces
+
+    faces = trusted_faces(faces, num_vertices, "encode_wood")
     n = int(num_vertices)
-    faces = np.ascontiguousarray(faces, dtype=np.int32)
     if n < 4 or faces.shape != (2 * n - 4, 3):
         raise errors.UnsupportedTopologyError(
             f"the 4n-bit encoding needs a genus-0 triangulation with n >= 4 and 2n - 4 faces; got "
             f"n = {n}, {faces.shape[0]} faces")
+    red_parent, black_parent, outer = _wood_args(n, red_parent, black_parent, outer)
     if twin is None:
         twin = dart_twins(faces, n)
+    else:
+        twin = _twin_arg(faces, twin)
     bits = np.zeros(num_bits(n), dtype=np.uint8)
     order = np.empty(n, dtype=np.int32)
-    v_red, v_blue, v_black = (int(x) for x in outer)
-    status, vertex = _encode(faces, twin, n, np.asarray(red_parent, dtype=np.int64),
-                             np.asarray(black_parent, dtype=np.int64), v_red, v_blue, v_black, bits, order)
+    v_red, v_blue, v_black = outer
+    status, vertex = _encode(faces, twin, n, red_parent, black_parent, v_red, v_blue, v_black, bits, order)
     if status == 1:
         raise errors.StructureError(f"Schnyder wood: vertex {vertex} is reached twice or has no red edge")
     if status == 2:
@@ -220,6 +228,67 @@ def encode_wood(faces: np.ndarray, num_vertices: int, red_parent: np.ndarray, bl
     if status == 4:
         raise errors.StructureError(f"Schnyder wood: black tree does not have n - 3 = {n - 3} edges")
     return Words(n, pack(bits), mixed=False), order
+
+
+def _wood_args(n: int, red_parent, black_parent, outer):
+    """:func:`encode_wood`'s wood arguments checked (the kernel indexes by them unchecked: a short
+    parent array or an outer vertex out of range read outside its arrays): the parents as
+    ``(n,)`` int64 arrays of integers (entries outside ``[0, n)`` mean "no edge"), ``outer`` as
+    three distinct vertex ids in ``[0, n)``. :class:`~jaxcds.errors.ArgumentError` otherwise."""
+    from jaxcds.structures.base import integer_array
+
+    parents = []
+    for name, p in (("red_parent", red_parent), ("black_parent", black_parent)):
+        try:
+            a = integer_array(p, f"encode_wood: {name}")
+        except errors.InvalidIndexError as exc:
+            raise errors.ArgumentError(str(exc)) from None
+        if a.shape != (n,):
+            raise errors.ArgumentError(f"encode_wood: {name} must have shape ({n},) (one entry per "
+                                       f"vertex), got {a.shape}")
+        parents.append(np.ascontiguousarray(a, dtype=np.int64))  # a wrapped uint64: negative, no edge
+    from jaxcds._args import is_integer
+
+    try:
+        o = tuple(outer)
+    except TypeError:
+        o = ()
+    if len(o) != 3 or not all(is_integer(x) and 0 <= x < n for x in o) or len(set(int(x) for x in o)) != 3:
+        raise errors.ArgumentError(f"encode_wood: outer must be three distinct vertex ids "
+                                   f"(V_red, V_blue, V_black) in [0, {n}), got {outer!r}")
+    return parents[0], parents[1], tuple(int(x) for x in o)
+
+
+def _twin_arg(faces: np.ndarray, twin) -> np.ndarray:
+    """:func:`encode_wood`'s ``twin=`` checked against ``faces`` (the kernel follows it unchecked:
+    a dart id out of range read outside the faces): a ``(3F,)`` integer array, an involution on
+    ``[0, 3F)``, each dart ``u -> v`` paired with a dart ``v -> u``. O(F) numpy;
+    :class:`~jaxcds.errors.ArgumentError` naming the first bad dart."""
+    from jaxcds.structures.base import integer_array
+
+    E = 3 * faces.shape[0]
+    try:
+        t = integer_array(twin, "encode_wood: twin")
+    except errors.InvalidIndexError as exc:
+        raise errors.ArgumentError(str(exc)) from None
+    if t.shape != (E,):
+        raise errors.ArgumentError(f"encode_wood: twin must have shape ({E},) (one entry per dart "
+                                   f"3f + i), got {t.shape}")
+    bad = np.nonzero((t < 0) | (t >= E))[0]
+    if bad.size:
+        e = int(bad[0])
+        raise errors.ArgumentError(f"encode_wood: twin[{e}] = {int(t[e])} is not a dart id in [0, {E})")
+    t = np.ascontiguousarray(t, dtype=np.int32)
+    src = faces.ravel()
+    dst = faces[:, [1, 2, 0]].ravel()
+    bad = np.nonzero((t[t] != np.arange(E)) | (src[t] != dst) | (dst[t] != src))[0]
+    if bad.size:
+        e = int(bad[0])
+        raise errors.ArgumentError(
+            f"encode_wood: twin[{e}] = {int(t[e])} is not the opposite of dart {e} "
+            f"({int(src[e])} -> {int(dst[e])}): twin must be an involution pairing each dart u -> v "
+            "with a dart v -> u (jaxcds.codec.dart_twins computes it)")
+    return t
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -100,3 +100,43 @@ def test_float_faces_are_refused_not_truncated():
     ref = encode_faces(m.faces, 30)[0]
     for f in (m.faces.astype(np.int64), m.faces.astype(np.uint16), m.faces.tolist()):
         assert encode_faces(f, 30)[0] == ref
+
+
+def test_encode_wood_and_dart_twins_check_their_arrays():
+    """Sweep 50c: ``dart_twins`` and ``encode_wood`` handed their faces, parents, ``outer`` and
+    ``twin=`` to the numba kernels unchecked (a face id out of range or a twin out of range: a
+    segmentation fault). Run in a subprocess, so the old crash fails this test instead of
+    ending the run."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np\nfrom jaxcds import errors\n"
+            "from jaxcds.codec import dart_twins, encode_wood\n"
+            "from jaxcds.construct.schnyder import schnyder_wood\n"
+            "from jaxcds.generators import icosphere\n"
+            "m = icosphere(1)\nf = np.asarray(m.faces)\nw = schnyder_wood(f, 42)\n"
+            "r, k = w.out[:, 0], w.out[:, 2]\ntw = dart_twins(f, 42)\n"
+            "assert encode_wood(f, 42, r, k, w.outer, twin=tw)[0] == encode_wood(f, 42, r, k, w.outer)[0]\n"
+            "big = f.copy()\nbig[3, 1] = 10 ** 6\nt1 = tw.copy()\nt1[5] = 10 ** 6\n"
+            "t2 = tw.copy()\nt2[[0, 1]] = t2[[1, 0]]\n"
+            "for call in (lambda: dart_twins(big, 42), lambda: dart_twins(f.ravel(), 42),\n"
+            "             lambda: encode_wood(big, 42, r, k, w.outer, twin=np.arange(240)),\n"
+            "             lambda: encode_wood(f, 42, r, k, w.outer, twin=t1),\n"
+            "             lambda: encode_wood(f, 42, r, k, w.outer, twin=t2),\n"
+            "             lambda: encode_wood(f, 42, r[:5], k, w.outer),\n"
+            "             lambda: encode_wood(f, 42, r, k, (10 ** 6, 1, 2))):\n"
+            "    try:\n        call()\n        print('accepted')\n"
+            "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, exc)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stdout.splitlines()
+    assert lines[:2] == [
+        "InvalidIndexError dart_twins: face 3 refers to vertex 1000000, outside [0, 42) (1 bad indices in all)",
+        "UnreadableMeshError dart_twins: faces must have shape (F, 3), got (240,)"], lines
+    assert lines[2].startswith("InvalidIndexError encode_wood: face 3 refers to vertex 1000000"), lines
+    assert lines[3] == "ArgumentError encode_wood: twin[5] = 1000000 is not a dart id in [0, 240)", lines
+    assert lines[4].startswith("ArgumentError encode_wood: twin[0] = "), lines
+    assert "is not the opposite of dart 0" in lines[4], lines
+    assert lines[5] == ("ArgumentError encode_wood: red_parent must have shape (42,) (one entry per vertex), "
+                        "got (5,)"), lines
+    assert lines[6].startswith("ArgumentError encode_wood: outer must be three distinct vertex ids"), lines
