@@ -411,9 +411,34 @@ def decode_paper6n(words: Words, *, targets: bool = True) -> Paper6n:
 
 
 def faces_from_paper6n(p: Paper6n) -> np.ndarray:
-    """The ``2n - 4`` triangles (ccw) of a decoded table with targets."""
-    if p.T is None:
-        raise ValueError("faces_from_paper6n needs a table decoded with targets=True")
+    """The ``2n - 4`` triangles (ccw) of a decoded table with targets. A table it did not
+    decode is checked first (:class:`~jaxcds.errors.EncodingError`: shapes ``(3, 2, n)``,
+    ``(3, 2, n)``, ``(3, n)``, integer ``S`` in ``[0, n)`` and ``T`` in ``[0, n]``, bool ``C``,
+    ``n >= 4``; the kernel indexes by ``S`` and ``T`` unchecked)."""
+    if not isinstance(p, Paper6n):
+        raise errors.ArgumentError(f"faces_from_paper6n: expected a Paper6n, got {type(p).__name__}")
+    if p.T is None:  # was a bare ValueError
+        raise errors.ArgumentError("faces_from_paper6n needs a table decoded with targets=True")
+    S, C, T = (np.asarray(a) for a in (p.S, p.C, p.T))
+    n = int(S.shape[2]) if S.ndim == 3 else -1
+    if n < 4 or S.shape != (3, 2, n) or C.shape != (3, 2, n) or T.shape != (3, n):
+        raise errors.EncodingError(f"faces_from_paper6n: S, C, T must have shapes (3, 2, n), (3, 2, n), "
+                                   f"(3, n) with n >= 4, got {S.shape}, {C.shape}, {T.shape}")
+    if S.dtype.kind not in "iu" or T.dtype.kind not in "iu" or C.dtype != np.bool_:
+        raise errors.EncodingError(f"faces_from_paper6n: S and T must be integers and C booleans, got "
+                                   f"dtypes {S.dtype}, {C.dtype}, {T.dtype}")
+    for name, a, hi in (("S", S, n - 1), ("T", T, n)):
+        bad = np.argwhere((a < 0) | (a > hi))
+        if bad.size:
+            at = tuple(int(x) for x in bad[0])
+            raise errors.EncodingError(f"faces_from_paper6n: {name}{list(at)} = {int(a[at])} is outside "
+                                       f"[0, {hi}]")
+    return _faces_from_paper6n(Paper6n(np.ascontiguousarray(S, np.int32), np.ascontiguousarray(C),
+                                       p.I, np.ascontiguousarray(T, np.int32)))
+
+
+def _faces_from_paper6n(p: Paper6n) -> np.ndarray:
+    """:func:`faces_from_paper6n` of a table the decoder filled (unchecked)."""
     n = p.num_vertices
     out = np.empty((2 * n - 4, 3), dtype=np.int32)
     f = _faces(n, p.S, p.C, p.T, out)
@@ -427,4 +452,4 @@ def decode_faces(words: Words) -> tuple[np.ndarray, Paper6n]:
     """Decode the words into ``(faces, table)``: ``(2n - 4, 3)`` int32 ccw triangles (vertex
     ``i`` = ``i``-th vertex of the ccw DFS of ``T_red``) and the Thm 2 table with targets."""
     p = decode_paper6n(words, targets=True)
-    return faces_from_paper6n(p), p
+    return _faces_from_paper6n(p), p

@@ -132,3 +132,34 @@ def test_encode_mesh_unchecked_refuses_ids_out_of_range():
         assert out[name][0] == "InvalidIndexError", out
         assert out[name][1].startswith(f"encode_mesh: arrays: face 1 refers to vertex {bad}, "
                                        "outside [0, 4)"), out
+
+
+def test_faces_from_paper6n_checks_a_table_it_did_not_decode():
+    """Sweep 50c: ``faces_from_paper6n`` indexed by a hand-made table's ``S`` and ``T``
+    unchecked (out of range: reads outside the arrays), raised a bare ValueError without targets
+    and numpy's "negative dimensions" for n = 1; now an EncodingError / ArgumentError naming the
+    entry. Run in a subprocess, so a crash fails this test instead of ending the run."""
+    import subprocess
+    import sys
+
+    code = ("import dataclasses, numpy as np\nfrom jaxcds import errors\n"
+            "from jaxcds.codec import decode_faces, encode_mesh, faces_from_paper6n\n"
+            "from jaxcds.generators import icosphere\n"
+            "f, p = decode_faces(encode_mesh(icosphere(1)).words)\n"
+            "assert np.array_equal(faces_from_paper6n(p), f)\n"
+            "S = p.S.copy()\nS[0, 1, 5] = -10 ** 6\nT = p.T.copy()\nT[2, 7] = 10 ** 6\n"
+            "for q in (dataclasses.replace(p, S=S), dataclasses.replace(p, T=T),\n"
+            "          dataclasses.replace(p, T=p.T[:, :3]), dataclasses.replace(p, T=p.T + 0.5),\n"
+            "          dataclasses.replace(p, T=None)):\n"
+            "    try:\n        faces_from_paper6n(q)\n        print('accepted')\n"
+            "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, exc)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.splitlines() == [
+        "EncodingError faces_from_paper6n: S[0, 1, 5] = -1000000 is outside [0, 41]",
+        "EncodingError faces_from_paper6n: T[2, 7] = 1000000 is outside [0, 42]",
+        "EncodingError faces_from_paper6n: S, C, T must have shapes (3, 2, n), (3, 2, n), (3, n) with "
+        "n >= 4, got (3, 2, 42), (3, 2, 42), (3, 3)",
+        "EncodingError faces_from_paper6n: S and T must be integers and C booleans, got dtypes int32, "
+        "bool, float64",
+        "ArgumentError faces_from_paper6n needs a table decoded with targets=True"], out.stdout
