@@ -187,6 +187,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, int]:
                         f"{path}: an OFF BINARY file (its header, byte 0); jaxcds reads ASCII OFF "
                         "only: convert it to ASCII OFF, PLY or OBJ")
                 text = _prepare_off(text)  # first: splitlines() breaks at \v and \f too
+                _refuse_off_variant(text, path)
                 _check_off_counts(text, path)
             loaded = _trimesh_load(io.StringIO(text), suffix[1:])
         else:
@@ -605,6 +606,26 @@ def _diagnose_ascii_stl(raw: bytes, path: str) -> None:
 
 
 # ---- OFF
+#: Geomview's OFF keyword, ``[ST][C][N][4][n]OFF``: 4 = homogeneous vertices, n = a dimension line
+_OFF_KEYWORD = re.compile(r"\s*((?:ST)?C?N?(4)?(n)?OFF)(?=\s|$)")
+
+
+def _refuse_off_variant(text: str, path: str) -> None:
+    """Refuse ``4OFF`` (vertices ``x y z w``, the point ``(x/w, y/w, z/w)``) and ``nOFF`` (a
+    dimension line, then vertices of that many coordinates), naming the header's line: trimesh
+    read the first three numbers of each vertex line (``4OFF`` with w = 2: every point twice as
+    far, without a word). Comments are gone already (:func:`_prepare_off`)."""
+    m = _OFF_KEYWORD.match(text)
+    if m is None or not (m.group(2) or m.group(3)):
+        return
+    line = len((text[:m.start(1)] + "x").splitlines())  # (x: the keyword's own line)
+    what = ("a dimension line (nOFF: vertices of any number of coordinates)" if m.group(3)
+            else "homogeneous vertices (4OFF: x y z w)")
+    raise errors.UnreadableMeshError(
+        f"{path}: line {line}: an OFF header of {what}, {m.group(1)!r}; jaxcds reads 3-D OFF "
+        "(OFF, COFF, NOFF, CNOFF, STOFF): convert it first")
+
+
 def _check_off_counts(text: str, path: str) -> None:
     """The element counts an OFF header declares against the lines that follow (trimesh reads
     fewer faces without a word, and a face line's declared corner count against its indices).

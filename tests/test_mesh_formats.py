@@ -157,6 +157,30 @@ def test_off_defects_are_named(text, kind, match, tmp_path):
         load_mesh(_write(tmp_path, "bad.off", text))
 
 
+@pytest.mark.parametrize("key,rows,what", [
+    ("4OFF", "0 0 0 2\n2 0 0 2\n0 2 0 2\n0 0 2 2\n", "homogeneous"),
+    ("C4OFF", "0 0 0 1 1 0 0 1\n1 0 0 1 1 0 0 1\n0 1 0 1 1 0 0 1\n0 0 1 1 1 0 0 1\n", "homogeneous"),
+    ("nOFF", "3\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n", "dimension"),
+    ("4nOFF", "3\n0 0 0 1\n1 0 0 1\n0 1 0 1\n0 0 1 1\n", "dimension"),
+])
+def test_off_of_homogeneous_or_n_dimensional_vertices_is_refused(key, rows, what, tmp_path):
+    """Sweep 50b: Geomview's ``4OFF`` (every vertex ``x y z w``, the point ``(x/w, y/w, z/w)``)
+    loaded ``x y z`` and dropped ``w``: with w = 2 a geometry twice too large, without a word.
+    ``4OFF`` and ``nOFF`` (a dimension line first) are refused naming the header's line, as
+    ``OFF BINARY`` is; the other keywords (COFF, NOFF, CNOFF, STOFF) still load."""
+    if what == "dimension":  # the dimension line comes before the counts
+        text = f"# made by hand\n{key}\n" + rows.split("\n", 1)[0] + "\n4 4 0\n" + rows.split("\n", 1)[1]
+    else:
+        text = f"# made by hand\n{key}\n4 4 0\n" + rows
+    text += "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"
+    with pytest.raises(errors.UnreadableMeshError, match=f"line 2: .*{what}.*'{key}'"):
+        load_mesh(_write(tmp_path, "h.off", text))
+    for ok, extra in (("NOFF", " 0 0 1"), ("CNOFF", " 0 0 1 1 0 0 1"), ("STOFF", " 0.5 0.5"), ("COFF", " 255 0 0 255")):
+        body = "".join(f"{x} {y} {z}{extra}\n" for x, y, z in _TET_V)
+        m = load_mesh(_write(tmp_path, "ok.off", f"{ok}\n4 4 0\n{body}3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n"))
+        np.testing.assert_array_equal(m.vertices, np.asarray(_TET_V, float))
+
+
 @pytest.mark.parametrize("head", ["OFF\n4 3 0\n", "OFF 4 3 0\n"])
 def test_off_face_lines_past_the_declared_count_are_named(head, tmp_path):
     """Robustness sweep: a header declaring fewer faces than the file lists (3 of the tet's 4)
