@@ -191,6 +191,7 @@ def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None, *,
       MeshError: border sides that do not chain into loops (a pinched vertex, flipped faces...):
         the mesh's first defect as :func:`jaxcds.mesh.validate` names it.
     """
+    twins_arg(twins, source)  # twins=1 raised an AttributeError about .opp
     return _halfedge_arrays(trusted_faces(faces, num_vertices, source), int(num_vertices), twins,
                             source)
 

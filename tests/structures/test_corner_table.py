@@ -85,3 +85,7 @@ def test_from_faces_names_twins_of_the_wrong_kind():
         for bad in (1, "twins", (np.zeros(24, np.int32), np.zeros(6, np.int32))):
             with pytest.raises(errors.ArgumentError, match=f"{cls.__name__}.from_faces: twins must be"):
                 cls.from_faces(f, 6, twins=bad)
+    from jaxcds.structures.halfedge import halfedge_arrays
+
+    with pytest.raises(errors.ArgumentError, match="halfedge_arrays: twins must be"):
+        halfedge_arrays(f, 6, 1)  # sweep 50c: an AttributeError about .opp
