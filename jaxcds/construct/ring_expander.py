@@ -133,11 +133,90 @@ def _marks(num_vertices: int, num_faces: int, dummy: Optional[np.ndarray]):
     return vm, np.zeros(num_faces, dtype=np.uint8)
 
 
+def check_corner_table(V, O, num_vertices, where: str, *, tm=None, dummy=None):
+    """The corner table the ring functions take from a caller, checked before any numba kernel
+    walks it (they index by ``V``, ``O``, corner ids and ``tm`` unchecked: an id out of range
+    read and wrote outside the arrays, a segmentation fault). O(F) numpy. Returns ``(V, O, n,
+    tm, dummy)``: int32 C-contiguous ``V`` and ``O``, ``tm`` as uint8 and ``dummy`` as bool
+    (``None`` where not given).
+
+    Raises:
+      ArgumentError: ``num_vertices`` not an integer >= 0; ``V``, ``O`` not 1-D integer arrays of
+        one length ``3F > 0``; ``tm`` not ``F`` flags 0/1; ``dummy`` not ``n`` flags 0/1.
+      StructureError: ``V`` out of ``[0, n)``, or ``O`` not a corner table's opposites (an
+        involution on ``[0, 3F)`` pairing each corner with one of another triangle facing the
+        same edge reversed), naming the first bad corner.
+    """
+    if not is_integer(num_vertices) or not 0 <= num_vertices < 2 ** 31:
+        raise errors.ArgumentError(f"{where}: num_vertices must be an integer in [0, 2^31), got "
+                                   f"{num_vertices!r}")
+    n = int(num_vertices)
+    arrs = []
+    for name, a in (("V", V), ("O", O)):
+        try:
+            a = np.asarray(a)
+        except ValueError as exc:  # ragged nested lists
+            raise errors.ArgumentError(f"{where}: {name} is not an array: {exc}") from None
+        if a.ndim != 1 or a.dtype.kind not in "iu" or a.size == 0 or a.size % 3:
+            raise errors.ArgumentError(f"{where}: {name} must be a 1-D integer array of 3F > 0 corners, "
+                                       f"got dtype {a.dtype} shape {a.shape}")
+        arrs.append(a)
+    V, O = arrs
+    if O.shape != V.shape:
+        raise errors.ArgumentError(f"{where}: V and O must have one length (3F), got {V.size} and {O.size}")
+    nc = V.size
+    bad = np.nonzero((V < 0) | (V >= n))[0]
+    if bad.size:
+        c = int(bad[0])
+        raise errors.StructureError(f"{where}: V[{c}] = {int(V[c])} is outside [0, {n})")
+    bad = np.nonzero((O < 0) | (O >= nc))[0]
+    if bad.size:
+        c = int(bad[0])
+        raise errors.StructureError(f"{where}: O[{c}] = {int(O[c])} is not a corner id in [0, {nc})")
+    V = np.ascontiguousarray(V, np.int32)
+    O = np.ascontiguousarray(O, np.int32)
+    c = np.arange(nc, dtype=np.int32)
+    nx = 3 * (c // 3) + (c + 1) % 3
+    pv = 3 * (c // 3) + (c + 2) % 3
+    bad = np.nonzero((O[O] != c) | (O // 3 == c // 3) | (V[nx] != V[pv[O]]) | (V[pv] != V[nx[O]]))[0]
+    if bad.size:
+        c = int(bad[0])
+        raise errors.StructureError(
+            f"{where}: O[{c}] = {int(O[c])} is not the opposite of corner {c}: O must be an involution "
+            "pairing each corner with the corner of the other triangle on the edge it faces (the "
+            "O of a closed jaxcds CornerTable)")
+    if tm is not None:
+        t = np.asarray(tm)
+        if t.shape != (nc // 3,) or t.dtype.kind not in "biu" or (t.size and not np.isin(t, (0, 1)).all()):
+            raise errors.ArgumentError(f"{where}: tm must be {nc // 3} flags 0/1 (one per triangle), got "
+                                       f"dtype {t.dtype} shape {t.shape}")
+        tm = np.ascontiguousarray(t, np.uint8)
+    if dummy is not None:
+        d = np.asarray(dummy)
+        if d.shape != (n,) or d.dtype.kind not in "biu" or (d.size and not np.isin(d, (0, 1)).all()):
+            raise errors.ArgumentError(f"{where}: dummy must be {n} flags 0/1 (one per vertex), got "
+                                       f"dtype {d.dtype} shape {d.shape}")
+        dummy = d.astype(bool)
+    return V, O, n, tm, dummy
+
+
+def _seed_arg(seed, nc: int, where: str) -> int:
+    if not is_integer(seed) or not 0 <= seed < nc:
+        raise errors.ArgumentError(f"{where}: seed must be a corner id in [0, {nc}), got {seed!r}")
+    return int(seed)
+
+
 def ring_expander(V, O, num_vertices: int, seed: int, dummy=None):
     """Run RING-EXPANDER (Sec. 4.2) from seed corner ``seed``.
 
     Returns ``(tm, vm)``: ``(n,)`` uint8 invaded-triangle flags and ``(m,)`` uint8 visited flags
-    (dummy vertices are pre-marked; they are visited but not on the ring)."""
+    (dummy vertices are pre-marked; they are visited but not on the ring). The arguments are
+    checked (:func:`check_corner_table`, ``seed`` a corner id)."""
+    V, O, n, _, dummy = check_corner_table(V, O, num_vertices, "ring_expander", dummy=dummy)
+    return _ring_expander_trusted(V, O, n, _seed_arg(seed, V.size, "ring_expander"), dummy)
+
+
+def _ring_expander_trusted(V, O, num_vertices: int, seed: int, dummy=None):
     V = np.asarray(V, dtype=np.int32)
     O = np.asarray(O, dtype=np.int32)
     vm, tm = _marks(num_vertices, V.shape[0] // 3, dummy)
@@ -149,8 +228,15 @@ def ring_expander(V, O, num_vertices: int, seed: int, dummy=None):
 
 
 def hybrid_ring_expander(V, O, num_vertices: int, seed: int, k: int, dummy=None):
-    """Run HYBRID-RING-EXPANDER (Sec. 6.1) with period ``k`` (0: depth-first). Same outputs as
-    :func:`ring_expander`."""
+    """Run HYBRID-RING-EXPANDER (Sec. 6.1) with period ``k`` (0: depth-first). Same outputs and
+    checks as :func:`ring_expander`; ``k`` an integer >= 0."""
+    V, O, n, _, dummy = check_corner_table(V, O, num_vertices, "hybrid_ring_expander", dummy=dummy)
+    if not is_integer(k) or k < 0:
+        raise errors.ArgumentError(f"hybrid_ring_expander: k must be an integer >= 0, got {k!r}")
+    return _hybrid_trusted(V, O, n, _seed_arg(seed, V.size, "hybrid_ring_expander"), k, dummy)
+
+
+def _hybrid_trusted(V, O, num_vertices: int, seed: int, k: int, dummy=None):
     V = np.asarray(V, dtype=np.int32)
     O = np.asarray(O, dtype=np.int32)
     vm, tm = _marks(num_vertices, V.shape[0] // 3, dummy)
@@ -247,7 +333,13 @@ class Ring:
 
 
 def extract_ring(V, O, tm, num_vertices: int, seed: int = -1, k=None) -> Ring:
-    """The ring bounding the invaded triangles ``tm`` (see :func:`_extract_ring`)."""
+    """The ring bounding the invaded triangles ``tm`` (see :func:`_extract_ring`); the arguments
+    checked (:func:`check_corner_table`)."""
+    V, O, n, tm, _ = check_corner_table(V, O, num_vertices, "extract_ring", tm=tm)
+    return _extract_ring_trusted(V, O, tm, n, seed, k)
+
+
+def _extract_ring_trusted(V, O, tm, num_vertices: int, seed: int = -1, k=None) -> Ring:
     order, corners = _extract_ring(np.asarray(V, np.int32), np.asarray(O, np.int32),
                                    np.asarray(tm, np.uint8), int(num_vertices))
     if order.size < 4:
@@ -291,7 +383,14 @@ def best_ring(V, O, num_vertices: int, *, seeds=4, k=None, dummy=None, rng_seed:
     """Run RING-EXPANDER (``k is None``) or HYBRID-RING-EXPANDER (period ``k``) from ``seeds``
     random seed corners (or the given list) and keep the ring with the fewest isolated vertices
     (Sec. 4.2: "we run RING-EXPANDER several times with random seed corners and retain the seed
-    leading to the smallest m_i"). Seeds are corners of non-dummy triangles."""
+    leading to the smallest m_i"). Seeds are corners of non-dummy triangles. The corner table is
+    checked (:func:`check_corner_table`)."""
+    V, O, n, _, dummy = check_corner_table(V, O, num_vertices, "best_ring", dummy=dummy)
+    return _best_ring_trusted(V, O, n, seeds=seeds, k=k, dummy=dummy, rng_seed=rng_seed)
+
+
+def _best_ring_trusted(V, O, num_vertices: int, *, seeds=4, k=None, dummy=None, rng_seed: int = 0) -> Ring:
+    """:func:`best_ring` on a corner table the library built (unchecked)."""
     V = np.asarray(V, dtype=np.int32)
     O = np.asarray(O, dtype=np.int32)
     nf = V.shape[0] // 3
@@ -312,10 +411,10 @@ def best_ring(V, O, num_vertices: int, *, seeds=4, k=None, dummy=None, rng_seed:
     best = None
     for s in seed_list:
         if k is None:
-            tm, _ = ring_expander(V, O, num_vertices, s, dummy)
+            tm, _ = _ring_expander_trusted(V, O, num_vertices, s, dummy)
         else:
-            tm, _ = hybrid_ring_expander(V, O, num_vertices, s, k, dummy)
-        r = extract_ring(V, O, tm, num_vertices, s, k)
+            tm, _ = _hybrid_trusted(V, O, num_vertices, s, k, dummy)
+        r = _extract_ring_trusted(V, O, tm, num_vertices, s, k)
         if best is None or r.num_isolated < best.num_isolated:
             best = r
         if best.num_isolated == (0 if dummy is None else int(np.sum(dummy))):
@@ -482,7 +581,38 @@ class LRTables:
 
 
 def lr_tables(V, O, ring: Ring, num_vertices: int, *, wart_skipping: bool = True) -> LRTables:
-    """Classify triangles against ``ring``, skip warts and number corners (Sec. 4.3-4.5, 5)."""
+    """Classify triangles against ``ring``, skip warts and number corners (Sec. 4.3-4.5, 5).
+    The corner table is checked (:func:`check_corner_table`), and the ring: a :class:`Ring`
+    whose ``order`` holds distinct vertex ids and ``right_corner`` corners of those vertices'
+    ring edges, one per vertex (the kernel indexed by them unchecked)."""
+    V, O, n, _, _ = check_corner_table(V, O, num_vertices, "lr_tables")
+    if not isinstance(ring, Ring):
+        raise errors.ArgumentError(f"lr_tables: ring must be a Ring (best_ring, extract_ring), got "
+                                   f"{type(ring).__name__}")
+    order, rc = np.asarray(ring.order), np.asarray(ring.right_corner)
+    if (order.ndim != 1 or rc.shape != order.shape or order.size < 4 or order.dtype.kind not in "iu"
+            or rc.dtype.kind not in "iu"):
+        raise errors.StructureError(f"lr_tables: ring.order and ring.right_corner must be 1-D integer "
+                                    f"arrays of one length >= 4, got {order.dtype} {order.shape} and "
+                                    f"{rc.dtype} {rc.shape}")
+    bad = np.nonzero((order < 0) | (order >= n) | (rc < 0) | (rc >= V.size))[0]
+    if bad.size == 0:  # corner rc[i] faces ring edge (order[i], order[i + 1])
+        cc = rc.astype(np.int64)
+        bad = np.nonzero((V[3 * (cc // 3) + (cc + 1) % 3] != order)
+                         | (V[3 * (cc // 3) + (cc + 2) % 3] != np.roll(order, -1)))[0]
+    if bad.size:
+        i = int(bad[0])
+        raise errors.StructureError(f"lr_tables: ring entry {i} (order {int(order[i])}, right_corner "
+                                    f"{int(rc[i])}) is not a ring edge of this corner table")
+    if np.unique(order).size != order.size:
+        raise errors.StructureError("lr_tables: ring.order repeats a vertex (a ring is a simple loop)")
+    ring = dataclasses.replace(ring, order=np.ascontiguousarray(order, np.int32),
+                               right_corner=np.ascontiguousarray(rc, np.int32))
+    return _lr_tables_trusted(V, O, ring, n, wart_skipping=wart_skipping)
+
+
+def _lr_tables_trusted(V, O, ring: Ring, num_vertices: int, *, wart_skipping: bool = True) -> LRTables:
+    """:func:`lr_tables` on a corner table and ring the library built (unchecked)."""
     V = np.asarray(V, dtype=np.int32)
     O = np.asarray(O, dtype=np.int32)
     cL, cR, redL, redR, skL, skR, irL, irR, t0, lrc, t2 = _tables(

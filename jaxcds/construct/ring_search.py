@@ -47,7 +47,7 @@ import numpy as np
 from jaxcds import errors
 from jaxcds._args import is_integer
 from jaxcds._progress import Progress, want_progress
-from jaxcds.construct.ring_expander import _extract_ring, _n, _tables
+from jaxcds.construct.ring_expander import _extract_ring, _n, _tables, check_corner_table
 
 __all__ = ["improve_ring", "ring_cost", "check_sweeps"]
 
@@ -309,7 +309,9 @@ def _full_cost(V, O, tm, num_vertices, num_dummy):
 def ring_cost(V, O, tm, num_vertices: int, dummy: Optional[np.ndarray] = None) -> int:
     """The Sec. 8 count ``2 m_r + 6 n0 + 3 n^i + m_i`` of the ring bounding the invaded triangles
     ``tm``, from scratch (ring extraction and :func:`lr_tables`'s classification); -1 if ``tm``
-    is not bounded by one simple loop of at least 4 vertices."""
+    is not bounded by one simple loop of at least 4 vertices. The arguments are checked
+    (:func:`~jaxcds.construct.ring_expander.check_corner_table`)."""
+    V, O, num_vertices, tm, dummy = check_corner_table(V, O, num_vertices, "ring_cost", tm=tm, dummy=dummy)
     nd = 0 if dummy is None else int(np.sum(dummy))
     return int(_full_cost(np.asarray(V, np.int32), np.asarray(O, np.int32),
                           np.asarray(tm, np.uint8), int(num_vertices), nd))
@@ -337,7 +339,18 @@ def improve_ring(V, O, tm, num_vertices: int, *, dummy: Optional[np.ndarray] = N
     ``sweeps * n`` random moves (see the module doc), temperature ``t_hi -> t_lo`` references.
     Returns ``(tm, delta)``: a new ``(n,)`` uint8 array and the change of the Sec. 8 count
     (``<= 0``: the input comes back unchanged if the search ends worse). ``progress``: a text
-    progress bar on stderr (``None``: for meshes of a million vertices or more on a terminal)."""
+    progress bar on stderr (``None``: for meshes of a million vertices or more on a terminal).
+    The arrays are checked (:func:`~jaxcds.construct.ring_expander.check_corner_table`)."""
+    V, O, num_vertices, tm, dummy = check_corner_table(V, O, num_vertices, "improve_ring", tm=tm,
+                                                       dummy=dummy)
+    return _improve_ring_trusted(V, O, tm, num_vertices, dummy=dummy, sweeps=sweeps, t_hi=t_hi,
+                                 t_lo=t_lo, seed=seed, progress=progress)
+
+
+def _improve_ring_trusted(V, O, tm, num_vertices: int, *, dummy: Optional[np.ndarray] = None,
+                          sweeps: int = 50, t_hi: float = 3.0, t_lo: float = 0.05, seed: int = 0,
+                          progress: Optional[bool] = None):
+    """:func:`improve_ring` on arrays the library built (unchecked)."""
     sweeps = check_sweeps(sweeps)
     if not (0 < t_lo <= t_hi):
         raise errors.StructureError(f"temperatures must satisfy 0 < t_lo <= t_hi, got {t_lo}, {t_hi}")

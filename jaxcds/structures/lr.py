@@ -38,8 +38,9 @@ from jaxcds._arrays import to_device
 from jaxcds._args import flag_arg, is_integer
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.construct import lr_pack
-from jaxcds.construct.ring_expander import LRTables, best_ring, check_seeds, extract_ring, lr_tables
-from jaxcds.construct.ring_search import check_sweeps, improve_ring
+from jaxcds.construct.ring_expander import (LRTables, _best_ring_trusted, _extract_ring_trusted,
+                                            _lr_tables_trusted, check_seeds)
+from jaxcds.construct.ring_search import _improve_ring_trusted, check_sweeps
 from jaxcds.mesh import load_mesh, validate, validate_and_close
 from jaxcds.structures.base import (Int, MeshStructure, check_id_space, checked_ids, id_table_route,
                                     interleave_rows, take_nonnegative)
@@ -893,20 +894,20 @@ def _best_tables(V, O, nv, *, seeds, k, dummy, wart_skipping, ring_sweeps=0) -> 
                                                   replace=False) if int(3 * t) not in seeds]
     else:
         spare = []  # the caller's seeds, as given
-    rings = [best_ring(V, O, nv, seeds=[sd], k=k, dummy=dummy) for sd in seeds]
+    rings = [_best_ring_trusted(V, O, nv, seeds=[sd], k=k, dummy=dummy) for sd in seeds]
     # Sec. 4.2 expects few isolated vertices. On meshes with many separating triangles (uniform
     # random planar triangulations) an unlucky seed traps the invasion inside one, leaving most
     # vertices isolated (rpt 4-5): draw more seeds while every ring is trapped.
     ndummy = 0 if dummy is None else int(np.sum(dummy))
     trapped = ndummy + (nv - ndummy) // 4
     while spare and min(r.num_isolated for r in rings) > trapped:
-        rings.append(best_ring(V, O, nv, seeds=[spare.pop(0)], k=k, dummy=dummy))
+        rings.append(_best_ring_trusted(V, O, nv, seeds=[spare.pop(0)], k=k, dummy=dummy))
     fewest = min(r.num_isolated for r in rings)
     best, key = None, None
     for ring in rings:
         if ring.num_isolated > fewest:
             continue  # cannot win: classify only the rings tied for the fewest m_i
-        tb = lr_tables(V, O, ring, nv, wart_skipping=wart_skipping)
+        tb = _lr_tables_trusted(V, O, ring, nv, wart_skipping=wart_skipping)
         st = tb.stats(V.shape[0] // 3)
         kk = (st["m_i"], 2 * st["m_r"] + 6 * st["T0"] + 3 * st["Ti"] + st["m_i"])
         if key is None or kk < key:
@@ -920,11 +921,11 @@ def _searched(V, O, nv, tb: LRTables, *, dummy, sweeps: int) -> LRTables:
     """The ring of ``tb`` after :func:`jaxcds.construct.ring_search.improve_ring` (the search's
     cost model assumes wart skipping); ``tb`` itself if the search found nothing better."""
     ring = tb.ring
-    tm, delta = improve_ring(V, O, ring.invaded, nv, dummy=dummy, sweeps=sweeps, seed=ring.seed)
+    tm, delta = _improve_ring_trusted(V, O, ring.invaded, nv, dummy=dummy, sweeps=sweeps, seed=ring.seed)
     if delta >= 0:
         return tb
-    new = dataclasses.replace(extract_ring(V, O, tm, nv, ring.seed, ring.k), search_gain=-delta)
-    return lr_tables(V, O, new, nv, wart_skipping=True)
+    new = dataclasses.replace(_extract_ring_trusted(V, O, tm, nv, ring.seed, ring.k), search_gain=-delta)
+    return _lr_tables_trusted(V, O, new, nv, wart_skipping=True)
 
 
 def _pack(cls, tb: LRTables, V, O, vertex_corner, nv: int, *, check: bool, k: int, dummy=None,

@@ -186,3 +186,41 @@ def test_irregular_split_t1_t2_against_ring_edges(name, faces, skipping):
     assert st["T2i"] == t2
     assert st["T1i"] + st["T2i"] == st["Ti"]
     assert (st["T2i"] == 0) if skipping else (st["T2i"] > 0)
+
+
+def test_ring_functions_check_a_corner_table_they_did_not_build():
+    """Sweep 50c: the ring functions handed ``V``, ``O``, ``tm``, the seed corner and a ring to
+    their numba kernels unchecked (a seed or an ``O`` entry out of range, a ring corner out of
+    range: segmentation faults); the library's own LR builder keeps the unchecked route. Run in
+    a subprocess, so the old crash fails this test instead of ending the run."""
+    import subprocess
+    import sys
+
+    code = ("import dataclasses, numpy as np\nfrom jaxcds import errors, CornerTable\n"
+            "from jaxcds.construct.ring_expander import (best_ring, extract_ring, hybrid_ring_expander,\n"
+            "    lr_tables, ring_expander)\n"
+            "from jaxcds.construct.ring_search import improve_ring, ring_cost\n"
+            "from jaxcds.generators import icosphere\n"
+            "ct = CornerTable.from_mesh(icosphere(1))\nV, O = np.asarray(ct.V), np.asarray(ct.O)\n"
+            "tm, _ = ring_expander(V, O, 42, 0)\nr = best_ring(V, O, 42)\n"
+            "assert lr_tables(V, O, r, 42).num_t2 >= 0 and ring_cost(V, O, r.invaded, 42) > 0\n"
+            "big = O.copy()\nbig[7] = 10 ** 7\nswap = O.copy()\nswap[[0, 1]] = swap[[1, 0]]\n"
+            "rc = dataclasses.replace(r, right_corner=np.full_like(r.right_corner, 10 ** 7))\n"
+            "for call in (lambda: ring_expander(V, O, 42, 10 ** 7), lambda: ring_expander(V, swap, 42, 0),\n"
+            "             lambda: hybrid_ring_expander(V, big, 42, 0, 3), lambda: best_ring(V, big, 42),\n"
+            "             lambda: extract_ring(V, big, tm, 42), lambda: lr_tables(V, O, rc, 42),\n"
+            "             lambda: improve_ring(V, big, tm, 42, sweeps=2), lambda: ring_cost(V, O, tm[:2], 42)):\n"
+            "    try:\n        call()\n        print('accepted')\n"
+            "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, str(exc)[:80])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stdout.splitlines()
+    assert len(lines) == 8 and all(a.startswith(b) for a, b in zip(lines, [
+        "ArgumentError ring_expander: seed must be a corner id in [0, 240), got 10000000",
+        "StructureError ring_expander: O[0] = 14 is not the opposite of corner 0: O must be an",
+        "StructureError hybrid_ring_expander: O[7] = 10000000 is not a corner id in [0, 240)",
+        "StructureError best_ring: O[7] = 10000000 is not a corner id in [0, 240)",
+        "StructureError extract_ring: O[7] = 10000000 is not a corner id in [0, 240)",
+        "StructureError lr_tables: ring entry 0 (order ",
+        "StructureError improve_ring: O[7] = 10000000 is not a corner id in [0, 240)",
+        "ArgumentError ring_cost: tm must be 80 flags 0/1 (one per triangle)"])), out.stdout
