@@ -180,7 +180,71 @@ def encode_rotation_system(opp, ccw, vert, num_vertices: int, start: int = 0, tr
     Returns a dict with ``A``, ``B``, ``B_star`` (uint8 0/1 arrays; 1 = ``(`` in ``B``/``B*``),
     ``position`` (dart -> position), ``order`` (preorder -> input vertex) and ``face`` (position ->
     pemb face id). Raises :class:`~jaxcds.errors.UnsupportedTopologyError` if the walk shows the
-    graph is not a connected plane graph."""
+    graph is not a connected plane graph.
+
+    The arguments are checked first (:class:`~jaxcds.errors.ArgumentError` naming the first bad
+    entry; the walk's kernel indexed by them unchecked, and a dart or vertex out of range crashed
+    it): ``opp``, ``ccw``, ``vert`` 1-D integer arrays of one length ``H > 0``, ``opp`` an
+    involution without fixed points and ``ccw`` a permutation of the darts, both on ``[0, H)``,
+    keeping each dart's origin (``vert[ccw[d]] == vert[d]``); ``vert`` in ``[0, num_vertices)``;
+    ``start`` a dart id; ``tree`` ``H`` booleans."""
+    opp, ccw, vert, start, num_vertices, tree = _rotation_args(opp, ccw, vert, num_vertices, start, tree)
+    return _encode_rotation_system(opp, ccw, vert, num_vertices, start, tree)
+
+
+def _rotation_args(opp, ccw, vert, num_vertices, start, tree):
+    """:func:`encode_rotation_system`'s arguments checked (see there)."""
+    from jaxcds._args import is_integer
+
+    w = "encode_rotation_system"
+    if not is_integer(num_vertices) or not 0 < num_vertices < 2 ** 31:
+        raise errors.ArgumentError(f"{w}: num_vertices must be an integer in [1, 2^31), got {num_vertices!r}")
+    arrs = []
+    for name, a in (("opp", opp), ("ccw", ccw), ("vert", vert)):
+        try:
+            a = np.asarray(a)
+        except ValueError as exc:  # ragged nested lists
+            raise errors.ArgumentError(f"{w}: {name} is not an array: {exc}") from None
+        if a.ndim != 1 or a.dtype.kind not in "iu" or a.size == 0:
+            raise errors.ArgumentError(f"{w}: {name} must be a non-empty 1-D integer array (one entry per "
+                                       f"dart), got dtype {a.dtype} shape {a.shape}")
+        arrs.append(a)
+    opp, ccw, vert = arrs
+    H = opp.size
+    if ccw.size != H or vert.size != H:
+        raise errors.ArgumentError(f"{w}: opp, ccw and vert must have one length, got {H}, {ccw.size}, "
+                                   f"{vert.size}")
+    for name, a, top in (("opp", opp, H), ("ccw", ccw, H), ("vert", vert, int(num_vertices))):
+        bad = np.nonzero((a < 0) | (a >= top))[0]
+        if bad.size:
+            d = int(bad[0])
+            raise errors.ArgumentError(f"{w}: {name}[{d}] = {int(a[d])} is outside [0, {top})")
+    opp, ccw, vert = (np.ascontiguousarray(a, np.int64) for a in (opp, ccw, vert))
+    d = np.arange(H)
+    bad = np.nonzero((opp[opp] != d) | (opp == d))[0]
+    if bad.size:
+        e = int(bad[0])
+        raise errors.ArgumentError(f"{w}: opp[{e}] = {int(opp[e])}: opp must be an involution without "
+                                   "fixed points (each dart's twin)")
+    seen = np.zeros(H, bool)
+    seen[ccw] = True
+    bad = np.nonzero(~seen | (vert[ccw] != vert))[0]
+    if bad.size:
+        e = int(bad[0])
+        raise errors.ArgumentError(f"{w}: ccw is not a permutation of the darts around their origins "
+                                   f"(at dart {e})")
+    if not is_integer(start) or not 0 <= start < H:
+        raise errors.ArgumentError(f"{w}: start must be a dart id in [0, {H}), got {start!r}")
+    if tree is not None:
+        t = np.asarray(tree)
+        if t.shape != (H,) or t.dtype != np.bool_:
+            raise errors.ArgumentError(f"{w}: tree must be {H} booleans (a dart mask), got dtype {t.dtype} "
+                                       f"shape {t.shape}")
+    return opp, ccw, vert, int(start), int(num_vertices), tree
+
+
+def _encode_rotation_system(opp, ccw, vert, num_vertices: int, start: int = 0, tree=None):
+    """:func:`encode_rotation_system` on a rotation system the library built (unchecked)."""
     opp = np.ascontiguousarray(opp, np.int64)
     ccw = np.ascontiguousarray(ccw, np.int64)
     vert = np.ascontiguousarray(vert, np.int64)
@@ -362,7 +426,7 @@ class PEMB(MeshStructure):
             mask = _stack_tree(opp, ccw, vert, start, int(num_vertices))
         elif tree != "dfs":
             raise errors.ArgumentError(f"pemb: unknown spanning tree {tree!r} (bfs, dfs or stack)")
-        enc = encode_rotation_system(opp, ccw, vert, num_vertices, start, mask)
+        enc = _encode_rotation_system(opp, ccw, vert, num_vertices, start, mask)
         pf = enc["face"][enc["position"][is_border]]
         holes = np.unique(pf).astype(np.int32)
         return cls.from_bits(enc["A"], enc["B"], enc["B_star"], order=enc["order"], holes=holes,

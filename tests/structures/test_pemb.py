@@ -267,3 +267,34 @@ def test_pemb_own_queries_refuse_ids_that_are_not_integers(method):
     if method in ("mate", "first"):  # lists and other integer kinds read as int32 ids
         f = getattr(s, method)
         np.testing.assert_array_equal(np.asarray(f([1, 2])), np.asarray(f(np.array([1, 2], ">i8"))))
+
+
+def test_encode_rotation_system_checks_its_arrays():
+    """Sweep 50c: ``encode_rotation_system`` handed ``opp``, ``ccw``, ``vert`` and ``start`` to
+    its walk kernel unchecked (a dart or vertex out of range: a segmentation fault);
+    ``PEMB.from_faces`` keeps the unchecked route. Run in a subprocess, so the old crash fails
+    this test instead of ending the run."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np\nfrom jaxcds import errors\n"
+            "from jaxcds.structures.pemb import encode_rotation_system, rotation_system_from_faces\n"
+            "from jaxcds.generators import icosphere\n"
+            "m = icosphere(1)\nopp, ccw, vert, _ = rotation_system_from_faces(m.faces, 42)\n"
+            "assert encode_rotation_system(opp, ccw, vert, 42)['order'].size == 42\n"
+            "o = opp.copy()\no[3] = 10 ** 7\nv = vert.copy()\nv[3] = 10 ** 7\n"
+            "c = ccw.copy()\nc[[0, 1]] = c[[1, 0]]\n"
+            "for call in (lambda: encode_rotation_system(o, ccw, vert, 42),\n"
+            "             lambda: encode_rotation_system(opp, ccw, v, 42),\n"
+            "             lambda: encode_rotation_system(opp, ccw, vert, 42, start=10 ** 7),\n"
+            "             lambda: encode_rotation_system(opp, c, vert, 42)):\n"
+            "    try:\n        call()\n        print('accepted')\n"
+            "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, exc)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.splitlines() == [
+        "ArgumentError encode_rotation_system: opp[3] = 10000000 is outside [0, 240)",
+        "ArgumentError encode_rotation_system: vert[3] = 10000000 is outside [0, 42)",
+        "ArgumentError encode_rotation_system: start must be a dart id in [0, 240), got 10000000",
+        "ArgumentError encode_rotation_system: ccw is not a permutation of the darts around their "
+        "origins (at dart 0)"], out.stdout
