@@ -79,7 +79,14 @@ def cycles_csr_host(succ, vertex_of_dart):
     its smallest directed edge, polygons in increasing head-dart id); ``polygon_of_dart`` -1 off
     the frontier; ``ok`` False when ``succ`` is not a permutation of the frontier darts.
     """
+    succ, vo = np.asarray(succ), np.asarray(vertex_of_dart)
+    if succ.ndim != 1 or vo.shape != succ.shape or succ.dtype.kind not in "iu" or vo.dtype.kind not in "iu":
+        # a short vertex_of_dart was read past its end by the kernel (garbage polygons)
+        from jaxcds import errors
+
+        raise errors.ArgumentError(f"cycles_csr_host: succ and vertex_of_dart must be 1-D integer arrays "
+                                   f"of one length, got {succ.dtype} {succ.shape} and {vo.dtype} {vo.shape}")
     succ = np.ascontiguousarray(succ, np.int32)
-    vo = np.ascontiguousarray(vertex_of_dart, np.int32)
+    vo = np.ascontiguousarray(vo, np.int32)
     status, offsets, indices, pod = _cycles(succ, vo)
     return offsets, indices, pod, status == 0

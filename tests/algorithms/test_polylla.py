@@ -1136,3 +1136,15 @@ def test_row_ids_refused_by_name(bad):
                "scalar": 3, "bool": np.ones(F, bool)}[bad]
     with pytest.raises(errors.PolyllaError, match="row_ids"):
         P.polylla(s, tri.points, corners=tri.input_faces, row_ids=row_ids)
+
+
+def test_cycles_csr_host_checks_its_shapes():
+    """Sweep 50c: a ``vertex_of_dart`` shorter than ``succ`` was read past its end by the numba
+    kernel (polygons of garbage vertex ids, no error)."""
+    from jaxcds import errors
+    from jaxcds.algorithms.polylla_cycles import cycles_csr_host
+
+    offsets, indices, _, ok = cycles_csr_host(np.array([1, 2, 0]), np.array([4, 5, 6]))
+    assert ok and offsets.tolist() == [0, 3] and indices.tolist() == [4, 5, 6]
+    with pytest.raises(errors.ArgumentError, match="cycles_csr_host: succ and vertex_of_dart must be"):
+        cycles_csr_host(np.array([1, 2, 0]), np.array([4]))
