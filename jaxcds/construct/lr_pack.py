@@ -17,6 +17,12 @@ module turns those tables into the arrays of :class:`jaxcds.structures.lr.LR` an
   ``c.o`` of every canonical corner, decoded from the packed arrays exactly as the jitted
   operators of :mod:`jaxcds.structures.lr` decode them, equal the corner table's.
 
+**Internal.** These are the LR builders' unchecked numba kernels, called on arrays
+:mod:`jaxcds.structures.lr` made itself: an array out of range reads and writes out of bounds
+(numba checks no index), so none of them is exported (``__all__`` is empty since stop 50; sweep
+50c found them listed there). Build through :meth:`LR.from_mesh <jaxcds.structures.lr.LR.from_mesh>`
+or ``from_corner_table``, which check their input.
+
 The scalar functions below (``_ring_vertex``, ``_canonical``, ``_find``, ``_cheap_opposite``)
 are line-by-line twins of the ``xp`` functions of :mod:`jaxcds.structures.lr` (which remain the
 structure's operators); ``tests/structures/test_lr.py`` checks the twins against the jitted
@@ -28,8 +34,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["pack_common", "pack_lr", "pack_lr_bits", "check_lr", "check_lr_bits",
-           "decode_lr", "decode_lr_bits", "corner_vo", "directory", "FAIL"]
+__all__: list[str] = []  # internal kernels: see the module docstring
 
 _VALUE_BITS = 29
 _VALUE_MASK = (1 << _VALUE_BITS) - 1
