@@ -795,11 +795,11 @@ def _reference_run(s, nav, pos, vids, cs_s, rows, row_ids, seed, frontier, clock
     """Reference mode of :func:`polylla` after its label phase: the sequential traversal and
     repair of :mod:`jaxcds.algorithms.polylla_reference` on ``nav``'s darts (``cs_s``: the
     input rows in the structure's vertex ids; ``rows``: the row holding each face of ``s``)."""
-    from jaxcds.algorithms.polylla_reference import reference_walks
+    from jaxcds.algorithms.polylla_reference import _reference_walks
 
     t1 = marks[-1][0]
     H, face = (np.asarray(x) for x in _reference_darts(nav, frontier, bool(clockwise)))
-    off, idx, seeds, tips, repaired, regions = reference_walks(
+    off, idx, seeds, tips, repaired, regions = _reference_walks(
         H, face, np.asarray(seed), rows, cs_s, s.num_vertices, row_id=row_ids)
     t2 = clock()
     t["traversal"] = t2 - t1  # the walks and the repair are one sequential pass here

@@ -392,7 +392,68 @@ def reference_walks(H, face, seed, row_of_face, corners, num_vertices: int, row_
     Raises:
       StructureError: a walk meets no frontier dart or does not close (tables that are not
         those of a triangulation), or a dart's origin is not a corner of its face's row.
+      ArgumentError: arrays of the wrong shape or kind, or ids out of range (named): the
+        kernel indexes by them unchecked, and a dart id out of range crashed the interpreter
+        (stop 50). :func:`jaxcds.algorithms.polylla.polylla` passes its own arrays unchecked.
     """
+    _check_walk_inputs(H, face, seed, row_of_face, corners, num_vertices, row_id)
+    return _reference_walks(H, face, seed, row_of_face, corners, num_vertices, row_id)
+
+
+def _check_walk_inputs(H, face, seed, row_of_face, corners, num_vertices, row_id) -> None:
+    """:func:`reference_walks`' argument checks, O(E + F) numpy passes."""
+    from jaxcds._args import is_integer
+
+    def refuse(msg):
+        raise errors.ArgumentError(f"reference_walks: {msg}")
+
+    def ints(a, name, shape_ok, want):
+        a = np.asarray(a)
+        if a.dtype.kind not in "iu" or not shape_ok(a.shape):
+            refuse(f"{name} must be {want} integers, got {a.dtype} {a.shape}")
+        return a.astype(np.int64)
+
+    if not is_integer(num_vertices) or num_vertices < 0:
+        refuse(f"num_vertices must be a non-negative integer, got {num_vertices!r}")
+    H = ints(H, "H", lambda s: len(s) == 2 and s[1] == 4, "(E, 4)")
+    e = H.shape[0]
+    for k, name in enumerate(("next", "twin", "next(twin)")):
+        bad = (H[:, k] < 0) | (H[:, k] >= e)
+        if bad.any():
+            d = int(np.argmax(bad))
+            refuse(f"H[{d}] {name} = {int(H[d, k])} is not a dart in [0, {e})")
+    border = H[:, 3] < 0
+    org = H[:, 3] & _ORG_BITS
+    bad = org >= num_vertices
+    if bad.any():
+        d = int(np.argmax(bad))
+        refuse(f"H[{d}] origin {int(org[d])} is not a vertex in [0, {num_vertices})")
+    corners = ints(corners, "corners", lambda s: len(s) == 2 and s[1] == 3, "(R, 3)")
+    rows = corners.shape[0]
+    row_of_face = ints(row_of_face, "row_of_face", lambda s: len(s) == 1, "(F,)")
+    faces = row_of_face.shape[0]
+    face = ints(face, "face", lambda s: s == (e,), f"({e},)")
+    for name, a, top, mask in (("face", face, faces, ~border), ("row_of_face", row_of_face, rows, None),
+                               ("corners", corners.reshape(-1), num_vertices, None)):
+        bad = (a < 0) | (a >= top)
+        if mask is not None:
+            bad &= mask
+        if bad.any():
+            k = int(np.argmax(bad))
+            where = f"[{k // 3}]" if name == "corners" else f"[{k}]"
+            refuse(f"{name}{where} = {int(a[k])} is outside [0, {top})")
+    sd = np.asarray(seed)
+    if sd.shape != (e,) or sd.dtype.kind not in "biu":
+        refuse(f"seed must be ({e},) flags (one per dart), got {sd.dtype} {sd.shape}")
+    if row_id is not None:
+        r = ints(row_id, "row_id", lambda s: s == (rows,), f"({rows},)")
+        if rows and (r[0] < 0 or np.any(np.diff(r) <= 0)):
+            refuse("row_id must be increasing non-negative integers")
+
+
+def _reference_walks(H, face, seed, row_of_face, corners, num_vertices: int, row_id=None):
+    """:func:`reference_walks` on arrays :func:`~jaxcds.algorithms.polylla.polylla` made
+    (unchecked)."""
     if num_vertices > _ORG_BITS:
         raise errors.PolyllaError(f"Polylla (reference mode) holds vertex ids in 30 bits: "
                                   f"{num_vertices} vertices are too many")
