@@ -1152,9 +1152,7 @@ def test_cycles_csr_host_checks_its_shapes():
 
 
 _WALKS_PROBE = r"""
-import json
 import numpy as np
-from jaxcds import errors
 from jaxcds.algorithms import polylla as P
 from jaxcds.algorithms import polylla_reference as R
 from jaxcds.generators import delaunay_disk
@@ -1170,7 +1168,7 @@ want = P.polylla(s, m.vertices[:, :2], corners=m.faces)
 (H, face, seed, rows, corners, n), kw = seen[0]
 H = np.array(H)
 got = R.reference_walks(H.copy(), face, seed, rows, corners, n, **kw)
-out = [bool(np.array_equal(got[0], np.asarray(want.offsets)))]
+out["same"] = bool(np.array_equal(got[0], np.asarray(want.offsets)))
 e = H.shape[0]
 for what, change in (("twin", lambda a: a[0].__setitem__((5, 1), 10 ** 7)),
                      ("next", lambda a: a[0].__setitem__((2, 0), -4)),
@@ -1180,12 +1178,7 @@ for what, change in (("twin", lambda a: a[0].__setitem__((5, 1), 10 ** 7)),
                      ("seed", lambda a: a.__setitem__(2, np.asarray(a[2])[:3]))):
     args = [H.copy(), np.array(face), np.array(seed), np.array(rows), np.array(corners), n]
     change(args)
-    try:
-        R.reference_walks(*args, **kw)
-        out.append("accepted " + what)
-    except errors.JaxcdsError as exc:
-        out.append(type(exc).__name__ + ": " + str(exc))
-print(json.dumps(out))
+    record(what, lambda: R.reference_walks(*args, **kw))
 """
 
 
@@ -1193,17 +1186,16 @@ def test_reference_walks_checks_arrays_it_did_not_make():
     """Stop 50: the public ``reference_walks`` handed its dart rows to the numba kernel
     unchecked: a twin out of range crashed the interpreter. It now names the argument and the
     entry (ArgumentError); ``polylla`` passes its own arrays to the unchecked
-    ``_reference_walks`` (same answer). Run in a subprocess, so the old crash fails this test
-    instead of ending the run."""
-    import subprocess
-    import sys
+    ``_reference_walks`` (same answer). Run in a child interpreter (``crash_probe``), so the
+    old crash fails this test instead of ending the run."""
+    from conftest import crash_probe
 
-    out = subprocess.run([sys.executable, "-c", _WALKS_PROBE], capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr[-2000:]
-    same, *refusals = json.loads(out.stdout.splitlines()[-1])
-    assert same
+    out = crash_probe(_WALKS_PROBE)
+    assert out.pop("same")
+    refusals = [f"{c}: {m}" for c, m in out.values()]
     expect = [r"H\[5\] twin = 10000000 is not a dart in \[0, \d+\)", r"H\[2\] next = -4 is not a dart",
               r"H\[3\] origin 1000000 is not a vertex in \[0, 40\)", r"corners\[1\] = 1000000 is outside \[0, 40\)",
               r"row_of_face\[0\] = 1000000 is outside", r"seed must be \(\d+,\) flags"]
+    assert len(refusals) == len(expect), refusals
     for pattern, message in zip(expect, refusals):
         assert re.match(r"ArgumentError: reference_walks: " + pattern, message), message

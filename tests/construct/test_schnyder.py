@@ -22,7 +22,7 @@ from jaxcds.generators import icosphere, random_planar_triangulation_faces
 from jaxcds.mesh import close_boundaries, validate
 from jaxcds.structures.halfedge import HalfEdge
 
-from conftest import CLOSED_GENUS0, HOLED_GENUS0, load_shared, mesh_params, octahedron
+from conftest import CLOSED_GENUS0, HOLED_GENUS0, crash_probe, load_shared, mesh_params, octahedron
 
 
 # ---------------------------------------------------------------- hand-worked fixture
@@ -271,9 +271,8 @@ def test_prepare_mesh_closes_holes():
 
 
 _WOOD_FUZZ = r"""
-import collections, dataclasses, json, sys
+import collections, dataclasses
 import numpy as np
-from jaxcds import errors
 from jaxcds.construct.schnyder import schnyder_wood
 from jaxcds.generators import icosphere
 from jaxcds.structures.cds import CDS4n, CDS5n, CDS5nO1, CDS6n
@@ -343,7 +342,7 @@ for name, call in (("edge_fronts", lambda: cds.edge_fronts(w)), ("cw_bfs_order",
     except errors.StructureError as exc:
         functions.append(str(exc))
 functions.append(check_schnyder_wood(w, m.faces))
-print(json.dumps({"named": named, "fuzz": dict(fuzz), "functions": functions}))
+out.update(named=named, fuzz=dict(fuzz), functions=functions)
 """
 
 
@@ -354,14 +353,9 @@ def test_from_wood_checks_a_wood_it_did_not_make():
     ``encode_schnyder`` (the others gave garbage or numpy's IndexError). ``check_wood_arrays``
     now names the entry (StructureError) first; single entries changed in range are refused
     too, or unchanged. Run
-    in a subprocess, so the old crash fails this test instead of ending the run."""
-    import json
-    import subprocess
-    import sys
-
-    out = subprocess.run([sys.executable, "-c", _WOOD_FUZZ], capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr[-2000:]
-    got = json.loads(out.stdout.splitlines()[-1])
+    in a child interpreter (``crash_probe``), so the old crash fails this test instead of ending
+    the run."""
+    got = crash_probe(_WOOD_FUZZ)
     expect = [r"out\[5, red\] = 1000000: outside \[0, 42\]", r"neighbors\[3\] = 10000000 is outside \[0, 42\)",
               r"offsets\[42\] = 1240: offsets must run from 0 to 240", r"colour\[2\] = 9 is outside \[0, 3\)",
               r"v_red = 1000000 is not a vertex in \[0, 42\)"]
@@ -414,25 +408,18 @@ def test_schnyder_wood_takes_the_meshs_face_checks(faces, n, error, message):
 def test_label_wood_and_schnyder_out_blk_check_their_arrays():
     """Stop 50: ``label_wood`` ran its kernel on a hand-made WoodOut (a neighbour out of range: a
     segmentation fault) and ``schnyder_out(blk=...)`` wrote ``(n, 3)`` rows into whatever array
-    it was given (a (2, 3) one: a segmentation fault). Run in a subprocess, so the old crash
-    fails this test instead of ending the run."""
-    import subprocess
-    import sys
-
-    code = ("import dataclasses, numpy as np\nfrom jaxcds import errors\n"
-            "from jaxcds.construct.schnyder import label_wood, schnyder_out\n"
-            "from jaxcds.generators import icosphere\n"
-            "m = icosphere(1)\nw = schnyder_out(m.faces, m.num_vertices)\n"
-            "assert label_wood(w).num_vertices == 42\n"
-            "nb = w.neighbors.copy()\nnb[3] = 10 ** 7\n"
-            "for call in (lambda: label_wood(dataclasses.replace(w, neighbors=nb)),\n"
-            "             lambda: schnyder_out(m.faces, 42, blk=np.zeros((2, 3), np.int32)),\n"
-            "             lambda: schnyder_out(m.faces, 42, blk=np.zeros((42, 3), np.int64))):\n"
-            "    try:\n        call()\n        print('accepted')\n"
-            "    except (errors.StructureError, errors.ArgumentError) as exc:\n        print(exc)\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.splitlines() == [
-        "label_wood: neighbors[3] = 10000000 is outside [0, 42)",
-        "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int32 (2, 3)",
-        "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int64 (42, 3)"], out.stdout
+    it was given (a (2, 3) one: a segmentation fault). Run in a child interpreter
+    (``crash_probe``), so the old crash fails this test instead of ending the run."""
+    out = crash_probe("import dataclasses, numpy as np\n"
+                      "from jaxcds.construct.schnyder import label_wood, schnyder_out\n"
+                      "from jaxcds.generators import icosphere\n"
+                      "m = icosphere(1)\nw = schnyder_out(m.faces, m.num_vertices)\n"
+                      "assert label_wood(w).num_vertices == 42\n"
+                      "nb = w.neighbors.copy()\nnb[3] = 10 ** 7\n"
+                      "record('label', label_wood, dataclasses.replace(w, neighbors=nb))\n"
+                      "record('short', schnyder_out, m.faces, 42, None, True, None, np.zeros((2, 3), np.int32))\n"
+                      "record('int64', schnyder_out, m.faces, 42, None, True, None, np.zeros((42, 3), np.int64))\n")
+    assert out == {
+        "label": ["StructureError", "label_wood: neighbors[3] = 10000000 is outside [0, 42)"],
+        "short": ["ArgumentError", "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int32 (2, 3)"],
+        "int64": ["ArgumentError", "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int64 (42, 3)"]}
