@@ -156,6 +156,19 @@ def crash_probe(code: str, timeout: float = 300) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+def crash_probe_lines(code: str, timeout: float = 300) -> list:
+    """:func:`crash_probe` for a child that prints its findings: runs ``code`` as it is (no
+    prelude) and returns its stdout lines; a non-zero exit fails the test with its stderr."""
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                       timeout=timeout)
+    assert r.returncode == 0, f"child exited {r.returncode}: {r.stderr[-3000:]}"
+    return r.stdout.splitlines()
+
+
 # ---------------------------------------------------------------- CPU cost per test
 # `JAXCDS_CPU_TIMES=/tmp/cpu.txt make test` appends "<cpu seconds> <test id>" per test: CPU time
 # (XLA compiles on several threads) is the budget that matters on a shared 2-core CI machine,

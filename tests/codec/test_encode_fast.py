@@ -105,10 +105,9 @@ def test_float_faces_are_refused_not_truncated():
 def test_encode_wood_and_dart_twins_check_their_arrays():
     """Sweep 50c: ``dart_twins`` and ``encode_wood`` handed their faces, parents, ``outer`` and
     ``twin=`` to the numba kernels unchecked (a face id out of range or a twin out of range: a
-    segmentation fault). Run in a subprocess, so the old crash fails this test instead of
-    ending the run."""
-    import subprocess
-    import sys
+    segmentation fault). Run in a child interpreter, so the old crash fails this test instead
+    of ending the run."""
+    from conftest import crash_probe_lines
 
     code = ("import numpy as np\nfrom jaxcds import errors\n"
             "from jaxcds.codec import dart_twins, encode_wood\n"
@@ -127,9 +126,7 @@ def test_encode_wood_and_dart_twins_check_their_arrays():
             "             lambda: encode_wood(f, 42, r, k, (10 ** 6, 1, 2))):\n"
             "    try:\n        call()\n        print('accepted')\n"
             "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, exc)\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    lines = out.stdout.splitlines()
+    lines = crash_probe_lines(code)
     assert lines[:2] == [
         "InvalidIndexError dart_twins: face 3 refers to vertex 1000000, outside [0, 42) (1 bad indices in all)",
         "UnreadableMeshError dart_twins: faces must have shape (F, 3), got (240,)"], lines

@@ -138,9 +138,8 @@ def test_faces_from_paper6n_checks_a_table_it_did_not_decode():
     """Sweep 50c: ``faces_from_paper6n`` indexed by a hand-made table's ``S`` and ``T``
     unchecked (out of range: reads outside the arrays), raised a bare ValueError without targets
     and numpy's "negative dimensions" for n = 1; now an EncodingError / ArgumentError naming the
-    entry. Run in a subprocess, so a crash fails this test instead of ending the run."""
-    import subprocess
-    import sys
+    entry. Run in a child interpreter, so a crash fails this test instead of ending the run."""
+    from conftest import crash_probe_lines
 
     code = ("import dataclasses, numpy as np\nfrom jaxcds import errors\n"
             "from jaxcds.codec import decode_faces, encode_mesh, faces_from_paper6n\n"
@@ -153,13 +152,12 @@ def test_faces_from_paper6n_checks_a_table_it_did_not_decode():
             "          dataclasses.replace(p, T=None)):\n"
             "    try:\n        faces_from_paper6n(q)\n        print('accepted')\n"
             "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, exc)\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.splitlines() == [
+    lines = crash_probe_lines(code)
+    assert lines == [
         "EncodingError faces_from_paper6n: S[0, 1, 5] = -1000000 is outside [0, 41]",
         "EncodingError faces_from_paper6n: T[2, 7] = 1000000 is outside [0, 42]",
         "EncodingError faces_from_paper6n: S, C, T must have shapes (3, 2, n), (3, 2, n), (3, n) with "
         "n >= 4, got (3, 2, 42), (3, 2, 42), (3, 3)",
         "EncodingError faces_from_paper6n: S and T must be integers and C booleans, got dtypes int32, "
         "bool, float64",
-        "ArgumentError faces_from_paper6n needs a table decoded with targets=True"], out.stdout
+        "ArgumentError faces_from_paper6n needs a table decoded with targets=True"], lines

@@ -192,9 +192,8 @@ def test_ring_functions_check_a_corner_table_they_did_not_build():
     """Sweep 50c: the ring functions handed ``V``, ``O``, ``tm``, the seed corner and a ring to
     their numba kernels unchecked (a seed or an ``O`` entry out of range, a ring corner out of
     range: segmentation faults); the library's own LR builder keeps the unchecked route. Run in
-    a subprocess, so the old crash fails this test instead of ending the run."""
-    import subprocess
-    import sys
+    a child interpreter, so the old crash fails this test instead of ending the run."""
+    from conftest import crash_probe_lines
 
     code = ("import dataclasses, numpy as np\nfrom jaxcds import errors, CornerTable\n"
             "from jaxcds.construct.ring_expander import (best_ring, extract_ring, hybrid_ring_expander,\n"
@@ -212,9 +211,7 @@ def test_ring_functions_check_a_corner_table_they_did_not_build():
             "             lambda: improve_ring(V, big, tm, 42, sweeps=2), lambda: ring_cost(V, O, tm[:2], 42)):\n"
             "    try:\n        call()\n        print('accepted')\n"
             "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, str(exc)[:80])\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    lines = out.stdout.splitlines()
+    lines = crash_probe_lines(code)
     assert len(lines) == 8 and all(a.startswith(b) for a, b in zip(lines, [
         "ArgumentError ring_expander: seed must be a corner id in [0, 240), got 10000000",
         "StructureError ring_expander: O[0] = 14 is not the opposite of corner 0: O must be an",
@@ -223,4 +220,4 @@ def test_ring_functions_check_a_corner_table_they_did_not_build():
         "StructureError extract_ring: O[7] = 10000000 is not a corner id in [0, 240)",
         "StructureError lr_tables: ring entry 0 (order ",
         "StructureError improve_ring: O[7] = 10000000 is not a corner id in [0, 240)",
-        "ArgumentError ring_cost: tm must be 80 flags 0/1 (one per triangle)"])), out.stdout
+        "ArgumentError ring_cost: tm must be 80 flags 0/1 (one per triangle)"])), lines

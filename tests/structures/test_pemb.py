@@ -272,10 +272,9 @@ def test_pemb_own_queries_refuse_ids_that_are_not_integers(method):
 def test_encode_rotation_system_checks_its_arrays():
     """Sweep 50c: ``encode_rotation_system`` handed ``opp``, ``ccw``, ``vert`` and ``start`` to
     its walk kernel unchecked (a dart or vertex out of range: a segmentation fault);
-    ``PEMB.from_faces`` keeps the unchecked route. Run in a subprocess, so the old crash fails
-    this test instead of ending the run."""
-    import subprocess
-    import sys
+    ``PEMB.from_faces`` keeps the unchecked route. Run in a child interpreter, so the old crash
+    fails this test instead of ending the run."""
+    from conftest import crash_probe_lines
 
     code = ("import numpy as np\nfrom jaxcds import errors\n"
             "from jaxcds.structures.pemb import encode_rotation_system, rotation_system_from_faces\n"
@@ -290,11 +289,10 @@ def test_encode_rotation_system_checks_its_arrays():
             "             lambda: encode_rotation_system(opp, c, vert, 42)):\n"
             "    try:\n        call()\n        print('accepted')\n"
             "    except errors.JaxcdsError as exc:\n        print(type(exc).__name__, exc)\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert out.stdout.splitlines() == [
+    lines = crash_probe_lines(code)
+    assert lines == [
         "ArgumentError encode_rotation_system: opp[3] = 10000000 is outside [0, 240)",
         "ArgumentError encode_rotation_system: vert[3] = 10000000 is outside [0, 42)",
         "ArgumentError encode_rotation_system: start must be a dart id in [0, 240), got 10000000",
         "ArgumentError encode_rotation_system: ccw is not a permutation of the darts around their "
-        "origins (at dart 0)"], out.stdout
+        "origins (at dart 0)"], lines
