@@ -809,6 +809,21 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     ring_sweeps = check_sweeps(ring_sweeps)
     ks = _check_k(k) if bits else None
     mesh, twins = _prepare(mesh, "lr-bits" if bits else "lr")
+    try:
+        return _build_lr_prepared(mesh, twins, bits=bits, ks=ks, seeds=seeds, check=check,
+                                  wart_skipping=wart_skipping, borders=borders,
+                                  ring_sweeps=ring_sweeps)
+    except errors.UnsupportedTopologyError as exc:
+        # the ring's refusals (a lone triangle: 3 ring vertices) come from code that does not
+        # know the mesh: named here as every other refusal is (sweep 50a: CGAL's triangle.off)
+        if str(exc).startswith(f"{mesh.source}: "):
+            raise
+        raise errors.UnsupportedTopologyError(f"{mesh.source}: {exc}") from exc
+
+
+def _build_lr_prepared(mesh, twins, *, bits, ks, seeds, check, wart_skipping, borders,
+                       ring_sweeps):
+    """:func:`build_lr` after its arguments are checked and the mesh validated and closed."""
     ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
     dummy = mesh.dummy_vertices
     seeds = check_seeds(seeds, ct.V, dummy)

@@ -205,6 +205,20 @@ def test_wart_skipping_lowers_the_reference_count():
     assert with_.references < without.references
 
 
+@pytest.mark.parametrize("bits", [False, True])
+def test_a_lone_triangle_is_refused_naming_the_mesh(bits):
+    """A lone triangle's ring has 3 vertices: the refusal came from the ring code without the
+    mesh's name, where every other refusal starts with it (sweep 50a, CGAL's triangle.off:
+    "the ring from seed corner 0 has 3 vertices ..."). The mesh is named once."""
+    m = load_mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 2]]))
+    m = TriMesh(vertices=m.vertices, faces=m.faces, source="lone.off")
+    build = LRBits.from_mesh if bits else LR.from_mesh
+    with pytest.raises(errors.UnsupportedTopologyError,
+                       match=r"^lone\.off: the ring from seed corner \d+ has 3 vertices") as info:
+        build(m)
+    assert str(info.value).count("lone.off") == 1, info.value
+
+
 def test_a_trapped_seed_draws_more_seeds():
     """Sec. 4.2 keeps the seed with the fewest isolated vertices; on a uniform random planar
     triangulation the one default seed here traps RING-EXPANDER inside a separating triangle
