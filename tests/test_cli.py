@@ -238,3 +238,43 @@ def test_a_loop_of_symbolic_links_is_named(capsys, tmp_path):
         assert "a.off: cannot read: Too many levels of symbolic links" in err, err
     assert main(["info", str(tmp_path / "dangling.off")]) == 2
     assert "dangling.off: no such file" in capsys.readouterr().err
+
+
+def _holed_torus_off(path):
+    """A 4 x 4 grid torus (genus 1) with one face removed: one boundary loop, Euler
+    characteristic -1 as written (0 once the hole is closed)."""
+    n = 4
+    vid = lambda i, j: (i % n) * n + (j % n)
+    faces = []
+    for i in range(n):
+        for j in range(n):
+            faces += [(vid(i, j), vid(i + 1, j), vid(i + 1, j + 1)),
+                      (vid(i, j), vid(i + 1, j + 1), vid(i, j + 1))]
+    faces = faces[1:]
+    from math import cos, sin
+
+    lines = ["OFF", f"{n * n} {len(faces)} 0"]
+    for i in range(n):
+        for j in range(n):
+            a, b = 2 * 3.14159265 * i / n, 2 * 3.14159265 * j / n
+            lines.append(f"{(2 + 0.5 * cos(b)) * cos(a)} "
+                         f"{(2 + 0.5 * cos(b)) * sin(a)} "
+                         f"{0.5 * sin(b)}")
+    lines += [f"3 {a} {b} {c}" for a, b, c in faces]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+@pytest.mark.parametrize("kind", ["cds6n", "cds4n"])
+def test_build_names_the_holes_a_cds_refusal_closed(capsys, tmp_path, kind):
+    """The CLI closed the holes before a CDS builder saw the mesh, so its genus refusal gave the
+    closed surface's Euler characteristic as the file's, against `jaxcds info` on the same file
+    (sweep 50a, CGAL's double-torus-3-holes.off: -2 against -5). It now says the figure is
+    after closing the file's loops, as the builder does from the API."""
+    path = _holed_torus_off(tmp_path / "holed_torus.off")
+    rc, d = run_json(capsys, ["info", path, "--json"])
+    assert rc == 0 and (d["genus"], d["euler_characteristic"], d["boundary_loops"]) == (1, -1, 1)
+    assert main(["build", path, "--structure", kind]) == 2
+    err = capsys.readouterr().err
+    assert "genus 1 (Euler characteristic 0 after closing 1 boundary loop(s))" in err, err
+    assert err.count("\n") == 1, err
