@@ -1094,5 +1094,5 @@ def prepare_mesh(mesh, structure: str = "a Schnyder wood"):
             "'halfedge' structure for it")
     if m.num_vertices < 4:
         raise errors.UnsupportedTopologyError(
-            f"{m.source}: {structure} need at least 4 vertices, got {m.num_vertices}")
+            f"{m.source}: {structure} needs at least 4 vertices, got {m.num_vertices}")
     return m, closed
