@@ -23,7 +23,7 @@ from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, checked_ids
-from jaxcds.structures.halfedge import _halfedge_arrays, _match_twins, twins_arg
+from jaxcds.structures.halfedge import _check_twins, _halfedge_arrays, _match_twins, twins_arg
 
 __all__ = ["CornerTable"]
 
@@ -106,7 +106,7 @@ class CornerTable(MeshStructure):
         twins = None
         if check:
             mesh, twins = validate(mesh, closed=True, structure="corner-table", return_twins=True)
-        return cls.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
+        return cls._from_faces(mesh.faces, mesh.num_vertices, twins, check_twins=False)
 
     @classmethod
     def from_faces(cls, faces, num_vertices: int, *, twins: Optional[Twins] = None) -> "CornerTable":
@@ -118,10 +118,18 @@ class CornerTable(MeshStructure):
         Trusted input: only the vertex ids are checked (O(F): ``InvalidIndexError`` naming the
         face), that there is a face (``EmptyMeshError``), and border sides that do not chain
         into loops (``MeshError``). Other defects give a table whose answers are unspecified,
-        never a crash: use :meth:`from_mesh` for untrusted input."""
+        never a crash: use :meth:`from_mesh` for untrusted input. Given ``twins`` are checked
+        to be those of ``faces`` (O(F); hand-made ones were used as given: a wrong table)."""
+        return cls._from_faces(faces, num_vertices, twins, check_twins=True)
+
+    @classmethod
+    def _from_faces(cls, faces, num_vertices, twins, *, check_twins: bool) -> "CornerTable":
+        """:meth:`from_faces`; ``check_twins=False`` for twins validation has just returned."""
         _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
         twins_arg(twins, "CornerTable.from_faces")
         f = trusted_faces(faces, num_vertices, "CornerTable.from_faces")
+        if twins is not None and check_twins:
+            _check_twins(twins, f, num_vertices, "CornerTable.from_faces")
         if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
             raise errors.EmptyMeshError(f"CornerTable.from_faces: no faces ({int(num_vertices)} "
                                         "vertices); nothing to build")

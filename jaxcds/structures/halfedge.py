@@ -62,7 +62,7 @@ class HalfEdge(MeshStructure):
         twins = None
         if check:
             mesh, twins = validate(mesh, structure="halfedge", return_twins=True)
-        return cls.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
+        return cls._from_faces(mesh.faces, mesh.num_vertices, twins, check_twins=False)
 
     @classmethod
     def from_faces(cls, faces, num_vertices: int, *, twins=None) -> "HalfEdge":
@@ -74,10 +74,18 @@ class HalfEdge(MeshStructure):
         face), that there is a face (``EmptyMeshError``), and border sides that do not chain
         into loops (``MeshError`` naming the defect). Other defects (non-manifold edges,
         duplicated or degenerate faces, flipped faces whose borders still chain) give a
-        structure whose answers are unspecified, never a crash."""
+        structure whose answers are unspecified, never a crash. Given ``twins`` are checked to
+        be those of ``faces`` (:func:`_check_twins`, O(F))."""
+        return cls._from_faces(faces, num_vertices, twins, check_twins=True)
+
+    @classmethod
+    def _from_faces(cls, faces, num_vertices, twins, *, check_twins: bool) -> "HalfEdge":
+        """:meth:`from_faces`; ``check_twins=False`` for twins validation has just returned."""
         _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
         twins_arg(twins, "HalfEdge.from_faces")
         f = trusted_faces(faces, num_vertices, "HalfEdge.from_faces")
+        if twins is not None and check_twins:
+            _check_twins(twins, f, num_vertices, "HalfEdge.from_faces")
         if f.shape[0] == 0:  # no dart: every query's gather would index an empty table
             raise errors.EmptyMeshError(f"HalfEdge.from_faces: no faces ({int(num_vertices)} "
                                         "vertices); nothing to build")
@@ -178,6 +186,40 @@ def twins_arg(twins, where: str) -> None:
                                    f"{type(twins).__name__}")
 
 
+def _check_twins(twins, faces: np.ndarray, num_vertices: int, where: str) -> None:
+    """:class:`~jaxcds.errors.ArgumentError` naming ``where`` and the first bad entry unless
+    ``twins`` are those of ``faces`` (int32 ``(F, 3)``, ids checked): ``opp`` a ``(3F,)``
+    involution on the darts (-1 on a border) pairing ``u -> v`` with ``v -> u``, and
+    ``vertex_corner`` ``(n,)`` corners of their vertex (-1: unreferenced). O(F) numpy; the
+    builders' own ``from_mesh`` skip it for the twins validation just returned. Hand-made twins
+    were copied into the structure as given: a wrong table, silently (sweep 50c)."""
+    nd = 3 * faces.shape[0]
+    opp, vc = np.asarray(twins.opp), np.asarray(twins.vertex_corner)
+    for name, a, size in (("opp", opp, nd), ("vertex_corner", vc, int(num_vertices))):
+        if a.shape != (size,) or a.dtype.kind not in "iu":
+            raise errors.ArgumentError(f"{where}: twins.{name} must be ({size},) integers for these "
+                                       f"faces, got {a.dtype} {a.shape}")
+    src = faces.reshape(-1).astype(np.int64)
+    tgt = faces[:, [1, 2, 0]].reshape(-1).astype(np.int64)
+    o = opp.astype(np.int64)
+    has = o >= 0
+    safe = np.where(has & (o < nd), o, 0)
+    bad = (o < -1) | (o >= nd) | (has & ((o[safe] != np.arange(nd)) | (src[safe] != tgt) | (tgt[safe] != src)))
+    if bad.any():
+        d = int(np.argmax(bad))
+        raise errors.ArgumentError(
+            f"{where}: twins.opp[{d}] = {int(o[d])} is not the twin of dart {d} "
+            f"({int(src[d])} -> {int(tgt[d])}) in these faces: pass the Twins that "
+            "validate(mesh, return_twins=True) returned for them, or none")
+    v = vc.astype(np.int64)
+    ref = v >= 0
+    bad = (v < -1) | (v >= nd) | (ref & (src[np.where(ref & (v < nd), v, 0)] != np.arange(v.size)))
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise errors.ArgumentError(f"{where}: twins.vertex_corner[{k}] = {int(v[k])} is not a corner "
+                                   f"of vertex {k} in these faces")
+
+
 def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None, *,
                     source: str = "halfedge_arrays"):
     """``(next, opposite, vertex, vertex_edge, border_prev)`` int32 arrays for a face list.
@@ -192,8 +234,10 @@ def halfedge_arrays(faces: np.ndarray, num_vertices: int, twins=None, *,
         the mesh's first defect as :func:`jaxcds.mesh.validate` names it.
     """
     twins_arg(twins, source)  # twins=1 raised an AttributeError about .opp
-    return _halfedge_arrays(trusted_faces(faces, num_vertices, source), int(num_vertices), twins,
-                            source)
+    f = trusted_faces(faces, num_vertices, source)
+    if twins is not None:
+        _check_twins(twins, f, num_vertices, source)
+    return _halfedge_arrays(f, int(num_vertices), twins, source)
 
 
 def _halfedge_arrays(f: np.ndarray, num_vertices: int, twins, source: str):

@@ -824,7 +824,7 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
 def _build_lr_prepared(mesh, twins, *, bits, ks, seeds, check, wart_skipping, borders,
                        ring_sweeps):
     """:func:`build_lr` after its arguments are checked and the mesh validated and closed."""
-    ct = CornerTable.from_faces(mesh.faces, mesh.num_vertices, twins=twins)
+    ct = CornerTable._from_faces(mesh.faces, mesh.num_vertices, twins, check_twins=False)  # validate's
     dummy = mesh.dummy_vertices
     seeds = check_seeds(seeds, ct.V, dummy)
     if not bits:

@@ -40,11 +40,20 @@ def test_corner_table_from_mesh_uses_twins_on_random_triangulations(seed):
     assert (O[O] == np.arange(O.size)).all() and (O != np.arange(O.size)).all()
 
 
-def test_twins_of_another_face_list_are_not_used():
+def test_twins_of_another_face_list_are_refused():
+    """Twins of another face list were ignored when their size differed (matched again) and used
+    when it was the same (a wrong table); since stop 50 both are refused by name."""
+    from jaxcds import errors
+
     f = random_planar_triangulation_faces(50, seed=1)
     _, twins = M.validate(M.TriMesh(vertices=np.zeros((50, 3)), faces=f), return_twins=True)
-    g = random_planar_triangulation_faces(60, seed=2)  # other sizes: the twins are ignored
-    _same(CornerTable.from_faces(g, 60, twins=twins), CornerTable.from_faces(g, 60))
+    g = random_planar_triangulation_faces(60, seed=2)
+    with pytest.raises(errors.ArgumentError, match="CornerTable.from_faces: twins.opp must be"):
+        CornerTable.from_faces(g, 60, twins=twins)
+    h = random_planar_triangulation_faces(50, seed=3)  # the same size, other faces
+    with pytest.raises(errors.ArgumentError, match="CornerTable.from_faces: twins.opp.* is not the twin"):
+        CornerTable.from_faces(h, 50, twins=twins)
+    _same(CornerTable.from_faces(f, 50, twins=twins), CornerTable.from_faces(f, 50))
 
 
 @pytest.mark.parametrize("name", mesh_params(["grid.off", "stanford-bunny.obj", "3holes.off"]))
@@ -89,3 +98,45 @@ def test_from_faces_names_twins_of_the_wrong_kind():
 
     with pytest.raises(errors.ArgumentError, match="halfedge_arrays: twins must be"):
         halfedge_arrays(f, 6, 1)  # sweep 50c: an AttributeError about .opp
+
+
+@pytest.mark.parametrize("change, message", [
+    ("swap", r"twins.opp\[0\] = \d+ is not the twin of dart 0 \(\d+ -> \d+\) in these faces"),
+    ("big", r"twins.opp\[5\] = 1000000 is not the twin of dart 5"),
+    ("short", r"twins.opp must be \(240,\) integers for these faces, got int32 \(10,\)"),
+    ("float", r"twins.opp must be \(240,\) integers for these faces, got float64"),
+    ("corner", r"twins.vertex_corner\[0\] = \d+ is not a corner of vertex 0 in these faces"),
+])
+def test_from_faces_checks_the_twins_are_those_of_the_faces(change, message):
+    """Stop 50 (sweep 50c's leftover): hand-made ``Twins`` were copied into the structure as
+    given, a wrong table without a word (an ``opp`` out of range, not an involution, of other
+    faces). ``from_faces`` and ``halfedge_arrays`` now check them, O(F); ``from_mesh`` passes
+    the twins validation has just returned unchecked. Holed meshes' twins (-1 on borders) and
+    validation's own are taken."""
+    from jaxcds import errors
+    from jaxcds.generators import icosphere
+    from jaxcds.structures.halfedge import HalfEdge, halfedge_arrays
+
+    m = icosphere(1)
+    _, tw = M.validate(m, return_twins=True)
+    opp, vc = np.asarray(tw.opp), np.asarray(tw.vertex_corner)
+    if change == "swap":
+        opp = opp[[1, 0] + list(range(2, opp.size))]
+    elif change == "big":
+        opp = np.where(np.arange(opp.size) == 5, 10 ** 6, opp).astype(np.int32)
+    elif change == "short":
+        opp = opp[:10]
+    elif change == "float":
+        opp = opp.astype(float)
+    else:
+        vc = np.roll(vc, 1)
+    bad = M.Twins(opp, vc)
+    for cls in (CornerTable, HalfEdge):
+        assert cls.from_faces(m.faces, m.num_vertices, twins=tw).num_faces == 80
+        with pytest.raises(errors.ArgumentError, match=rf"{cls.__name__}.from_faces: " + message):
+            cls.from_faces(m.faces, m.num_vertices, twins=bad)
+    with pytest.raises(errors.ArgumentError, match="halfedge_arrays: " + message):
+        halfedge_arrays(m.faces, m.num_vertices, bad)
+    holed = load_shared("grid.off")
+    _, htw = M.validate(holed, return_twins=True)
+    assert HalfEdge.from_faces(holed.faces, holed.num_vertices, twins=htw).num_faces == holed.num_faces
