@@ -35,6 +35,7 @@ __all__ = [
     "split_nonmanifold_vertices",
     "validate_and_close",
     "Twins",
+    "twin_defects",
 ]
 
 SUFFIXES = (".obj", ".off", ".ply", ".stl")
@@ -1636,6 +1637,25 @@ class Twins:
 
     opp: np.ndarray
     vertex_corner: np.ndarray
+
+
+def twin_defects(opp, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(outside, unpaired)``, ``(3F,)`` bool masks of a caller's dart pairing ``opp`` (the
+    :attr:`Twins.opp` convention, darts ``3f + k``: ``faces[f, k] -> faces[f, (k+1) % 3]``, -1 on
+    a border) against ``faces`` (``(F, 3)`` ids already checked): ``outside`` an entry outside
+    ``[-1, 3F)``; ``unpaired`` an entry in ``[0, 3F)`` that is not the twin (``opp[opp[d]] !=
+    d``, or its dart does not run ``v -> u`` for ``d``'s ``u -> v``). O(F) numpy; the one check
+    behind the builders' ``twins=`` (:mod:`jaxcds.structures.halfedge`) and the encoder's
+    ``twin=`` (:func:`jaxcds.codec.encode_wood`), which name the first bad dart each their way."""
+    nd = 3 * faces.shape[0]
+    o = np.asarray(opp).astype(np.int64)
+    src = faces.reshape(-1).astype(np.int64)
+    tgt = faces[:, [1, 2, 0]].reshape(-1).astype(np.int64)
+    outside = (o < -1) | (o >= nd)
+    has = (o >= 0) & ~outside
+    safe = np.where(has, o, 0)
+    unpaired = has & ((o[safe] != np.arange(nd)) | (src[safe] != tgt) | (tgt[safe] != src))
+    return outside, unpaired
 
 
 @dataclasses.dataclass(frozen=True)

@@ -263,7 +263,9 @@ def _twin_arg(faces: np.ndarray, twin) -> np.ndarray:
     """:func:`encode_wood`'s ``twin=`` checked against ``faces`` (the kernel follows it unchecked:
     a dart id out of range read outside the faces): a ``(3F,)`` integer array, an involution on
     ``[0, 3F)``, each dart ``u -> v`` paired with a dart ``v -> u``. O(F) numpy;
-    :class:`~jaxcds.errors.ArgumentError` naming the first bad dart."""
+    :class:`~jaxcds.errors.ArgumentError` naming the first bad dart
+    (:func:`jaxcds.mesh.twin_defects`)."""
+    from jaxcds.mesh import twin_defects
     from jaxcds.structures.base import integer_array
 
     E = 3 * faces.shape[0]
@@ -274,21 +276,20 @@ def _twin_arg(faces: np.ndarray, twin) -> np.ndarray:
     if t.shape != (E,):
         raise errors.ArgumentError(f"encode_wood: twin must have shape ({E},) (one entry per dart "
                                    f"3f + i), got {t.shape}")
-    bad = np.nonzero((t < 0) | (t >= E))[0]
+    outside, unpaired = twin_defects(t, faces)
+    bad = np.nonzero(outside | (t == -1))[0]  # a closed mesh: no border, so -1 is no dart either
     if bad.size:
         e = int(bad[0])
         raise errors.ArgumentError(f"encode_wood: twin[{e}] = {int(t[e])} is not a dart id in [0, {E})")
-    t = np.ascontiguousarray(t, dtype=np.int32)
-    src = faces.ravel()
-    dst = faces[:, [1, 2, 0]].ravel()
-    bad = np.nonzero((t[t] != np.arange(E)) | (src[t] != dst) | (dst[t] != src))[0]
+    bad = np.nonzero(unpaired)[0]
     if bad.size:
         e = int(bad[0])
+        f, k = divmod(e, 3)
         raise errors.ArgumentError(
             f"encode_wood: twin[{e}] = {int(t[e])} is not the opposite of dart {e} "
-            f"({int(src[e])} -> {int(dst[e])}): twin must be an involution pairing each dart u -> v "
-            "with a dart v -> u (jaxcds.codec.dart_twins computes it)")
-    return t
+            f"({int(faces[f, k])} -> {int(faces[f, (k + 1) % 3])}): twin must be an involution pairing "
+            "each dart u -> v with a dart v -> u (jaxcds.codec.dart_twins computes it)")
+    return np.ascontiguousarray(t, dtype=np.int32)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

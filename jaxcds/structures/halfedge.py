@@ -21,7 +21,7 @@ from jaxcds import _mappings, errors
 from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
+from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, twin_defects, validate
 from jaxcds.structures.base import Int, MeshStructure
 
 __all__ = ["HalfEdge", "halfedge_arrays"]
@@ -199,21 +199,19 @@ def _check_twins(twins, faces: np.ndarray, num_vertices: int, where: str) -> Non
         if a.shape != (size,) or a.dtype.kind not in "iu":
             raise errors.ArgumentError(f"{where}: twins.{name} must be ({size},) integers for these "
                                        f"faces, got {a.dtype} {a.shape}")
-    src = faces.reshape(-1).astype(np.int64)
-    tgt = faces[:, [1, 2, 0]].reshape(-1).astype(np.int64)
-    o = opp.astype(np.int64)
-    has = o >= 0
-    safe = np.where(has & (o < nd), o, 0)
-    bad = (o < -1) | (o >= nd) | (has & ((o[safe] != np.arange(nd)) | (src[safe] != tgt) | (tgt[safe] != src)))
+    outside, unpaired = twin_defects(opp, faces)
+    bad = outside | unpaired
     if bad.any():
         d = int(np.argmax(bad))
+        f, k = divmod(d, 3)
         raise errors.ArgumentError(
-            f"{where}: twins.opp[{d}] = {int(o[d])} is not the twin of dart {d} "
-            f"({int(src[d])} -> {int(tgt[d])}) in these faces: pass the Twins that "
+            f"{where}: twins.opp[{d}] = {int(opp[d])} is not the twin of dart {d} "
+            f"({int(faces[f, k])} -> {int(faces[f, (k + 1) % 3])}) in these faces: pass the Twins that "
             "validate(mesh, return_twins=True) returned for them, or none")
     v = vc.astype(np.int64)
     ref = v >= 0
-    bad = (v < -1) | (v >= nd) | (ref & (src[np.where(ref & (v < nd), v, 0)] != np.arange(v.size)))
+    corner_vertex = faces.reshape(-1)
+    bad = (v < -1) | (v >= nd) | (ref & (corner_vertex[np.where(ref & (v < nd), v, 0)] != np.arange(v.size)))
     if bad.any():
         k = int(np.argmax(bad))
         raise errors.ArgumentError(f"{where}: twins.vertex_corner[{k}] = {int(v[k])} is not a corner "
