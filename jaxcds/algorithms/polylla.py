@@ -644,9 +644,7 @@ def polylla(s, positions, *, corners=None, clockwise: Optional[bool] = None,
         return clock()
 
     cs = None
-    mode = ("canonical" if corners is None else "reference") if mode is None else mode
-    if mode not in ("reference", "canonical"):
-        raise errors.PolyllaError(f"unknown Polylla mode {mode!r}: 'reference' or 'canonical'")
+    mode = _mode_arg(("canonical" if corners is None else "reference") if mode is None else mode)
     if mode == "reference" and corners is None:  # the structure's own faces are the input rows
         corners = vids[np.asarray(_faces_of(s))]
     if clockwise is not None and not isinstance(clockwise, (bool, np.bool_)):
@@ -871,6 +869,13 @@ def _checked_corners(corners, num_faces: int, num_vertices: int) -> np.ndarray:
         raise errors.PolyllaError(f"corners row {int(bad[0])} {c[bad[0]].tolist()} refers to a vertex "
                                   f"outside [0, {num_vertices})")
     return c if c.dtype in (np.int32, np.int64) else c.astype(np.int64)
+
+
+def _mode_arg(mode) -> str:
+    """``mode`` if ``'reference'`` or ``'canonical'``, else :class:`PolyllaError` naming it."""
+    if not isinstance(mode, str) or mode not in ("reference", "canonical"):
+        raise errors.PolyllaError(f"unknown Polylla mode {mode!r}: 'reference' or 'canonical'")
+    return mode
 
 
 def _checked_row_ids(row_ids, num_faces: int) -> np.ndarray:
@@ -1157,8 +1162,7 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     # tables, mode=None ran the reference mode and reported mode None
     check = flag_arg(check, "run: check")
     tables = flag_arg(tables, "run: tables")
-    if not isinstance(mode, str) or mode not in ("reference", "canonical"):
-        raise errors.PolyllaError(f"unknown Polylla mode {mode!r}: 'reference' or 'canonical'")
+    mode = _mode_arg(mode)
     if output is not None:
         output = check_writable(output)
 

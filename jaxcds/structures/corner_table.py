@@ -135,7 +135,7 @@ class CornerTable(MeshStructure):
                                         "vertices); nothing to build")
         nf = f.shape[0]
         closed = False
-        if twins is not None and twins.opp.shape[0] == 3 * nf:
+        if twins is not None:  # checked to be these faces' (from_faces) or validation's own
             O, closed = _opposite_corners(twins.opp)
             vedge = twins.vertex_corner
         if not closed:

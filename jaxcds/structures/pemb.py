@@ -194,8 +194,6 @@ def encode_rotation_system(opp, ccw, vert, num_vertices: int, start: int = 0, tr
 
 def _rotation_args(opp, ccw, vert, num_vertices, start, tree):
     """:func:`encode_rotation_system`'s arguments checked (see there)."""
-    from jaxcds._args import is_integer
-
     w = "encode_rotation_system"
     if not is_integer(num_vertices) or not 0 < num_vertices < 2 ** 31:
         raise errors.ArgumentError(f"{w}: num_vertices must be an integer in [1, 2^31), got {num_vertices!r}")
@@ -297,7 +295,6 @@ def _rotation_system(f: np.ndarray, num_vertices: int):
 
 
 # ---------------------------------------------------------------------------------- structure
-
 def _id_list(values, name: str, top: int, what: str) -> np.ndarray:
     """``values`` as a 1-D int32 array of ids in ``[0, top)``, or
     :class:`~jaxcds.errors.EncodingError` naming ``name`` and the first bad entry (a cast to int32
@@ -311,6 +308,7 @@ def _id_list(values, name: str, top: int, what: str) -> np.ndarray:
         k = int(np.argmax(bad))
         raise errors.EncodingError(f"pemb: {name}[{k}] = {int(a[k])} is outside [0, {top}) ({what})")
     return a.astype(np.int32)
+
 
 @pytree_dataclass
 class PEMB(MeshStructure):
