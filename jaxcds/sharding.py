@@ -261,12 +261,24 @@ class ShardedStructure(MeshStructure):
         """The structure's own mask, from the :meth:`unpadded` arrays (sized ``num_vertices``)."""
         return self.unpadded().dummy_vertex_mask()
 
+    @property
+    def table_queries(self) -> dict:
+        """The input structure's table routes (``MeshStructure.table_queries``), so that
+        :func:`jaxcds.verify.verify` checks both routes of each on a sharded structure too (it
+        read the class's empty dict and checked one route only)."""
+        return self.structure.table_queries
+
+    def takes_table(self, op: str, batch_size: int) -> bool:
+        """As the input structure decides (the sharded operators forward to its routes)."""
+        return self.structure.takes_table(op, batch_size)
+
     def __getattr__(self, attr):
         if attr.startswith("__") or attr == "structure":
             raise AttributeError(attr)
-        if attr in _WHOLE_MESH_ROUTES:
+        if attr in _WHOLE_MESH_ROUTES or attr in self.structure.table_queries.values():
             # these read whole arrays (a CDS's degrees: its n rows): on the padded ones their
-            # shapes disagreed with num_vertices (an uneven split crashed)
+            # shapes disagreed with num_vertices (an uneven split crashed); so does a table
+            # route (every dart's answer, then one gather), which verify calls by its name
             return getattr(self.unpadded(), attr)
         if attr == "adjacent":
             return self._adjacent(getattr(self.structure, attr))

@@ -131,6 +131,13 @@ def test_table_routes_sharded(report):
     assert report["cds4n"]["eager_bucket_mismatches"] == 0, report["cds4n"]
 
 
+def test_verify_checks_both_routes_sharded(report):
+    r = report["cds4n"]
+    assert r["verify_ok"], r
+    assert "target (per-query route)" in r["verify_routes"], r
+    assert r["verify_routes"] == r["verify_unsharded_routes"], r
+
+
 def test_pemb_is_not_split_by_rows(report):
     assert report["pemb_refused"].startswith("UnsupportedTopologyError: pemb cannot be split by rows")
 
@@ -506,6 +513,13 @@ def _child(full: bool) -> dict:
         np.sum(np.asarray(getattr(ss4, op)(eids)) != np.asarray(getattr(s4, op)(eids)))
         for op in ("target", "origin", "corner_vertex")) + np.sum(
         np.asarray(ss4.adjacent(au[:18], av[:18])) != aw[:18]))
+    # verify on a sharded structure checks both routes of every table operator, as unsharded:
+    # it read the class's empty table_queries and checked one route only (stop 51)
+    from jaxcds.verify import verify
+    rep = verify(ss4, rpt)
+    out["cds4n"]["verify_ok"] = rep.ok
+    out["cds4n"]["verify_routes"] = sorted(k for k in rep.by_operator if "route" in k)
+    out["cds4n"]["verify_unsharded_routes"] = sorted(k for k in verify(s4, rpt).by_operator if "route" in k)
     # lr-bits has int16 leaves: padded with their largest value (PAD = 2^29 overflowed them)
     sb = registry.build("lr-bits", grid)
     sbs = S.shard_structure(sb, mesh)
