@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gzip
 import os
+import re
 import struct
 
 import numpy as np
@@ -137,6 +138,22 @@ def test_obj_with_classic_mac_line_ends_reads_as_the_plain_file(tmp_path):
 def test_obj_lines_trimesh_cannot_read_are_named(text, kind, match, tmp_path):
     with pytest.raises(kind, match=match):
         load_mesh(_write(tmp_path, "bad.obj", text))
+
+
+@pytest.mark.parametrize("tok", ["3.1+e2", "3.1-e2", "-e2", "1+e"])
+@pytest.mark.parametrize("kind", ["v", "vt", "vn"])
+def test_obj_sign_before_exponent_is_not_a_number(tok, kind, tmp_path):
+    """trimesh deletes every "+e" and "-e" in the vertex lines and read "3.1-e2" as 310 without
+    a word (assimp's test model number_formats.obj has such tokens); now named by line. Valid
+    exponents and a "-e" outside the vertex lines still read."""
+    line = {"v": "v 0 1 {}\n", "vt": "vt 0 {}\n", "vn": "vn 0 0 {}\n"}[kind].format(tok)
+    text = "g left-eye\n" + _TET_OBJ.replace("v 0 0 1\n", "v 0 0 1\n" + line)
+    with pytest.raises(errors.UnreadableMeshError,
+                       match=rf"line 6: coordinate '{re.escape(tok)}' is not a number"):
+        load_mesh(_write(tmp_path, "bad.obj", text))
+    good = load_mesh(_write(tmp_path, "good.obj", "g left-eye\n" + _TET_OBJ.replace(
+        "v 0 0 1", "v 0 0 1e-0\nvn 0 0 -1E+0")))
+    np.testing.assert_array_equal(good.vertices, _TET_V)
 
 
 # ------------------------------------------------------------------------------------ OFF
