@@ -124,12 +124,12 @@ def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
     """
     if isinstance(obj, TriMesh):
         return obj
-    source, dropped = "arrays", 0
+    source = "arrays"
     if faces is not None:
         vertices = obj
     elif isinstance(obj, (str, os.PathLike)):
         source = os.fspath(obj)
-        vertices, faces, dropped = _read_file(source)
+        vertices, faces = _read_file(source)
     elif isinstance(obj, tuple) and len(obj) == 2:
         vertices, faces = obj
     else:
@@ -144,15 +144,12 @@ def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
             raise errors.UnreadableMeshError(
                 f"cannot load a mesh from an object of type {type(obj).__name__}; "
                 "give a path, a trimesh.Trimesh, a TriMesh or (vertices, faces) arrays")
-    mesh = _from_arrays(vertices, faces, source=source, weld=weld)
-    if dropped:  # left out by the file's parser: counted as if dropped here
-        mesh = dataclasses.replace(mesh, removed_unreferenced=mesh.removed_unreferenced + dropped)
-    return mesh
+    return _from_arrays(vertices, faces, source=source, weld=weld)
 
 
-def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, int]:
-    """``(vertices, faces, dropped)`` of the file: ``dropped`` counts the vertices the parser left
-    out because no face uses them (trimesh's OBJ reader does; the others keep them)."""
+def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, faces)`` of the file: every vertex it holds, in its order (those no face
+    uses too: :func:`_from_arrays` drops and counts them)."""
     try:
         os.stat(path)
     except (OSError, ValueError):
@@ -195,7 +192,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, int]:
             if suffix == ".ply":
                 mixed = _check_ply(raw, path)
                 if mixed is not None:  # a binary PLY of mixed polygons (trimesh cannot read it)
-                    return mixed + (0,)
+                    return mixed
                 if ((b"\v" in raw or b"\f" in raw or b"\t" in raw)
                         and b"format ascii" in raw[:raw.find(b"end_header")]):
                     # ASCII values split on any blank (trimesh dropped a face line with a
@@ -212,7 +209,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, int]:
                 # a well-formed OFF trimesh could not read: polygons of 5+ corners among faces of
                 # another size (trimesh 4-5's fan triangulation fails on them under numpy 2)
                 try:
-                    return _read_off_polygons(text) + (0,)
+                    return _read_off_polygons(text)
                 except (ValueError, IndexError):  # a variant this reader does not know: named below
                     pass
         elif suffix == ".stl":
@@ -242,22 +239,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, int]:
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")
-    return vertices, faces, (_obj_unreferenced(text, len(vertices)) if suffix == ".obj" else 0)
-
-
-def _obj_unreferenced(text: str, loaded: int) -> int:
-    """How many of an OBJ's ``v`` lines no face uses (trimesh's reader drops them before
-    jaxcds sees the vertices, so they would not be counted): 0 when every line was loaded, else
-    the lines less the distinct vertex indices of the ``f`` lines (relative ones resolved
-    against the vertex count; trimesh may also split a vertex at texture seams, so the loaded
-    count alone does not tell)."""
-    lines = len(re.findall(r"(?m)^v ", text))
-    if lines == loaded:
-        return 0
-    corners = " ".join(re.findall(r"(?m)^f ([^\n]*)", text)).split()
-    ids = np.array([c.split("/", 1)[0] for c in corners], dtype=np.int64)
-    ids = np.where(ids < 0, ids + lines + 1, ids)
-    return max(lines - int(np.unique(ids).size), 0)
+    return vertices, faces
 
 
 def _trimesh_load(stream, file_type: str):
@@ -273,7 +255,10 @@ def _trimesh_load(stream, file_type: str):
     level = log.level
     log.setLevel(logging.CRITICAL)
     try:
-        return trimesh.load(stream, file_type=file_type, process=False, force="mesh")
+        # maintain_order (OBJ): every "v" line in its order, those no face uses too (dropped
+        # after welding and counted, as for the other formats)
+        extra = {"maintain_order": True} if file_type == "obj" else {}
+        return trimesh.load(stream, file_type=file_type, process=False, force="mesh", **extra)
     finally:
         log.setLevel(level)
 
@@ -374,8 +359,9 @@ def _prepare_obj(text: str, path: str) -> str:
     """The OBJ text as trimesh's reader can take it, checked: tabs read as spaces and indented
     lines unindented (trimesh skipped "v<TAB>x y z" and "  f 1 2 3" without a word), comments
     after data removed, relative (negative) indices made absolute where vertices follow a
-    face, and a face index 0 or a face line of fewer than three corners refused naming its
-    line. Each step runs only where a cheap test finds its case."""
+    face, a face index 0 or a face line of fewer than three corners refused naming its line,
+    corners cut to their vertex index and materials made comments (so that trimesh reads one
+    mesh of the file's own vertices). Each step runs only where a cheap test finds its case."""
     if "\r" in text and "\n" not in text:
         # classic Mac OS line ends: trimesh splits on "\n" only and read the whole file as one
         # line ("line 1: coordinate 'v' is not a number"); OFF already reads them
@@ -392,45 +378,26 @@ def _prepare_obj(text: str, path: str) -> str:
     first_face = 0 if text.startswith("f ") else text.find("\nf ")
     if first_face >= 0 and text.rfind("\nv") > first_face and _OBJ_NEGATIVE.search(text, first_face):
         text = _absolute_obj_indices(text, path)
-    if "/" in text and _obj_mixed_corner_forms(text):
-        text = _OBJ_FACE_LINE.sub(_obj_vertex_indices_only, text)
+    if "/" in text:
+        # corners cut to their vertex index ("1/4/2" -> "1", the only part jaxcds uses): trimesh
+        # made a vertex of every distinct (vertex, texture, normal) triple, so a texture seam or
+        # a face's own normal split the file's vertex (assimp's cube_usemtl.obj: 18 vertices, 3
+        # components under --no-weld; 10 'welded' on the default path), and it misread corners
+        # written in mixed forms ("f 1/1 2 3" as the face 1 1 2)
+        if _OBJ_VERTEX_SLASH.search(text):
+            _diagnose_obj(text, path)  # a "/" in a coordinate: named by line
+        text = _OBJ_CORNER_TAIL.sub("", text)
+    if "usemtl" in text:
+        # trimesh made a mesh of each material's faces, each with its own copy of the vertices
+        # they share (and the faces out of the file's order): one mesh of the file's vertices
+        text = text.replace("usemtl", "#use_mtl")
     return text
 
 
-#: a face line's corners (after "f" and its blanks); the characters of an index
-_OBJ_FACE_LINE = re.compile(r"(?m)^f[^\S\n]+([^\n]*)")
-_OBJ_NUMBER_CHARS = str.maketrans("", "", "0123456789+-")
-
-
-def _obj_mixed_corner_forms(text: str) -> bool:
-    """Whether trimesh's vectorised face reader would misread the face lines: a line whose
-    corners are written in different forms ("f 1/1 2 3"), or two lines with as many numbers
-    but in other forms ("f 1/1 2/1 3/1" and the hexagon "f 1 2 3 4 5 6"). trimesh takes the
-    first line's form for every line of as many numbers, and read those as the wrong corners
-    without a word ("f 1/1 2 3" as the face 1 1 2). Every line is reduced to its form by
-    string methods (a corner "12/3" to "./", "1//2" to "./?/", "7" to "."): a few distinct
-    forms, looked at one by one (0.2 s on 500K faces; a regex pass took 2 s)."""
-    form_of = {}  # numbers on a line -> the form of its corners
-    skeleton = text.replace("//", "/?/").replace(" ", " .").translate(_OBJ_NUMBER_CHARS)
-    for line in set(skeleton.split("\n")):
-        if line[:2] != "f ":
-            continue
-        corners = line.split()[1:]
-        forms = set(corners)
-        if len(forms) > 1:
-            return True
-        if forms:
-            form = forms.pop()
-            numbers = (form.count("/") - form.count("?") + 1) * len(corners)
-            if form_of.setdefault(numbers, form) != form:
-                return True
-    return False
-
-
-def _obj_vertex_indices_only(m: "re.Match") -> str:
-    """A face line with its corners cut to their vertex index ("1/4/2" -> "1"): the only
-    part jaxcds uses, and one form that trimesh reads right on every line."""
-    return "f " + " ".join(c.split("/", 1)[0] for c in m.group(1).split())
+#: a vertex, texture or normal line holding a "/" (not a number; a corner's form is not cut there)
+_OBJ_VERTEX_SLASH = re.compile(r"(?m)^v[tn]?[^\S\n][^\n]*/")
+#: a corner's texture and normal indices after its vertex index: "/4/2", "//2", "/4"
+_OBJ_CORNER_TAIL = re.compile(r"(?<=\d)/[-+\d]*(?:/[-+\d]*)?(?!\S)")
 
 
 def _obj_trailing_comment(text: str) -> bool:

@@ -118,6 +118,38 @@ def test_obj_corners_in_mixed_forms_read_as_their_vertex_indices(faces, plain, t
     np.testing.assert_array_equal(m.vertices, ref.vertices)
 
 
+_CUBE_V = "".join(f"v {x} {y} {z}\n" for x in (0, 1) for y in (0, 1) for z in (0, 1))
+_CUBE_F = [(1, 7, 5), (1, 3, 7), (1, 4, 3), (1, 2, 4), (3, 8, 7), (3, 4, 8),
+           (5, 7, 8), (5, 8, 6), (1, 5, 6), (1, 6, 2), (2, 6, 8), (2, 8, 4)]
+
+
+@pytest.mark.parametrize("weld", [True, False])
+def test_obj_corners_with_normals_and_materials_are_the_files_vertices(weld, tmp_path):
+    """A cube whose faces carry their own normal ("f 1//2 7//2 5//2") and alternate two
+    materials (as assimp's test model cube_usemtl.obj): trimesh made a vertex of every (vertex,
+    normal) pair and a mesh of each material, so the 8-vertex cube loaded as 18 vertices in 3
+    components under weld=False (24 with texture corners too), and as '10 welded' otherwise,
+    with the faces out of the file's order. Each corner is now the file's vertex."""
+    normal = [2, 2, 6, 6, 3, 3, 1, 1, 4, 4, 5, 5]
+    lines = [f"usemtl {'ab'[k % 3 == 0]}\nf " + " ".join(f"{i}/{k + 1}/{n}" for i in face)
+             for k, (face, n) in enumerate(zip(_CUBE_F, normal))]
+    text = (_CUBE_V + "vn 0 0 1\nvn 0 0 -1\nvn 0 1 0\nvn 0 -1 0\nvn 1 0 0\nvn -1 0 0\n"
+            + "".join(f"vt {k / 12} 0\n" for k in range(12)) + "\n".join(lines) + "\n")
+    m = load_mesh(_write(tmp_path, "cube.obj", text), weld=weld)
+    assert m.num_vertices == 8 and m.welded == 0 and m.removed_unreferenced == 0
+    np.testing.assert_array_equal(m.faces, np.array(_CUBE_F) - 1)
+    t = topology(m)
+    assert t["components"] == 1 and t["closed"] and t["genus"] == 0 and not t["defects"]
+
+
+def test_obj_slash_in_a_coordinate_is_named(tmp_path):
+    """Corners are cut to their vertex index ("1/4/2" -> "1"); a "/" in a vertex line is not
+    cut, it is named."""
+    with pytest.raises(errors.UnreadableMeshError, match="line 2: coordinate '1/2' is not a number"):
+        load_mesh(_write(tmp_path, "bad.obj", _TET_OBJ.replace("v 1 0 0", "v 1/2 0 0")
+                         .replace("f 1 3 2", "f 1/1 3/1 2/1")))
+
+
 def test_obj_with_classic_mac_line_ends_reads_as_the_plain_file(tmp_path):
     """Lines ended by a lone CR were one line to trimesh: "line 1: coordinate 'v' is not a
     number" (OFF read them already)."""
