@@ -187,6 +187,8 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                 text = _prepare_off(text)  # first: splitlines() breaks at \v and \f too
                 _refuse_off_variant(text, path)
                 _check_off_counts(text, path)
+                if "_" in text:  # trimesh read "1_0" as 10 (Python's float): named by line
+                    _check_off_lines(text, path, indices=True)
             loaded = _trimesh_load(io.StringIO(text), suffix[1:])
         else:
             if suffix == ".ply":
@@ -323,6 +325,21 @@ def _decode_text(raw: bytes) -> str:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
         return raw.decode("latin-1")
+
+
+def _float(tok) -> float:
+    """``float(tok)`` for a number as mesh files write it: Python's also takes digit-group
+    underscores ("1_0" is 10), which no mesh format has (trimesh's OFF reader read it so)."""
+    if ("_" if isinstance(tok, str) else b"_") in tok:
+        raise ValueError(f"not a number: {tok!r}")
+    return float(tok)
+
+
+def _int(tok) -> int:
+    """``int(tok)`` without Python's digit-group underscores (see :func:`_float`)."""
+    if ("_" if isinstance(tok, str) else b"_") in tok:
+        raise ValueError(f"not an integer: {tok!r}")
+    return int(tok)
 
 
 # ---- OBJ. Every rewrite keeps the lines (and their numbers) where they were.
@@ -499,7 +516,7 @@ def _absolute_obj_indices(text: str, path: str) -> str:
                     if part[:1] != "-":
                         continue
                     try:
-                        i = int(part)
+                        i = _int(part)
                     except ValueError:
                         continue  # not a number: the diagnosis names it
                     if seen[j] + i < 0:
@@ -534,7 +551,7 @@ def _diagnose_obj(text: str, path: str) -> None:
         if tok[0] in ("v", "vt", "vn"):
             for t in tok[1:]:
                 try:
-                    float(t)
+                    _float(t)
                 except ValueError:
                     raise _obj_number_error(path, no, "coordinate", t) from None
             if tok[0] == "v":
@@ -549,7 +566,7 @@ def _diagnose_obj(text: str, path: str) -> None:
                     f"{path}: line {no}: a face needs at least 3 vertex indices, got {len(tok) - 1}")
             for t in tok[1:]:
                 try:
-                    i = int(t.split("/")[0])
+                    i = _int(t.split("/")[0])
                 except ValueError:
                     raise errors.InvalidIndexError(
                         f"{path}: line {no}: face index {t.split('/')[0]!r} is not an integer") from None
@@ -582,7 +599,7 @@ def _diagnose_ascii_stl(raw: bytes, path: str) -> None:
                     f"{path}: line {no}: a vertex line is 'vertex x y z', got {len(tok) - 1} values")
             for t in tok[1:]:
                 try:
-                    float(t)
+                    _float(t)
                 except ValueError:
                     raise errors.UnreadableMeshError(
                         f"{path}: line {no}: coordinate {t.decode('latin-1')[:40]!r} is not a "
@@ -662,7 +679,7 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
             f"{path}: line {rows[0][0]}: the header must be 'OFF' in capitals, got {key[:40]!r}")
     head, body = _off_head_body(rows)
     try:
-        nv, nf = int(head[0]), int(head[1])
+        nv, nf = _int(head[0]), _int(head[1])
     except (IndexError, ValueError):
         raise errors.UnreadableMeshError(
             f"{path}: line {rows[0][0]}: the OFF counts line must start with the numbers of "
@@ -686,13 +703,13 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
                     f"{path}: line {no}: vertex {k} needs 3 coordinates (x y z), got {len(tok)}")
             for t in tok[:3]:
                 try:
-                    float(t)
+                    _float(t)
                 except ValueError:
                     raise errors.UnreadableMeshError(
                         f"{path}: line {no}: vertex {k}: coordinate {t!r} is not a number") from None
     for k, (no, tok) in enumerate(body[nv:nv + nf]):
         try:
-            want = int(tok[0])
+            want = _int(tok[0])
         except ValueError:
             raise errors.UnreadableMeshError(
                 f"{path}: line {no}: face {k} must start with its number of corners, got {tok[0]!r}") from None
@@ -705,7 +722,7 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
         if indices:
             for t in tok[1:1 + want]:
                 try:
-                    i = int(t)
+                    i = _int(t)
                 except ValueError:
                     raise errors.InvalidIndexError(
                         f"{path}: line {no}: face {k}: vertex index {t!r} is not an integer") from None
@@ -1056,7 +1073,7 @@ def _ply_ascii_rows_slow(data: bytes, ends: np.ndarray, row0: int, e: _PlyElemen
         if numbers:
             for t in tok:
                 try:
-                    float(t)
+                    _float(t)
                 except ValueError:
                     return k, f"value {t.decode('latin-1')[:40]!r} is not a number"
         at = 0
@@ -1083,7 +1100,7 @@ def _ply_ascii_rows_slow(data: bytes, ends: np.ndarray, row0: int, e: _PlyElemen
 
 def _integral(tok: bytes) -> bool:
     try:
-        x = float(tok)
+        x = _float(tok)
         return x == int(x)
     except (ValueError, OverflowError):
         return False

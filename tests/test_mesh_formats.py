@@ -471,6 +471,38 @@ def test_ascii_stl_with_a_bad_normal_loads_without_a_traceback(tmp_path, capfd):
     assert logging.getLogger("trimesh").level == level  # put back as it was
 
 
+# ------------------------------------------------------------------------- every text format
+_TRIANGLE = {
+    "obj": ("v 0 0 0\nv 1 0 0\nv 0 1 {z}\nf 1 2 {i}\n", "line 3: coordinate '1_0'",
+            "line 4: face index '0_3' is not an integer"),
+    "off": ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 {z}\n3 0 1 {i}\n",
+            "line 5: vertex 2: coordinate '1_0' is not a number",
+            "line 6: face 0: vertex index '0_2' is not an integer"),
+    "ply": ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+            "end_header\n0 0 0\n1 0 0\n0 1 {z}\n3 0 1 {i}\n",
+            "line 12: vertex 2 value '1_0' is not a number", "line 13: face 0 value '0_2'"),
+    "stl": ("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+            "vertex 0 1 {z}\nendloop\nendfacet\nendsolid t\n",
+            "line 6: coordinate '1_0' is not a number", None),
+}
+
+
+@pytest.mark.parametrize("fmt", sorted(_TRIANGLE))
+def test_digit_group_underscores_are_not_numbers(fmt, tmp_path):
+    """Python's float() and int() take "1_0" as 10, no mesh format does: trimesh's OFF reader
+    read such a coordinate as 10 without a word, and the checks that name a bad number's line
+    passed it (OBJ, PLY, STL: trimesh's own "could not be read to its end", no line)."""
+    text, coordinate, index = _TRIANGLE[fmt]
+    good = load_mesh(_write(tmp_path, f"good.{fmt}", text.format(z="1.0", i=(3 if fmt == "obj" else 2))))
+    assert good.num_faces == 1
+    with pytest.raises(errors.UnreadableMeshError, match=re.escape(coordinate)):
+        load_mesh(_write(tmp_path, f"z.{fmt}", text.format(z="1_0", i=(3 if fmt == "obj" else 2))))
+    if index is not None:
+        with pytest.raises(errors.MeshError, match=re.escape(index)):
+            load_mesh(_write(tmp_path, f"i.{fmt}", text.format(z="1", i=("0_3" if fmt == "obj" else "0_2"))))
+
+
 # ------------------------------------------------------------------------- non-regular files
 @pytest.mark.parametrize("suffix", [".off", ".obj", ".ply", ".stl"])
 def test_devices_and_fifos_are_refused_before_reading(suffix, tmp_path):
