@@ -681,8 +681,9 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
     try:
         nv, nf = _int(head[0]), _int(head[1])
     except (IndexError, ValueError):
+        counts_line = rows[0][0] if rows[0][1][1:] or len(rows) == 1 else rows[1][0]
         raise errors.UnreadableMeshError(
-            f"{path}: line {rows[0][0]}: the OFF counts line must start with the numbers of "
+            f"{path}: line {counts_line}: the OFF counts line must start with the numbers of "
             f"vertices and faces, got {' '.join(head) or 'nothing'}") from None
     if nv < 0 or nf < 0:
         raise errors.UnreadableMeshError(f"{path}: the OFF header declares {nv} vertices and {nf} faces")

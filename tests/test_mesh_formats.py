@@ -200,7 +200,12 @@ _OFF_HEAD = "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
     ("off\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", errors.UnreadableMeshError, "line 1: the header must be 'OFF' in capitals"),
     ("", errors.EmptyMeshError, "the file is empty"),
     (gzip.compress((_OFF_HEAD + "3 0 2 1\n").encode()), errors.UnreadableMeshError, "gzip-compressed"),
-], ids=["negative-count", "zero-count", "float-index", "2d-vertices", "lower-case", "empty", "gzip"])
+    ("OFF\n\n3 x 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", errors.UnreadableMeshError,
+     "line 3: the OFF counts line must start with the numbers of vertices and faces, got 3 x 0"),
+    ("OFF 3 x 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", errors.UnreadableMeshError,
+     "line 1: the OFF counts line must start"),
+], ids=["negative-count", "zero-count", "float-index", "2d-vertices", "lower-case", "empty", "gzip",
+        "bad-counts-own-line", "bad-counts-on-header"])
 def test_off_defects_are_named(text, kind, match, tmp_path):
     with pytest.raises(kind, match=match):
         load_mesh(_write(tmp_path, "bad.off", text))
