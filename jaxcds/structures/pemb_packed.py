@@ -51,6 +51,7 @@ import numba
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import is_integer
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.structures.base import Int, parts_of_one_class
@@ -362,9 +363,12 @@ def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:
       UnsupportedTopologyError: a part of another class, or ids over int32.
     """
     if cls is not PEMB:  # a packed union's roots are per mesh: joining unions loses them
+        what = ("a packed batch cannot be packed again" if getattr(cls, "packed", False)
+                else "a pemb with tables cannot be packed: pack the pembs it was made from")
         raise errors.UnsupportedTopologyError(
-            f"{cls.__name__}.concatenate: pack the single pembs (a packed batch cannot be packed again)")
+            f"{cls.__name__}.concatenate: pack the single pembs ({what})")
     parts = parts_of_one_class(PEMB, parts)
+    bits = [_part_bits(i, p) for i, p in enumerate(parts)]  # before any count is read
     nd = np.array([p.num_darts for p in parts], np.int64)
     nv = np.array([p.num_vertices for p in parts], np.int64)
     nf = np.array([p.num_faces for p in parts], np.int64)
@@ -376,8 +380,8 @@ def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:
             "per batch")
     excl = lambda c: np.concatenate([[0], np.cumsum(c)[:-1]])  # noqa: E731
     doff, voff, foff, pfoff = excl(nd), excl(nv), excl(nf), excl(npf)
-    a = np.concatenate([p.A.to_numpy() for p in parts])
-    pb = [p.P.bits.to_numpy() for p in parts]
+    a = np.concatenate([x for x, _ in bits])
+    pb = [x for _, x in bits]
     seq = np.concatenate([b[:t] for b, t in zip(pb, ntp)] + [b[t:] for b, t in zip(pb, ntp)])
     P = BalancedParens.from_bits(seq, check=False)  # balanced blocks: balanced
     holes = np.concatenate([np.asarray(p.holes, np.int64) + o for p, o in zip(parts, pfoff)])
@@ -396,6 +400,57 @@ def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:
     root_dual = _root_duals(seq, int(ntp.sum()) + excl(2 * (npf - 1)).astype(np.int64),
                             (2 * (npf - 1)).astype(np.int64), a, doff.astype(np.int64), nd.astype(np.int64))
     return dataclasses.replace(s, mesh_root_dual=i32(root_dual))
+
+
+def _part_bits(i: int, p) -> tuple:
+    """Host ``(A, B B*)`` of part ``i``, after checking that its fields agree as
+    :meth:`PEMB.from_bits` makes them: :func:`_root_duals` reads the bits at offsets computed
+    from the counts (``num_edges``, ``num_tree_parens``...), and numba checks no index, so a part
+    assembled by hand with a count larger than its bits read past them (a segfault), or packed
+    quietly with the next mesh's bits.
+
+    Raises:
+      StructureError: naming the part and the field that disagrees."""
+    def bad(msg):
+        raise errors.StructureError(f"PEMB.concatenate: part {i}: {msg} (a pemb assembled by hand? "
+                                    "build it with PEMB.from_bits)")
+
+    if not isinstance(p.A, BitVector) or not isinstance(p.P, BalancedParens) \
+            or not isinstance(p.P.bits, BitVector):
+        bad(f"A must be a BitVector and P a BalancedParens, got {type(p.A).__name__} and "
+            f"{type(p.P).__name__}")
+    for name in ("num_vertices", "num_faces", "num_edges", "num_tree_parens"):
+        x = getattr(p, name)
+        if not is_integer(x) or x < 0:
+            bad(f"{name} = {x!r} is not a count")
+    try:
+        a, pb = p.A.to_numpy(), p.P.bits.to_numpy()
+    except (TypeError, ValueError) as exc:  # words that are no array of words
+        bad(f"the words of A or P are not readable bits ({exc})")
+    if a.size != p.A.size or pb.size != p.P.size:
+        bad(f"A or P holds fewer words than its size ({p.A.size} and {p.P.size} bits)")
+    if a.size != p.num_darts or pb.size != a.size:
+        bad(f"A has {a.size} bits and P {pb.size} parentheses for {p.num_edges} edges "
+            f"({p.num_darts} darts)")
+    ntp = int(np.count_nonzero(a))
+    if ntp != p.num_tree_parens or ntp != 2 * (p.num_vertices - 1):
+        bad(f"A has {ntp} ones (tree parentheses) but num_tree_parens = {p.num_tree_parens} and "
+            f"num_vertices = {p.num_vertices} (2 (n - 1) = {2 * (p.num_vertices - 1)})")
+    opens = (int(np.count_nonzero(pb[:ntp])), int(np.count_nonzero(pb[ntp:])))
+    if opens != (ntp // 2, (pb.size - ntp) // 2) or (pb.size - ntp) % 2:
+        bad(f"B and B* hold {opens[0]} and {opens[1]} '(' in {ntp} and {pb.size - ntp} "
+            "parentheses (half of each)")
+    npf = (pb.size - ntp) // 2 + 1
+    for name, ids, top in (("holes", p.holes, npf), ("order", p.order, p.num_vertices)):
+        x = np.asarray(ids)
+        if x.ndim != 1 or x.dtype.kind not in "iu" or (x.size and (x.min() < 0 or x.max() >= top)):
+            bad(f"{name} must be a 1-D array of ids in [0, {top}), got dtype {x.dtype} shape "
+                f"{x.shape}")
+    if np.asarray(p.order).size != p.num_vertices:
+        bad(f"order has {np.asarray(p.order).size} entries for {p.num_vertices} vertices")
+    if p.num_faces != npf - np.asarray(p.holes).size:
+        bad(f"num_faces = {p.num_faces}, but B* has {npf} faces and holes {np.asarray(p.holes).size}")
+    return a, pb
 
 
 @numba.njit(cache=True)
