@@ -439,7 +439,7 @@ class PEMB(MeshStructure):
         Raises:
           EncodingError: a sequence holds anything but 0 and 1 (named, with its offset) or is not
             one sequence; the counts of ``A``, ``B`` and ``B*`` disagree; ``B`` or ``B*`` is
-            unbalanced; ``holes`` are not distinct pemb face ids; ``order`` is not a
+            unbalanced; no edge at all; ``holes`` are not distinct pemb face ids; ``order`` is not a
             permutation of the ``n`` vertices; ``num_faces`` is not the count of triangles."""
         def parse(x, paren, name):
             if isinstance(x, str):
@@ -457,6 +457,9 @@ class PEMB(MeshStructure):
             raise errors.EncodingError(
                 f"pemb: A has {m2} bits with {int(a.sum())} ones and {m2 - int(a.sum())} zeros, but "
                 f"B has {b.size} and B* {bs.size} parentheses (they must match the ones and zeros)")
+        if m2 == 0:  # no dart: with_tables (every batch operator's route) gathered from empty B B*
+            raise errors.EncodingError("pemb: A, B and B* are empty (no edge); a pemb has at least "
+                                       "one edge")
         n = b.size // 2 + 1
         f_total = bs.size // 2 + 1
         for name, seq in (("B", b), ("B*", bs)):

@@ -116,6 +116,18 @@ def test_from_bits_names_the_unbalanced_sequence_and_offset():
         PEMB.from_bits(a, np.array([1, 1], np.uint8), np.array([0, 0], np.uint8))
 
 
+def test_from_bits_refuses_an_embedding_without_edges():
+    """Sweep 51b: empty A, B and B* were taken as one vertex, no edge and one face; every
+    batch operator (origin, face, is_border of the empty id array: the per-call tables) and
+    ``with_tables`` then raised JAX's TypeError (a gather from the empty B B*), and so did a
+    packed batch holding one. One edge or one loop is still a pemb."""
+    for empty in ([], "", np.zeros(0, np.uint8)):
+        with pytest.raises(errors.EncodingError, match=r"pemb: A, B and B\* are empty \(no edge\)"):
+            PEMB.from_bits(empty, empty, empty)
+    assert PEMB.from_bits([1, 1], [1, 0], []).num_vertices == 2
+    assert PEMB.from_bits([0, 0], [], [1, 0], holes=[1]).num_faces == 1
+
+
 
 def _bits_of(s):
     """``(A, B, B*)`` of a built PEMB as host uint8 arrays (1 = tree edge, 1 = '(')."""
