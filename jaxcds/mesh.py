@@ -238,6 +238,17 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                 "read (truncated?): "
                 + (f"its header declares {count} triangles, {84 + 50 * count} bytes"
                    if count is not None else "shorter than the 84-byte header"))
+        if suffix == ".obj" and not re.search(r"(?m)^f\s", text):
+            # polylines ("l") or points ("p") only (assimp's testline.obj): say what it holds
+            held = [f"{n} {one if n == 1 else many}" for n, one, many in (
+                (len(re.findall(r"(?m)^v\s", text)), "vertex", "vertices"),
+                (len(re.findall(r"(?m)^l\s", text)), "polyline ('l') element", "polyline ('l') elements"),
+                (len(re.findall(r"(?m)^p\s", text)), "point ('p') element", "point ('p') elements"))
+                    if n]
+            raise errors.EmptyMeshError(
+                f"{path}: no faces: the file has no face ('f') line"
+                + (f", only {' and '.join([', '.join(held[:-1]), held[-1]] if held[:-1] else held)}"
+                   if held else "") + "; jaxcds reads surfaces")
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")

@@ -150,6 +150,19 @@ def test_obj_slash_in_a_coordinate_is_named(tmp_path):
                          .replace("f 1 3 2", "f 1/1 3/1 2/1")))
 
 
+@pytest.mark.parametrize("body,held", [
+    ("l 1 2 3 4 1\n", "only 4 vertices and 1 polyline ('l') element"),
+    ("p 1 2\nl 1 2\nl 3 4\n", "only 4 vertices, 2 polyline ('l') elements and 1 point ('p') element"),
+    ("", "only 4 vertices"),
+], ids=["polyline", "points-and-lines", "vertices"])
+def test_obj_without_faces_says_what_it_holds(body, held, tmp_path):
+    """A file of polylines was called "a point cloud, or an empty or unparsable file" (assimp's
+    testline.obj)."""
+    with pytest.raises(errors.EmptyMeshError, match=re.escape(
+            f"no faces: the file has no face ('f') line, {held}; jaxcds reads surfaces")):
+        load_mesh(_write(tmp_path, "lines.obj", _TET_OBJ.split("f")[0] + body))
+
+
 def test_obj_with_classic_mac_line_ends_reads_as_the_plain_file(tmp_path):
     """Lines ended by a lone CR were one line to trimesh: "line 1: coordinate 'v' is not a
     number" (OFF read them already)."""
