@@ -967,7 +967,9 @@ def _check_ply_ascii_rows(data: bytes, buf: np.ndarray, ends: np.ndarray, want: 
                 bad = int(np.flatnonzero(problem)[0])
                 c = cnt[bad]
                 if not has_count[bad]:
-                    why = f"has {int(n_row[bad])} values, no list count"
+                    why = (f"has {int(n_row[bad])} values, no count for its list property "
+                           f"{e.props[p][0]!r} (property {p + 1} of the header's "
+                           f"{e.name} element, line {e.line})")
                 elif c != np.floor(c):
                     why = f"the list count {token(int(first[bad]) + p)!r} is not an integer"
                 elif c < least:

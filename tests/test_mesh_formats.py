@@ -288,6 +288,18 @@ def test_ascii_ply_face_lines_that_disagree_with_their_count_are_named(first, ma
         load_mesh(p)
 
 
+def test_ascii_ply_row_without_its_list_count_names_the_list_property(tmp_path):
+    """assimp's issue623.ply declares its faces' list inside the vertex element; each vertex
+    line holds the 6 numbers before it. The message said "no list count" without naming the
+    list, so the header's slip did not show."""
+    head = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nproperty list uchar uint vertex_indices\nend_header\n")
+    with pytest.raises(errors.UnreadableMeshError, match=re.escape(
+            "line 9: vertex 0 has 3 values, no count for its list property 'vertex_indices' "
+            "(property 4 of the header's vertex element, line 3)")):
+        load_mesh(_write(tmp_path, "v.ply", head + "0 0 0\n1 0 0\n0 1 0\n"))
+
+
 def test_ascii_ply_with_mixed_polygons_and_extra_properties_still_loads(tmp_path):
     p = _write(tmp_path, "q.ply", _ascii_ply("4 0 1 4 2\n3 0 1 3\n3 1 2 3\n"))
     assert load_mesh(p, weld=False).num_faces == 4
