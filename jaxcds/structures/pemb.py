@@ -74,7 +74,7 @@ from jaxcds.mesh import load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, _jit_when_eager, by_table, id_arg, shared_subexpression
 from jaxcds.structures.succinct import BalancedParens, BitVector
 from jaxcds.structures.succinct.bitvector import bits_array
-from jaxcds.structures.succinct.bp import unbalanced_at
+from jaxcds.structures.succinct.bp import _unbalanced_at
 
 __all__ = ["PEMB", "encode_rotation_system", "rotation_system_from_faces", "from_mesh"]
 
@@ -463,7 +463,7 @@ class PEMB(MeshStructure):
         n = b.size // 2 + 1
         f_total = bs.size // 2 + 1
         for name, seq in (("B", b), ("B*", bs)):
-            k = unbalanced_at(seq)
+            k = _unbalanced_at(seq)  # parse checked the bits
             if k is not None:
                 raise errors.EncodingError(f"pemb: {name} is unbalanced at offset {k}")
         holes = (np.zeros(0, np.int32) if holes is None

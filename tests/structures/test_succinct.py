@@ -294,3 +294,48 @@ def test_succinct_chunk_must_be_a_positive_integer(chunk, monkeypatch):
     with pytest.raises(errors.ArgumentError, match="chunk must be None or a positive integer"):
         P.match_all(chunk=chunk)
     assert BitVector.from_bits([1, 0, 1]).size == 3 and P.size == b.size
+
+
+@pytest.mark.parametrize("bits", [[0, 2, 1, 0], [1, 0.5, 0, 0], [1, -1], None, "0110", "(())",
+                                  np.ones((2, 2), np.uint8), 1, [1, None, 0, 0], [[1, 0], [1]]])
+def test_succinct_host_helpers_refuse_non_bits(bits):
+    """Sweep 51b: ``pack_bits``, ``unbalanced_at`` and ``excess_oracle`` cast their sequence
+    (2, -1 and 0.5 read as one bit or the other, a 2-D array flattened, a lone 1 read as one
+    bit, the string '0110' packed as four ones) or raised Python's TypeError / ValueError on
+    ``None``, strings and ragged lists; now EncodingError naming the helper, as the builders."""
+    from jaxcds.structures.succinct import pack_bits
+    from jaxcds.structures.succinct.bp import unbalanced_at
+
+    for name, helper in (("pack_bits", pack_bits), ("unbalanced_at", unbalanced_at),
+                         ("excess_oracle", excess_oracle)):
+        with pytest.raises(errors.EncodingError, match=f"{name}: bits"):
+            helper(bits)
+
+
+def test_succinct_host_helpers_on_bits():
+    from jaxcds.structures.succinct import pack_bits
+    from jaxcds.structures.succinct.bp import unbalanced_at
+
+    assert pack_bits([1, 0, 1, 1]).tolist()[:2] == [13, 0] and pack_bits([]).size == 16
+    assert pack_bits(np.array([True] * 257)).tolist()[:9] == [2**32 - 1] * 8 + [1]
+    assert [unbalanced_at(b) for b in ([], [1, 0], [0, 1], [1, 1, 0], np.array([True, False]))] == \
+        [None, None, 0, 3, None]
+    assert excess_oracle([1, 1, 0]).tolist() == [0, 1, 2, 1]
+
+
+@pytest.mark.parametrize("args, message", [
+    ((np.ones((2, 2), bool),), r"is_open must be a 1-D bool array, got dtype bool shape \(2, 2\)"),
+    ((np.bool_(True),), r"is_open must be a 1-D bool array, got dtype bool shape \(\)"),
+    ((np.array([1, 0]),), r"is_open must be a 1-D bool array, got dtype int"),
+    ((np.array([True, False]), np.array([True])), r"member has shape \(1,\), is_open \(2,\)"),
+    ((np.array([True, False]), np.array([1, 1])), r"member must be a 1-D bool array, got dtype int"),
+    (([None],), r"is_open must be a 1-D bool array"),
+])
+def test_matches_by_level_checks_its_arrays(args, message):
+    """Sweep 51b: a list raised AttributeError, a 2-D or 0-d array JAX's shape errors, integer
+    flags were read by truth value and a ``member`` of another length was broadcast."""
+    with pytest.raises(errors.ArgumentError, match="matches_by_level: " + message):
+        by_level(*args)
+    got = by_level(jnp.array([True, True, False, False]), jnp.ones(4, bool))
+    assert np.asarray(got).tolist() == [3, 2, 1, 0]
+    assert np.asarray(by_level([True, False])).tolist() == [1, 0]  # a list of flags is taken

@@ -184,8 +184,17 @@ def _select_samples(b, sample, block_bits):
 def pack_bits(bits) -> np.ndarray:
     """Host: a 0/1 sequence -> ``uint32`` words (bit ``i`` = bit ``i % 32`` of word ``i // 32``),
     padded with zero words to whole blocks plus one spare block (so gathers of a block that
-    starts at ``size`` stay in range)."""
-    b = np.asarray(bits).astype(bool).ravel()
+    starts at ``size`` stay in range).
+
+    Raises:
+      EncodingError: ``bits`` is not one sequence of 0/1 values (:func:`bits_array`: a cast to
+        bool read 2, 0.5 and the strings ``'0'`` and ``'1'`` as 1, ``None`` as one 0 bit, and a
+        2-D array was flattened)."""
+    return _pack_bits(bits_array(bits, "pack_bits: bits"))
+
+
+def _pack_bits(b: np.ndarray) -> np.ndarray:
+    """:func:`pack_bits` of a 1-D 0/1 array already checked (:func:`bits_array`)."""
     nblocks = b.size // BLOCK_BITS + 1
     padded = np.zeros(nblocks * BLOCK_BITS + BLOCK_BITS, dtype=bool)
     padded[: b.size] = b
@@ -246,7 +255,7 @@ class BitVector:
                     f"bit string has {bits[bad[0]]!r} at offset {bad[0]}, expected '0' or '1'")
             bits = np.frombuffer(bits.encode(), dtype=np.uint8) - ord("0")
         b = bits_array(bits, "BitVector.from_bits: bits")
-        words = pack_bits(b)
+        words = _pack_bits(b)
         nblocks = words.size // BLOCK_WORDS
         counts = np.bitwise_count(words).reshape(nblocks, BLOCK_WORDS).sum(axis=1)
         block_rank = np.concatenate([[0], np.cumsum(counts)])[: nblocks].astype(np.int32)

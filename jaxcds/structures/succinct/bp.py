@@ -87,7 +87,13 @@ def matches_by_level(is_open, member=None) -> jnp.ndarray:
     ``member``: ``(k,)`` bool, the positions that form the balanced sequence (a concatenation of
     balanced blocks, as a packed pemb's chunk window holds); the others are left out of the
     levels and sorted last, and their entries are unspecified."""
+    is_open = _bool_vector(is_open, "matches_by_level: is_open")
     k = is_open.shape[0]
+    if member is not None:
+        member = _bool_vector(member, "matches_by_level: member")
+        if member.shape != is_open.shape:
+            raise errors.ArgumentError(f"matches_by_level: member has shape {member.shape}, "
+                                       f"is_open {is_open.shape} (one flag per parenthesis)")
     i32 = jnp.int32
     step = jnp.where(is_open, 1, -1).astype(i32)
     if member is not None:
@@ -106,6 +112,21 @@ def matches_by_level(is_open, member=None) -> jnp.ndarray:
     return out.at[a].set(b, mode="drop").at[b].set(a, mode="drop")
 
 
+def _bool_vector(x, what: str):
+    """``x`` as a 1-D bool array (numpy, jax or a tracer), else
+    :class:`~jaxcds.errors.ArgumentError` naming ``what`` (a list raised AttributeError, a 2-D
+    or 0-d array JAX's shape errors, and 0/1 integers or floats were read by truth value)."""
+    try:
+        x = jnp.asarray(x)
+    except (TypeError, ValueError) as exc:
+        raise errors.ArgumentError(f"{what} must be a 1-D bool array, got {type(x).__name__} "
+                                   f"({exc})") from None
+    if x.ndim != 1 or x.dtype != jnp.bool_:
+        raise errors.ArgumentError(f"{what} must be a 1-D bool array, got dtype {x.dtype} shape "
+                                   f"{x.shape}")
+    return x
+
+
 def _chunk_min_table() -> np.ndarray:
     """``CHUNK_MIN[c]`` = min over ``q = 1..16`` of the excess of the first ``q`` bits of the
     16-bit chunk ``c`` (least significant bit first)."""
@@ -120,8 +141,9 @@ _CHUNKS = BLOCK_BITS // 16
 
 
 def excess_oracle(bits) -> np.ndarray:
-    """Host reference: ``E(p)`` for ``p = 0..n`` (length ``n + 1``)."""
-    b = np.asarray(bits, dtype=np.int64)
+    """Host reference: ``E(p)`` for ``p = 0..n`` (length ``n + 1``) of the 0/1 sequence ``bits``
+    (1 = ``(``); anything else is :class:`~jaxcds.errors.EncodingError` (:func:`bits_array`)."""
+    b = bits_array(bits, "excess_oracle: bits").astype(np.int64)
     return np.concatenate([[0], np.cumsum(2 * b - 1)])
 
 
@@ -147,8 +169,17 @@ def _block_minima(b, nb, block_bits):
 def unbalanced_at(bits) -> Optional[int]:
     """Host: ``None`` if the 0/1 sequence ``bits`` (1 = ``(``) is balanced, else the offset of
     its first ``)`` that closes nothing, or its length when ``(`` are left open (one numba pass,
-    no array per symbol)."""
-    b = np.asarray(bits).astype(np.uint8).ravel()
+    no array per symbol).
+
+    Raises:
+      EncodingError: ``bits`` is not one sequence of 0/1 values (:func:`bits_array`: a cast
+        read 0.5 as ``)`` and 2 as ``(``, flattened a 2-D array, took a lone 0 as a one-symbol
+        sequence; ``None`` or a string raised Python's TypeError / ValueError)."""
+    return _unbalanced_at(bits_array(bits, "unbalanced_at: bits").astype(np.uint8))
+
+
+def _unbalanced_at(b: np.ndarray) -> Optional[int]:
+    """:func:`unbalanced_at` of a 1-D uint8 0/1 array already checked (:func:`bits_array`)."""
     _, first_negative, final = _block_minima(b, -(-b.size // BLOCK_BITS), BLOCK_BITS)
     if first_negative >= 0:
         return int(first_negative)
