@@ -487,8 +487,9 @@ class PEMB(MeshStructure):
             if not seen.all():
                 raise errors.EncodingError(f"pemb: order is not a permutation of the {n} vertices "
                                            f"(vertex {int(np.argmin(seen))} is missing)")
-        P = BalancedParens.from_bits(np.concatenate([b, bs]), check=False)  # both checked above
-        return cls(A=BitVector.from_bits(a), P=P, holes=to_device(holes, copy=True), order=to_device(order, copy=True),
+        # parse checked the bits, and B and B* are balanced (above): no second scan of either
+        P = BalancedParens._from_valid_bits(np.concatenate([b, bs]), check=False)
+        return cls(A=BitVector._from_valid_bits(a), P=P, holes=to_device(holes, copy=True), order=to_device(order, copy=True),
                    num_vertices=int(n), num_faces=int(num_faces), num_edges=m2 // 2,
                    num_tree_parens=int(b.size), root_border=holes.tolist() == [0])
 

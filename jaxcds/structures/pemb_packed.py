@@ -383,12 +383,12 @@ def concatenate_pemb(cls, parts: Sequence) -> PackedPEMB:
     a = np.concatenate([x for x, _ in bits])
     pb = [x for _, x in bits]
     seq = np.concatenate([b[:t] for b, t in zip(pb, ntp)] + [b[t:] for b, t in zip(pb, ntp)])
-    P = BalancedParens.from_bits(seq, check=False)  # balanced blocks: balanced
+    P = BalancedParens._from_valid_bits(seq, check=False)  # the parts' bits: balanced blocks
     holes = np.concatenate([np.asarray(p.holes, np.int64) + o for p, o in zip(parts, pfoff)])
     order = np.concatenate([np.asarray(p.order, np.int64) + o for p, o in zip(parts, voff)])
     i32 = lambda x: to_device(np.asarray(x).astype(np.int32))  # noqa: E731
     s = PackedPEMB(
-        A=BitVector.from_bits(a), P=P, holes=i32(holes), order=i32(order),
+        A=BitVector._from_valid_bits(a), P=P, holes=i32(holes), order=i32(order),
         num_vertices=int(nv.sum()), num_faces=int(nf.sum()), num_edges=int(nd.sum()) // 2,
         num_tree_parens=int(ntp.sum()), root_border=all(p.root_border for p in parts),
         mesh_dart_offsets=i32(doff), mesh_vertex_offsets=i32(voff), mesh_face_offsets=i32(foff),

@@ -308,3 +308,24 @@ def test_encode_rotation_system_checks_its_arrays():
         "ArgumentError encode_rotation_system: start must be a dart id in [0, 240), got 10000000",
         "ArgumentError encode_rotation_system: ccw is not a permutation of the darts around their "
         "origins (at dart 0)"], lines
+
+
+def test_pemb_build_scans_each_sequence_once(monkeypatch):
+    """Sweep 51b: ``PEMB.from_bits`` checked A, B and B* for values other than 0/1
+    (``bits_array``, O(bits)), then ``BalancedParens.from_bits`` checked ``B B*`` again and
+    ``BitVector.from_bits`` A and ``B B*`` a third time; the layers below now take the checked
+    arrays (``_from_valid_bits``), the public builders still check."""
+    from jaxcds.structures.succinct import bitvector as bv_mod
+    from jaxcds.structures.succinct import bp as bp_mod
+    import jaxcds.structures.pemb as pemb_mod
+
+    calls = []
+    for mod in (bv_mod, bp_mod, pemb_mod):
+        real = mod.bits_array
+        monkeypatch.setattr(mod, "bits_array", lambda x, what, real=real: calls.append(what) or real(x, what))
+    s = PEMB.from_faces(np.array([[0, 1, 2], [0, 2, 3]], np.int32), 4)
+    assert calls == ["pemb: the bits of A", "pemb: the bits of B", "pemb: the bits of B*"], calls
+    assert s.num_faces == 2 and s.A.size == 10 and s.P.size == 10
+    with pytest.raises(errors.EncodingError, match="BalancedParens.from_bits: bits hold 2"):
+        from jaxcds.structures.succinct import BalancedParens
+        BalancedParens.from_bits([1, 2])

@@ -83,3 +83,19 @@ def test_concatenate_of_pembs_with_tables_says_so():
     u = B.concatenate([q, q]).structure
     with pytest.raises(errors.UnsupportedTopologyError, match="a packed batch cannot be packed again"):
         B.concatenate([u, u])
+
+
+def test_concatenate_does_not_rescan_the_parts_bits(monkeypatch):
+    """Sweep 51b: the union's A and ``B B*`` (the parts' own bits) were checked for values other
+    than 0/1 again (``bits_array`` in ``BitVector.from_bits`` / ``BalancedParens.from_bits``)."""
+    import jaxcds.batch as B
+    from jaxcds.structures.succinct import bitvector as bv_mod
+    from jaxcds.structures.succinct import bp as bp_mod
+
+    q = PEMB.from_faces(np.array([[0, 1, 2]]), 3)
+    calls = []
+    for mod in (bv_mod, bp_mod):
+        real = mod.bits_array
+        monkeypatch.setattr(mod, "bits_array", lambda x, what, real=real: calls.append(what) or real(x, what))
+    u = B.concatenate([q, q, q]).structure
+    assert calls == [] and u.A.size == 18 and u.P.size == 18

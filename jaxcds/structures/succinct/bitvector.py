@@ -254,7 +254,14 @@ class BitVector:
                 raise errors.EncodingError(
                     f"bit string has {bits[bad[0]]!r} at offset {bad[0]}, expected '0' or '1'")
             bits = np.frombuffer(bits.encode(), dtype=np.uint8) - ord("0")
-        b = bits_array(bits, "BitVector.from_bits: bits")
+        return cls._from_valid_bits(bits_array(bits, "BitVector.from_bits: bits"))
+
+    @classmethod
+    def _from_valid_bits(cls, b: np.ndarray) -> "BitVector":
+        """:meth:`from_bits` of a 1-D 0/1 array (bool or integers) already checked
+        (:func:`bits_array`, or made by the library): no scan for values other than 0 and 1
+        (the builders check each sequence once, not once per layer)."""
+        b = np.asarray(b).astype(bool, copy=False)  # the select kernel's one specialization
         words = _pack_bits(b)
         nblocks = words.size // BLOCK_WORDS
         counts = np.bitwise_count(words).reshape(nblocks, BLOCK_WORDS).sum(axis=1)

@@ -218,8 +218,15 @@ class BalancedParens:
                 raise errors.EncodingError(f"parenthesis string has {bits[bad[0]]!r} at offset {bad[0]}")
             bits = np.array([table[c] for c in bits], dtype=np.uint8)
         check = flag_arg(check, "BalancedParens.from_bits: check")
-        b = bits_array(bits, "BalancedParens.from_bits: bits").astype(np.uint8)
-        bv = BitVector.from_bits(b)
+        return cls._from_valid_bits(bits_array(bits, "BalancedParens.from_bits: bits"), check=check)
+
+    @classmethod
+    def _from_valid_bits(cls, b: np.ndarray, *, check: bool) -> "BalancedParens":
+        """:meth:`from_bits` of a 1-D 0/1 array already checked (:func:`bits_array`, or made by
+        the library; ``check``, a bool: the balance test): no second scan for values other
+        than 0 and 1."""
+        b = np.asarray(b).astype(np.uint8, copy=False)
+        bv = BitVector._from_valid_bits(b)
         nb = bv.num_blocks
         # one pass, O(blocks) memory: the excess of every prefix as an int64 array (and its
         # cumsum temporaries) took about 5 GB at 165M parentheses (a 10,000-mesh pemb batch)
