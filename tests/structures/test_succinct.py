@@ -339,3 +339,40 @@ def test_matches_by_level_checks_its_arrays(args, message):
     got = by_level(jnp.array([True, True, False, False]), jnp.ones(4, bool))
     assert np.asarray(got).tolist() == [3, 2, 1, 0]
     assert np.asarray(by_level([True, False])).tolist() == [1, 0]  # a list of flags is taken
+
+
+def test_succinct_query_arguments_besides_ids_are_checked():
+    """Sweep 51b: ``bit`` of ``rank`` / ``select`` / ``select_near``, the targets ``t`` of ``fwd`` /
+    ``bwd`` and the masks ``active`` / ``opens`` went to ``jnp.asarray`` as they were: a string or
+    None raised JAX's TypeError / ValueError, 0.5 read as bit 1 or target 0, 2 and -1 as bit 1,
+    a target past int32 raised Python's OverflowError, a mask of another shape JAX's broadcast
+    error; ``closes_of`` of a 0-d position raised IndexError. Now typed errors naming the query;
+    bits broadcast against the ranks (a list of bits for one rank), closes_of takes any shape."""
+    bv = BitVector.from_bits([1, 0, 1, 1, 0])
+    P = BalancedParens.from_bits("(()(()))")
+    for bad, msg in ((2, "must be 0 or 1, got 2"), (-1, "must be 0 or 1, got -1"),
+                     (0.5, "must be 0/1 integers or booleans"), ("1", "must be 0/1 integers"),
+                     (None, "must be 0/1 integers"), ([[1], [0, 1]], "are not an array")):
+        for name, call in (("rank", lambda: bv.rank(1, bad)), ("select", lambda: bv.select(1, bad)),
+                           ("select_near", lambda: bv.select_near(1, bad, 0, 0))):
+            with pytest.raises(errors.InvalidIndexError, match=f"BitVector.{name}: bit {msg}"):
+                call()
+    for bad in (0.5, "1", None, True):
+        for name in ("fwd", "bwd"):
+            with pytest.raises(errors.InvalidIndexError, match=f"BalancedParens.{name}: targets must be integers"):
+                getattr(P, name)(1, bad)
+    with pytest.raises(errors.ArgumentError, match=r"BalancedParens.fwd: shapes \(2,\), \(3,\) do not broadcast"):
+        P.fwd([1, 2], [0, 0, 0])
+    with pytest.raises(errors.ArgumentError, match=r"BitVector.select: shapes \(2,\), \(3,\)"):
+        bv.select([1, 2], [0, 1, 1])
+    for name, call in (("BalancedParens.match: active", lambda: P.match([0, 1], active=np.ones((3, 3), bool))),
+                       ("BalancedParens.closes_of: opens", lambda: P.closes_of(np.array([0, 1]), np.ones(3, bool))),
+                       ("BitVector.select_near: active", lambda: bv.select_near([0, 1], 1, 0, 0, active=[1, 0, 1]))):
+        with pytest.raises(errors.ArgumentError, match=rf"{name} has shape \([\d, ]+\), which does not broadcast"):
+            call()
+    # the valid forms answer as before
+    assert np.asarray(bv.select(1, [0, 1, 1])).tolist() == [4, 2, 2]
+    assert int(bv.rank(5, np.bool_(True))) == 3 and int(bv.select(0, 0)) == 1
+    assert int(P.fwd(1, 2**40)) == 1 and int(P.bwd(8, -2**40)) == P.size
+    assert int(P.closes_of(np.int32(3), True)) == 6
+    assert np.asarray(P.closes_of(np.array([[0, 1], [3, 4]]), True)).tolist() == [[7, 2], [6, 5]]

@@ -98,6 +98,59 @@ def _compact_indices(mask, size: int):
     return idx, jnp.sum(cnt, dtype=jnp.int32)
 
 
+def bit_arg(bit, what: str) -> jnp.ndarray:
+    """``bit`` (which bit a query counts, per query: 0/1 integers or booleans) as a bool array,
+    or :class:`~jaxcds.errors.InvalidIndexError` naming ``what``: floats (0.5 read as 1),
+    strings and ``None`` (JAX's TypeError / ValueError), and host values other than 0 and 1
+    (2 and -1 read as 1; traced values cannot be looked at: nonzero is 1)."""
+    if isinstance(bit, jax.Array):
+        if bit.dtype != jnp.bool_ and not jnp.issubdtype(bit.dtype, jnp.integer):
+            raise errors.InvalidIndexError(f"{what} must be 0/1 integers or booleans, got dtype {bit.dtype}")
+        return bit != 0
+    try:
+        a = np.asarray(bit)
+    except ValueError as exc:  # ragged nested lists
+        raise errors.InvalidIndexError(f"{what} are not an array: {exc}") from None
+    if isinstance(bit, np.ma.MaskedArray) or (a.size and a.dtype.kind not in "biu"):
+        raise errors.InvalidIndexError(f"{what} must be 0/1 integers or booleans, got "
+                                       f"{type(bit).__name__} of dtype {a.dtype}")
+    bad = (a != 0) & (a != 1)
+    if bad.any():
+        raise errors.InvalidIndexError(f"{what} must be 0 or 1, got {a.ravel()[np.argmax(bad.ravel())].item()!r}")
+    return jnp.asarray(a.astype(bool))
+
+
+def broadcast_args(what: str, *xs):
+    """The common shape of the arrays ``xs`` (:func:`jnp.broadcast_shapes`), or
+    :class:`~jaxcds.errors.ArgumentError` naming ``what`` and the shapes (JAX's ValueError)."""
+    shapes = tuple(jnp.shape(x) for x in xs)
+    try:
+        return jnp.broadcast_shapes(*shapes)
+    except ValueError:
+        raise errors.ArgumentError(f"{what}: shapes {', '.join(map(str, shapes))} do not "
+                                   "broadcast to one shape") from None
+
+
+def mask_arg(x, shape, what: str) -> jnp.ndarray:
+    """A per-query mask (``active``, ``opens``) as a bool array of ``shape`` (flags read by truth
+    value), or :class:`~jaxcds.errors.ArgumentError` naming ``what`` for a shape that does not
+    broadcast to it, or no array of flags (JAX's TypeError / ValueError)."""
+    try:
+        m = jnp.asarray(x, bool)
+    except (TypeError, ValueError) as exc:
+        raise errors.ArgumentError(f"{what} must be an array of flags, got {type(x).__name__} "
+                                   f"({exc})") from None
+    shape = tuple(shape)
+    try:
+        fits = jnp.broadcast_shapes(m.shape, shape) == shape
+    except ValueError:
+        fits = False
+    if not fits:
+        raise errors.ArgumentError(f"{what} has shape {m.shape}, which does not broadcast to the "
+                                   f"queries' shape {shape}")
+    return jnp.broadcast_to(m, shape)
+
+
 def chunk_arg(chunk):
     """``chunk`` if ``None`` or a positive integer, else :class:`~jaxcds.errors.ArgumentError`."""
     from jaxcds._args import is_integer
@@ -350,8 +403,10 @@ class BitVector:
     def rank(self, i, bit) -> jnp.ndarray:
         """``rank1`` where ``bit`` is 1, ``rank0`` where it is 0 (elementwise)."""
         i = id_arg(i, "BitVector.rank: positions")
+        one = bit_arg(bit, "BitVector.rank: bit")
+        broadcast_args("BitVector.rank", i, one)
         r1 = self.rank1(i)
-        return jnp.where(jnp.asarray(bit) != 0, r1, i - r1)
+        return jnp.where(one, r1, i - r1)
 
     def select(self, k, bit) -> jnp.ndarray:
         """Position of the ``k``-th (0-based) ``bit`` (elementwise 0/1). Out of range -> ``size``.
@@ -360,7 +415,9 @@ class BitVector:
         blocks of the samples ``k // 512`` and ``k // 512 + 1`` (``select_steps`` halvings, fixed
         at construction), then the word and the bit inside it."""
         k = id_arg(k, "BitVector.select: ranks")
-        one = jnp.broadcast_to(jnp.asarray(bit) != 0, k.shape)
+        one = bit_arg(bit, "BitVector.select: bit")
+        shape = broadcast_args("BitVector.select", k, one)
+        k, one = jnp.broadcast_to(k, shape), jnp.broadcast_to(one, shape)
         total = jnp.where(one, self.ones, self.zeros)
         nb = self.num_blocks
 
@@ -428,9 +485,10 @@ class BitVector:
         k = id_arg(k, "BitVector.select_near: ranks")
         i = id_arg(i, "BitVector.select_near: positions")
         r = id_arg(r, "BitVector.select_near: ranks of the positions")
-        shape = jnp.broadcast_shapes(k.shape, jnp.shape(bit), jnp.shape(i), jnp.shape(r))
+        one = bit_arg(bit, "BitVector.select_near: bit")
+        shape = broadcast_args("BitVector.select_near", k, one, i, r)
         k, i, r = (jnp.broadcast_to(jnp.asarray(x, jnp.int32), shape).reshape(-1) for x in (k, i, r))
-        one = jnp.broadcast_to(jnp.asarray(bit) != 0, shape).reshape(-1)
+        one = jnp.broadcast_to(one, shape).reshape(-1)
         nw = self.words.shape[0]
 
         def word(j):  # word j in the polarity of `bit`, bits at or past `size` cleared
@@ -458,7 +516,7 @@ class BitVector:
         pos = base + _select_in_word(w, jnp.clip(q, 0, 31))
         found = (in1 | in2) & (k >= 0)
         if active is not None:
-            found = found | ~jnp.broadcast_to(jnp.asarray(active, bool), shape).reshape(-1)
+            found = found | ~mask_arg(active, shape, "BitVector.select_near: active").reshape(-1)
         out = compacted(lambda k, o: self.select(k, o), ~found, pos.astype(jnp.int32), (k, one),
                         chunk)
         return out.reshape(shape)

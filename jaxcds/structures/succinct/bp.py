@@ -49,10 +49,10 @@ from jaxcds import errors
 from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
-from jaxcds.structures.base import id_arg
+from jaxcds.structures.base import id_arg, integer_array
 from jaxcds.structures.succinct.bitvector import (BLOCK_BITS, BLOCK_WORDS, COMPACT_CHUNK, UNROLL_FROM,
-                                                  BitVector, _low_mask, bits_array, chunk_arg,
-                                                  compacted, popcount)
+                                                  BitVector, _low_mask, bits_array, broadcast_args,
+                                                  chunk_arg, compacted, mask_arg, popcount)
 
 __all__ = ["BalancedParens", "excess_oracle", "unbalanced_at", "matches_by_level", "CHUNK_MIN",
            "COMPACT_CHUNK", "MATCH_BY_SORT"]
@@ -125,6 +125,22 @@ def _bool_vector(x, what: str):
         raise errors.ArgumentError(f"{what} must be a 1-D bool array, got dtype {x.dtype} shape "
                                    f"{x.shape}")
     return x
+
+
+def _level_arg(t, what: str) -> jnp.ndarray:
+    """An excess target of :meth:`BalancedParens.fwd` / ``bwd`` (any integer, negative too) as
+    int32, or :class:`~jaxcds.errors.InvalidIndexError` naming ``what``: floats (0.5 read as 0),
+    booleans, strings and ``None`` (JAX's TypeError / ValueError); host integers past int32
+    are clamped to it (no excess lies beyond: the same answers), not Python's OverflowError."""
+    if isinstance(t, jax.Array):
+        if not jnp.issubdtype(t.dtype, jnp.integer):
+            raise errors.InvalidIndexError(f"{what} must be integers, got dtype {t.dtype}")
+        return t.astype(jnp.int32)  # traced wider integers: the caller's values
+    a = integer_array(t, what)
+    if a.dtype.kind == "u":
+        a = np.minimum(a, np.iinfo(np.int32).max)
+    info = np.iinfo(np.int32)
+    return jnp.asarray(np.clip(a, info.min, info.max).astype(np.int32))
 
 
 def _chunk_min_table() -> np.ndarray:
@@ -458,7 +474,7 @@ class BalancedParens:
         fw = jnp.broadcast_to(jnp.asarray(fw, bool), shape).reshape(-1)
         found, res = self._near(i, d, fw)
         if active is not None:
-            found = found | ~jnp.broadcast_to(jnp.asarray(active, bool), shape).reshape(-1)
+            found = found | ~mask_arg(active, shape, "BalancedParens.match: active").reshape(-1)
         out = compacted(slow, ~found, res, (i, d, fw), chunk)
         return out.reshape(shape)
 
@@ -498,12 +514,16 @@ class BalancedParens:
 
     def fwd(self, i, t) -> jnp.ndarray:
         """First bit ``k >= i`` with ``E(k + 1) <= t``; ``size`` if none."""
-        return self._search(id_arg(i, "BalancedParens.fwd: positions"), t, True)
+        i = id_arg(i, "BalancedParens.fwd: positions")
+        t = _level_arg(t, "BalancedParens.fwd: targets")
+        broadcast_args("BalancedParens.fwd", i, t)
+        return self._search(i, t, True)
 
     def bwd(self, p, t) -> jnp.ndarray:
         """Last prefix position ``q <= p`` with ``E(q) <= t``; ``size`` if none."""
         p = id_arg(p, "BalancedParens.bwd: positions")
-        t = jnp.asarray(t, jnp.int32)
+        t = _level_arg(t, "BalancedParens.bwd: targets")
+        broadcast_args("BalancedParens.bwd", p, t)
         r = self._search(p, t, False)
         r = jnp.where(r == self.size, jnp.where(t >= 0, 0, self.size), r)  # E(0) = 0
         return jnp.where(self.excess(p) <= t, p, r).astype(jnp.int32)
@@ -549,15 +569,17 @@ class BalancedParens:
         return close.at[jnp.where(op, close, n)].set(i, mode="drop")
 
     def closes_of(self, i, opens, *, chunk: Optional[int] = None) -> jnp.ndarray:
-        """``(k,)`` int32: the ``)`` matching the ``(`` at each position ``i`` (1-D) where
-        ``opens``; other lanes unspecified and spared the slow route. The forward half of
-        :meth:`match`'s two stages (``fw`` a constant): :meth:`_near`, then the min-max tree
-        for the misses only (compacted, :func:`compacted`)."""
+        """int32, the shape of ``i``: the ``)`` matching the ``(`` at each position ``i`` where
+        ``opens`` (flags broadcast to ``i``); other lanes unspecified and spared the slow route.
+        The forward half of :meth:`match`'s two stages (``fw`` a constant): :meth:`_near`, then
+        the min-max tree for the misses only (compacted, :func:`compacted`)."""
         i = id_arg(i, "BalancedParens.closes_of: positions")
-        opens = jnp.asarray(opens, bool)
+        shape = i.shape
+        opens = mask_arg(opens, shape, "BalancedParens.closes_of: opens").reshape(-1)
+        i = i.reshape(-1)
         found, near = self._near(i, jnp.zeros_like(i), True)
         return compacted(lambda i: self._search(i, self.excess(i), True), opens & ~found, near,
-                         (i,), chunk)
+                         (i,), chunk).reshape(shape)
 
     def _match_slow(self, i, d, op):
         r = self._search(i, self.excess(i) + d, op)
