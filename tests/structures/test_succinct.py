@@ -297,7 +297,8 @@ def test_succinct_chunk_must_be_a_positive_integer(chunk, monkeypatch):
 
 
 @pytest.mark.parametrize("bits", [[0, 2, 1, 0], [1, 0.5, 0, 0], [1, -1], None, "0110", "(())",
-                                  np.ones((2, 2), np.uint8), 1, [1, None, 0, 0], [[1, 0], [1]]])
+                                  np.ones((2, 2), np.uint8), 1, [1, None, 0, 0], [[1, 0], [1]],
+                                  np.ma.masked_array([1, 2, 0, 0], mask=[0, 1, 0, 0])])
 def test_succinct_host_helpers_refuse_non_bits(bits):
     """Sweep 51b: ``pack_bits``, ``unbalanced_at`` and ``excess_oracle`` cast their sequence
     (2, -1 and 0.5 read as one bit or the other, a 2-D array flattened, a lone 1 read as one
@@ -310,6 +311,15 @@ def test_succinct_host_helpers_refuse_non_bits(bits):
                          ("excess_oracle", excess_oracle)):
         with pytest.raises(errors.EncodingError, match=f"{name}: bits"):
             helper(bits)
+
+
+def test_bit_builders_refuse_masked_bits():
+    """A masked array's mask was dropped: its masked entries read as bits (stop 51; ids already
+    refused them, ``id_arg``)."""
+    masked = np.ma.masked_array([1, 1, 0, 0], mask=[0, 1, 0, 0])
+    for build in (BitVector.from_bits, BalancedParens.from_bits):
+        with pytest.raises(errors.EncodingError, match="masked array"):
+            build(masked)
 
 
 def test_succinct_host_helpers_on_bits():

@@ -260,7 +260,12 @@ def bits_array(bits, what: str) -> np.ndarray:
     :class:`~jaxcds.errors.EncodingError` naming ``what`` and the first offset that holds
     anything but 0 or 1 (a cast to bool read 2, -1, 0.5 and NaN as 1, the strings ``'0'`` and
     ``'1'`` both as 1, and ``None`` as one 0 bit), or the shape of anything but one sequence (a
-    2-D array was flattened row by row, a lone 0 or 1 read as a one-bit sequence)."""
+    2-D array was flattened row by row, a lone 0 or 1 read as a one-bit sequence), or a numpy
+    masked array (its mask was dropped: the masked entries read as bits, as ``id_arg`` refuses
+    masked ids)."""
+    if isinstance(bits, np.ma.MaskedArray):
+        raise errors.EncodingError(f"{what} must be plain bits, got a masked array (its mask would "
+                                   "be dropped; fill it first: bits.filled(0))")
     try:
         a = np.asarray(bits)
     except ValueError as exc:  # ragged nested lists
