@@ -624,6 +624,49 @@ def _diagnose_ascii_stl(raw: bytes, path: str) -> None:
 # ---- OFF
 #: Geomview's OFF keyword, ``[ST][C][N][4][n]OFF``: 4 = homogeneous vertices, n = a dimension line
 _OFF_KEYWORD = re.compile(r"\s*((?:ST)?C?N?(4)?(n)?OFF)(?=\s|$)")
+_OFF_KEYWORD_WORD = re.compile(r"(?:ST)?C?N?4?n?OFF")
+
+
+#: the first word of a file that is a Geomview OOGL object other than a plain OFF
+_OOGL_WORDS = ("{", "=", "<", "appearance", "LIST", "GROUP", "INST", "DISCGRP", "BEZ", "BBP",
+               "SPHERE", "COMMENT", "CAMERA", "WINDOW")
+
+
+def _refuse_off_header(text: str, path: str) -> None:
+    """Refuse an OFF text whose first word is not an OFF keyword, naming its line: trimesh's
+    reader splits the text at the first ``OFF`` or ``COFF`` *anywhere* and reads from there, so a
+    Geomview OOGL file (``{ = OFF ...}``, ``appearance {...} STOFF``, a ``LIST``, ``GROUP`` or
+    ``DISCGRP`` holding an OFF object) loaded the one OFF object it found inside, without a word,
+    and a keyword out of Geomview's order (``NCOFF``, ``4COFF``) loaded as ``OFF``. Comments are
+    gone already (:func:`_prepare_off`)."""
+    m = re.match(r"\s*(\S+)", text)
+    if m is None or _OFF_KEYWORD_WORD.fullmatch(m.group(1)):
+        return
+    key = m.group(1)
+    where = f"{path}: line {len((text[:m.start(1)] + 'x').splitlines())}"
+    if key.upper() == "OFF":
+        raise errors.UnreadableMeshError(f"{where}: the header must be 'OFF' in capitals, got {key!r}")
+    if (key.startswith(_OOGL_WORDS) or key[:1] in "{}()"
+            or key.endswith(("MESH", "QUAD", "VECT", "SKEL", "TLIST"))):
+        inner = re.search(r"(?<![A-Za-z0-9])(?:ST)?C?N?4?n?OFF(?=\s|$)", text)
+        found = (f"; the first OFF object inside starts at line "
+                 f"{len((text[:inner.start()] + 'x').splitlines())} ({inner.group(0)!r}): save the "
+                 "object you want alone as an OFF file" if inner else "")
+        raise errors.UnreadableMeshError(
+            f"{where}: a Geomview OOGL file ({key[:40]!r}), not a plain OFF: an OFF file starts "
+            f"with its keyword ('OFF', 'COFF', 'NOFF', 'STOFF'...){found}")
+    if key.endswith("OFF"):
+        raise errors.UnreadableMeshError(
+            f"{where}: {key[:40]!r} is not an OFF keyword: Geomview's are [ST][C][N][4][n]OFF, "
+            "prefixes in that order (OFF, COFF, NOFF, CNOFF, STOFF, STCNOFF...)")
+    try:
+        _int(key)
+    except ValueError:
+        raise errors.UnreadableMeshError(
+            f"{where}: an OFF file starts with 'OFF', got {key[:40]!r}") from None
+    raise errors.UnreadableMeshError(
+        f"{where}: no OFF keyword: the file starts with the number {key[:40]!r} (Geomview lets "
+        "the keyword be left out; jaxcds needs it): add a first line 'OFF'")
 
 
 def _refuse_off_variant(text: str, path: str) -> None:
@@ -631,6 +674,7 @@ def _refuse_off_variant(text: str, path: str) -> None:
     dimension line, then vertices of that many coordinates), naming the header's line: trimesh
     read the first three numbers of each vertex line (``4OFF`` with w = 2: every point twice as
     far, without a word). Comments are gone already (:func:`_prepare_off`)."""
+    _refuse_off_header(text, path)
     m = _OFF_KEYWORD.match(text)
     if m is None or not (m.group(2) or m.group(3)):
         return

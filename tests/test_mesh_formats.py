@@ -248,6 +248,45 @@ def test_off_of_homogeneous_or_n_dimensional_vertices_is_refused(key, rows, what
         np.testing.assert_array_equal(m.vertices, np.asarray(_TET_V, float))
 
 
+_TET_OFF_BODY = ("4 4 0\n" + "".join(f"{x} {y} {z}\n" for x, y, z in _TET_V)
+                 + "".join(f"3 {a} {b} {c}\n" for a, b, c in _TET_F))
+
+
+@pytest.mark.parametrize("text,match", [
+    # Geomview's OOGL wrappers (geom/diamond, geom/textured/dodec.off, groups/*.dgp): the OFF
+    # object inside was read alone; a LIST of two OFF objects read as its first
+    ("{ = OFF\n" + _TET_OFF_BODY + "}\n", r"line 1: a Geomview OOGL file \('\{'\), not a plain "
+     r"OFF.*the first OFF object inside starts at line 1 \('OFF'\)"),
+    ("# textured\nappearance {\n  +texturing\n}\nSTOFF\n" + _TET_OFF_BODY.replace(" 0\n", " 0 0.5 0.5\n", 4),
+     r"line 2: a Geomview OOGL file \('appearance'\).*starts at line 5 \('STOFF'\)"),
+    ("LIST\n{ OFF\n" + _TET_OFF_BODY + "}\n{ OFF\n" + _TET_OFF_BODY + "}\n",
+     r"line 1: a Geomview OOGL file \('LIST'\).*starts at line 2 \('OFF'\)"),
+    ("DISCGRP\n(ngens 1)\n(camgeom { = OFF\n" + _TET_OFF_BODY + "})\n",
+     r"line 1: a Geomview OOGL file \('DISCGRP'\).*starts at line 3 \('OFF'\)"),
+    # keywords out of Geomview's [ST][C][N][4][n] order, read as OFF (4COFF: x y z w read x y z)
+    ("NCOFF\n" + _TET_OFF_BODY, r"line 1: 'NCOFF' is not an OFF keyword: Geomview's are "
+     r"\[ST\]\[C\]\[N\]\[4\]\[n\]OFF"),
+    ("4COFF\n" + _TET_OFF_BODY, r"line 1: '4COFF' is not an OFF keyword"),
+    ("XOFF\n" + _TET_OFF_BODY, r"line 1: 'XOFF' is not an OFF keyword"),
+    # no keyword (Geomview's pieces/cube1.off): refused as before, now saying what to add
+    ("# no keyword\n" + _TET_OFF_BODY, r"line 2: no OFF keyword: the file starts with the number "
+     r"'4'.*add a first line 'OFF'"),
+], ids=["braces", "appearance", "list", "discgrp", "NCOFF", "4COFF", "XOFF", "no-keyword"])
+def test_off_whose_first_word_is_not_an_off_keyword_is_refused(text, match, tmp_path):
+    """Sweep 51c (Geomview's geom files): trimesh's OFF reader splits the text at the first
+    'OFF' or 'COFF' anywhere, so an OOGL file that holds an OFF object (``{ = OFF ...}``,
+    ``appearance {...} STOFF``, a LIST, GROUP or DISCGRP) loaded that one object without a word
+    (a DISCGRP's 2-face camera read as the mesh, a LIST's first object as the whole), and a
+    keyword out of order loaded as OFF. Refused naming the line and where the OFF inside is;
+    the keywords in order still load."""
+    with pytest.raises(errors.UnreadableMeshError, match=match):
+        load_mesh(_write(tmp_path, "g.off", text))
+    for ok in ("OFF", "COFF", "NOFF", "CNOFF", "STOFF", "STCOFF", "STNOFF", "STCNOFF"):
+        m = load_mesh(_write(tmp_path, "ok.off", f"# c\n{ok}\n" + _TET_OFF_BODY))
+        np.testing.assert_array_equal(m.vertices, np.asarray(_TET_V, float))
+        np.testing.assert_array_equal(m.faces, np.asarray(_TET_F))
+
+
 @pytest.mark.parametrize("head", ["OFF\n4 3 0\n", "OFF 4 3 0\n"])
 def test_off_face_lines_past_the_declared_count_are_named(head, tmp_path):
     """Robustness sweep: a header declaring fewer faces than the file lists (3 of the tet's 4)
