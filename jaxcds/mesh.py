@@ -640,10 +640,18 @@ def _refuse_off_header(text: str, path: str) -> None:
     and a keyword out of Geomview's order (``NCOFF``, ``4COFF``) loaded as ``OFF``. Comments are
     gone already (:func:`_prepare_off`)."""
     m = re.match(r"\s*(\S+)", text)
-    if m is None or _OFF_KEYWORD_WORD.fullmatch(m.group(1)):
+    if m is None:
         return
     key = m.group(1)
     where = f"{path}: line {len((text[:m.start(1)] + 'x').splitlines())}"
+    if _OFF_KEYWORD_WORD.fullmatch(key):
+        if re.match(r"[ \t]+BINARY(?=\s|$)", text[m.end(1):]):
+            # after comment lines (the check on the file's first bytes missed it): the binary
+            # body was read as the counts line ("got BINARY")
+            raise errors.UnreadableMeshError(
+                f"{where}: an OFF BINARY file ({key} BINARY); jaxcds reads ASCII OFF only: "
+                "convert it to ASCII OFF, PLY or OBJ")
+        return
     if key.upper() == "OFF":
         raise errors.UnreadableMeshError(f"{where}: the header must be 'OFF' in capitals, got {key!r}")
     if (key.startswith(_OOGL_WORDS) or key[:1] in "{}()"

@@ -287,6 +287,18 @@ def test_off_whose_first_word_is_not_an_off_keyword_is_refused(text, match, tmp_
         np.testing.assert_array_equal(m.faces, np.asarray(_TET_F))
 
 
+@pytest.mark.parametrize("key", ["OFF", "NOFF", "STCOFF"])
+def test_off_binary_after_comment_lines_is_named(key, tmp_path):
+    """Sweep 51c: ``OFF BINARY`` was recognised on the file's first bytes only; after a comment
+    line its binary counts were read as the ASCII counts line ("must start with the numbers of
+    vertices and faces, got BINARY")."""
+    body = struct.pack(">3i", 4, 4, 0) + struct.pack(">12f", *np.ravel(_TET_V))
+    raw = f"# written by hand\n\n{key} BINARY\n".encode() + body
+    with pytest.raises(errors.UnreadableMeshError,
+                       match=rf"line 3: an OFF BINARY file \({key} BINARY\); jaxcds reads ASCII OFF only"):
+        load_mesh(_write(tmp_path, "b.off", raw))
+
+
 @pytest.mark.parametrize("head", ["OFF\n4 3 0\n", "OFF 4 3 0\n"])
 def test_off_face_lines_past_the_declared_count_are_named(head, tmp_path):
     """Robustness sweep: a header declaring fewer faces than the file lists (3 of the tet's 4)
