@@ -249,6 +249,16 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                 f"{path}: no faces: the file has no face ('f') line"
                 + (f", only {' and '.join([', '.join(held[:-1]), held[-1]] if held[:-1] else held)}"
                    if held else "") + "; jaxcds reads surfaces")
+        if suffix == ".stl" and len(raw) == 84 and raw[80:84] == bytes(4):
+            # a binary STL whose free-text header starts with "solid" (as an ASCII one does)
+            raise errors.EmptyMeshError(f"{path}: the binary STL header declares 0 triangles")
+        if suffix == ".stl" and not re.search(rb"(?i)\bfacet\b", raw):
+            # an ASCII STL of "solid" and "endsolid" only (OpenSCAD writes one for an empty
+            # model): no facet at all, not an unparsable file
+            line = raw[:raw.lower().find(b"solid")].count(b"\n") + 1
+            raise errors.EmptyMeshError(
+                f"{path}: line {line}: an ASCII STL ('solid') without any facet: no 'facet' line "
+                "follows; jaxcds reads surfaces")
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")

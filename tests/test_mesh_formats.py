@@ -287,6 +287,20 @@ def test_off_whose_first_word_is_not_an_off_keyword_is_refused(text, match, tmp_
         np.testing.assert_array_equal(m.faces, np.asarray(_TET_F))
 
 
+@pytest.mark.parametrize("text,line", [("solid OpenSCAD_Model\nendsolid OpenSCAD_Model\n\n", 1),
+                                       ("\n  solid empty\n  endsolid\n", 2), ("solid\n", 1)])
+def test_ascii_stl_without_facets_is_named(text, line, tmp_path):
+    """Sweep 51c (OpenSCAD's testdata/stl/empty2.stl, what OpenSCAD writes for an empty model):
+    an ASCII STL of 'solid' and 'endsolid' only was "no faces could be read (a point cloud, or an
+    empty or unparsable file)"; it is an STL without facets, said so naming its line."""
+    with pytest.raises(errors.EmptyMeshError,
+                       match=rf"line {line}: an ASCII STL \('solid'\) without any facet: no 'facet' line"):
+        load_mesh(_write(tmp_path, "e.stl", text))
+    binary = b"solid header of a binary STL".ljust(80) + bytes(4)  # 0 triangles
+    with pytest.raises(errors.EmptyMeshError, match="the binary STL header declares 0 triangles"):
+        load_mesh(_write(tmp_path, "b.stl", binary))
+
+
 @pytest.mark.parametrize("key", ["OFF", "NOFF", "STCOFF"])
 def test_off_binary_after_comment_lines_is_named(key, tmp_path):
     """Sweep 51c: ``OFF BINARY`` was recognised on the file's first bytes only; after a comment
