@@ -185,6 +185,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                         f"{path}: an OFF BINARY file (its header, byte 0); jaxcds reads ASCII OFF "
                         "only: convert it to ASCII OFF, PLY or OBJ")
                 text = _prepare_off(text)  # first: splitlines() breaks at \v and \f too
+                text = _unwrap_oogl(text)
                 _refuse_off_variant(text, path)
                 _check_off_counts(text, path)
                 if "_" in text:  # trimesh read "1_0" as 10 (Python's float): named by line
@@ -640,6 +641,42 @@ _OFF_KEYWORD_WORD = re.compile(r"(?:ST)?C?N?4?n?OFF")
 #: the first word of a file that is a Geomview OOGL object other than a plain OFF
 _OOGL_WORDS = ("{", "=", "<", "appearance", "LIST", "GROUP", "INST", "DISCGRP", "BEZ", "BBP",
                "SPHERE", "COMMENT", "CAMERA", "WINDOW")
+
+
+def _unwrap_oogl(text: str) -> str:
+    """``text`` without Geomview's wrapper of one OFF object, ``{ [=] [appearance {...}] [LIST]
+    OFF ... }`` (what the reference Polylla writes: ``{ appearance {+edge +face linewidth 2}
+    LIST``, its OFF, then ``}``) or a bare ``appearance {...}`` before the object (Geomview's
+    ``textured/dodec.off``): an appearance only says how to draw it. The wrapper is blanked in
+    place, so later messages keep the file's line numbers; any other text is returned unchanged
+    (:func:`_refuse_off_header` names what it is). Around several objects it is left as it is,
+    and refused there: reading one of them as the mesh is what trimesh did."""
+    head = re.match(r"\s*(\{\s*)?(?:=\s*)?", text)
+    braced = head.group(1) is not None
+    end = text.rstrip()
+    k = head.end()
+    if braced != end.endswith("}") or not (braced or text.startswith("appearance", k)):
+        return text
+    if text.startswith("appearance", k):
+        j = text.find("{", k)
+        if j < 0 or text[k + len("appearance"):j].strip():
+            return text
+        depth = 0
+        for j in range(j, len(end)):  # the appearance block's braces may nest
+            depth += {"{": 1, "}": -1}.get(text[j], 0)
+            if depth == 0:
+                break
+        k = j + 1
+    m = re.compile(r"\s*(?:LIST\s+)?(?=(?:ST)?C?N?4?n?OFF(?:\s|$))").match(text, k)
+    if m is None:
+        return text
+    body = end[:-1] if braced else end
+    inside = body[m.end():]
+    if ("{" in inside or "}" in inside
+            or len(re.findall(r"(?<![A-Za-z0-9])(?:ST)?C?N?4?n?OFF(?=\s|$)", inside)) != 1):
+        return text  # more than one object (an OFF's own data holds no brace nor keyword)
+    blank = lambda s: re.sub(r"[^\n]", " ", s)  # noqa: E731
+    return blank(text[:m.end()]) + inside + blank(text[len(body):])
 
 
 def _refuse_off_header(text: str, path: str) -> None:
