@@ -799,9 +799,19 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
         raise errors.UnreadableMeshError(f"{path}: the OFF header declares {nv} vertices and {nf} faces")
     if len(body) < nv + nf:
         have_f = max(len(body) - nv, 0)
+        # enough numbers for every vertex (3) and face (4 at least), on fewer lines: Geomview's
+        # free format (items across lines), which trimesh and jaxcds do not read; else cut short
+        flags = key.upper()[:-3]  # [ST][C][N]: texture, colour, normal columns per vertex
+        cols = 3 + 2 * flags.startswith("ST") + 3 * ("C" in flags) + 3 * ("N" in flags)
+        wide = any(len(tok) >= 2 * cols for _, tok in body[:nv]) or any(
+            len(tok) > 5 + int(tok[0]) for _, tok in body[nv:] if tok[0].isdigit())
+        packed = wide and sum(len(tok) for _, tok in body) >= cols * nv + 4 * nf
+        why = ("its lines hold numbers enough for them: several vertices or faces on one line? "
+               "jaxcds reads OFF with one vertex or face per line (Geomview's free format is "
+               "not read): put each on its own line" if packed else "truncated?")
         raise errors.UnreadableMeshError(
             f"{path}: the OFF header declares {nv} vertices and {nf} faces; the file has "
-            f"{min(len(body), nv)} vertex lines and {have_f} face lines (truncated?)")
+            f"{min(len(body), nv)} vertex lines and {have_f} face lines ({why})")
     if len(body) > nv + nf:  # trimesh read the declared faces and dropped the rest unsaid
         raise errors.UnreadableMeshError(
             f"{path}: line {body[nv + nf][0]}: data past the last face the OFF header declares "

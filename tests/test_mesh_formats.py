@@ -291,6 +291,21 @@ def test_off_whose_first_word_is_not_an_off_keyword_is_refused(text, match, tmp_
         np.testing.assert_array_equal(m.faces, np.asarray(_TET_F))
 
 
+@pytest.mark.parametrize("text,why", [
+    ("OFF\n4 4 0\n0 0 0 1 0 0\n0 1 0 0 0 1\n" + "".join(f"3 {a} {b} {c}\n" for a, b, c in _TET_F),
+     "several vertices or faces on one line"),
+    ("OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n", "truncated"),
+    ("COFF\n4 4 0\n" + "".join(f"{x} {y} {z} 1 0 0 1\n" for x, y, z in _TET_V) + "3 0 2 1\n3 0 1 3\n3 0 3 2\n",
+     "truncated"),
+], ids=["packed-vertices", "cut", "coloured-cut"])
+def test_off_with_too_few_lines_says_whether_items_share_lines(text, why, tmp_path):
+    """Geomview's free format puts several vertices on one line (sweep 51c); jaxcds reads one
+    item per line, and the refusal said "(truncated?)" (stop 51: it says which, from the numbers
+    the lines hold and the columns the keyword gives each vertex)."""
+    with pytest.raises(errors.UnreadableMeshError, match=rf"declares 4 vertices and 4 faces.*{why}"):
+        load_mesh(_write(tmp_path, "m.off", text))
+
+
 @pytest.mark.parametrize("head", ["{ appearance  {+edge +face linewidth 2} LIST\n",
                                   "{ = appearance { material { kd 1 } +edge }\n", "{\n", "{ LIST ",
                                   "appearance {\n  +texturing\n  texture { file grid.pgm.gz }\n}\n"])
