@@ -636,6 +636,8 @@ def _diagnose_ascii_stl(raw: bytes, path: str) -> None:
 #: Geomview's OFF keyword, ``[ST][C][N][4][n]OFF``: 4 = homogeneous vertices, n = a dimension line
 _OFF_KEYWORD = re.compile(r"\s*((?:ST)?C?N?(4)?(n)?OFF)(?=\s|$)")
 _OFF_KEYWORD_WORD = re.compile(r"(?:ST)?C?N?4?n?OFF")
+#: an OFF keyword as a word anywhere in an OOGL text (an OFF object inside a wrapper)
+_OFF_KEYWORD_INSIDE = re.compile(r"(?<![A-Za-z0-9])(?:ST)?C?N?4?n?OFF(?=\s|$)")
 
 
 #: the first word of a file that is a Geomview OOGL object other than a plain OFF
@@ -667,13 +669,11 @@ def _unwrap_oogl(text: str) -> str:
             if depth == 0:
                 break
         k = j + 1
-    m = re.compile(r"\s*(?:LIST\s+)?(?=(?:ST)?C?N?4?n?OFF(?:\s|$))").match(text, k)
-    if m is None:
-        return text
+    m = re.compile(r"\s*(?:LIST\s+)?").match(text, k)
     body = end[:-1] if braced else end
     inside = body[m.end():]
-    if ("{" in inside or "}" in inside
-            or len(re.findall(r"(?<![A-Za-z0-9])(?:ST)?C?N?4?n?OFF(?=\s|$)", inside)) != 1):
+    if (_OFF_KEYWORD_INSIDE.match(inside) is None or "{" in inside or "}" in inside
+            or len(_OFF_KEYWORD_INSIDE.findall(inside)) != 1):
         return text  # more than one object (an OFF's own data holds no brace nor keyword)
     blank = lambda s: re.sub(r"[^\n]", " ", s)  # noqa: E731
     return blank(text[:m.end()]) + inside + blank(text[len(body):])
@@ -703,7 +703,7 @@ def _refuse_off_header(text: str, path: str) -> None:
         raise errors.UnreadableMeshError(f"{where}: the header must be 'OFF' in capitals, got {key!r}")
     if (key.startswith(_OOGL_WORDS) or key[:1] in "{}()"
             or key.endswith(("MESH", "QUAD", "VECT", "SKEL", "TLIST"))):
-        inner = re.search(r"(?<![A-Za-z0-9])(?:ST)?C?N?4?n?OFF(?=\s|$)", text)
+        inner = _OFF_KEYWORD_INSIDE.search(text)
         found = (f"; the first OFF object inside starts at line "
                  f"{len((text[:inner.start()] + 'x').splitlines())} ({inner.group(0)!r}): save the "
                  "object you want alone as an OFF file" if inner else "")

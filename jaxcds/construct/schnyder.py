@@ -1006,7 +1006,7 @@ def check_schnyder_wood(wood: SchnyderWood, faces: Optional[np.ndarray] = None,
             probs.append(f"vertex {u}: ccw order {names} breaks the local Schnyder rule")
     if maximal and faces is not None:
         f = np.asarray(faces)
-        face_of, arcs, problem = _face_sides(wood, f)
+        root, arcs, problem = _face_sides(wood, f)
         if problem:  # the cw tests below would read a wood of other faces as clockwise everywhere
             return probs + [problem]
         def forward(a, b):  # edge a -> b oriented so in the wood
@@ -1015,20 +1015,21 @@ def check_schnyder_wood(wood: SchnyderWood, faces: Optional[np.ndarray] = None,
             if not forward(a, b) and not forward(b, c) and not forward(c, a):
                 probs.append(f"face {i} ({a}, {b}, {c}) is a clockwise oriented triangle")
         if not probs:
-            probs += _clockwise_cycle_problems(face_of[(wood.v_red, wood.v_black)], arcs, len(f))
+            probs += _clockwise_cycle_problems(root, arcs, len(f))
     return probs
 
 
 def _face_sides(wood: SchnyderWood, faces: np.ndarray):
-    """``(face_of, arcs, problem)``: the face holding each directed edge ccw, and ``(left face,
-    right face, u, v)`` of every wood edge ``u -> v``; ``problem`` names an edge of the wood
-    that is not an edge of ``faces`` with a face on each side, or a missing root face."""
+    """``(root, arcs, problem)``: the index of the root face ``(V_red, V_black, V_blue)`` (ccw),
+    and ``(left face, right face, u, v)`` of every wood edge ``u -> v``; ``problem`` names an
+    edge of the wood that is not an edge of ``faces`` with a face on each side, or a missing
+    root face."""
     face_of = {}
     for i, (a, b, c) in enumerate(faces.tolist()):
         face_of[(a, b)] = face_of[(b, c)] = face_of[(c, a)] = i
     root = face_of.get((wood.v_red, wood.v_black))  # the root face (V_red, V_black, V_blue), ccw
     if root is None or face_of.get((wood.v_black, wood.v_blue)) != root:
-        return face_of, [], (f"no face of the faces is the root face ({wood.v_red}, {wood.v_black}, "
+        return root, [], (f"no face of the faces is the root face ({wood.v_red}, {wood.v_black}, "
                              f"{wood.v_blue}) of the wood: not a wood of these faces")
     arcs = []
     for u in range(wood.num_vertices):
@@ -1036,10 +1037,10 @@ def _face_sides(wood: SchnyderWood, faces: np.ndarray):
             if v >= wood.num_vertices:
                 continue
             if (u, v) not in face_of or (v, u) not in face_of:
-                return face_of, [], (f"the wood's edge {u} -> {v} is not an edge with a face on each "
+                return root, [], (f"the wood's edge {u} -> {v} is not an edge with a face on each "
                                      "side in the faces: not a wood of these faces")
             arcs.append((face_of[(u, v)], face_of[(v, u)], u, v))
-    return face_of, arcs, ""
+    return root, arcs, ""
 
 
 def _clockwise_cycle_problems(root: int, arcs: list, num_faces: int) -> list[str]:
