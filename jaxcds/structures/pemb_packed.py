@@ -440,6 +440,13 @@ def _part_bits(i: int, p) -> tuple:
     if opens != (ntp // 2, (pb.size - ntp) // 2) or (pb.size - ntp) % 2:
         bad(f"B and B* hold {opens[0]} and {opens[1]} '(' in {ntp} and {pb.size - ntp} "
             "parentheses (half of each)")
+    for name, seq in (("B", pb[:ntp]), ("B*", pb[ntp:])):
+        # the union's P is built unchecked (check=False, below): an unbalanced part's searches
+        # ran past its own block into the next mesh's parentheses (another mesh's answers). Its
+        # '(' are half of it (above), so the first ')' that closes nothing is the offset named
+        k = _bp._unbalanced_at(seq)
+        if k is not None:
+            bad(f"{name} is unbalanced at offset {k}: ')' closes nothing")
     npf = (pb.size - ntp) // 2 + 1
     for name, ids, top in (("holes", p.holes, npf), ("order", p.order, p.num_vertices)):
         x = np.asarray(ids)

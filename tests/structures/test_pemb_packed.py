@@ -31,6 +31,14 @@ f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], 
 p = PEMB.from_faces(f, 6)
 q = PEMB.from_faces(np.array([[0, 1, 2]]), 3)
 R = dataclasses.replace
+
+
+def with_bits(s, lo, hi):  # s with its P's bits [lo, hi) reversed: same counts, unbalanced
+    b = s.P.bits.to_numpy().copy()
+    b[lo:hi] = b[lo:hi][::-1].copy()
+    return R(s, P=type(s.P)._from_valid_bits(b, check=False))
+
+
 cases = {
     "edges_big_first": [R(p, num_edges=10 ** 7), q],
     "edges_big_last": [p, R(q, num_edges=10 ** 6)],
@@ -44,6 +52,8 @@ cases = {
     "holes_2d": [R(p, holes=np.zeros((2, 2), np.int32)), q],
     "order_none": [R(p, order=None), q],
     "num_faces_wrong": [q, R(p, num_faces=2 ** 31)],
+    "B_unbalanced": [q, with_bits(p, 0, p.num_tree_parens)],
+    "Bstar_unbalanced": [with_bits(p, p.num_tree_parens, p.num_darts), q],
     "fine": [p, q, p],
 }
 for name, parts in cases.items():
@@ -68,7 +78,9 @@ def test_concatenate_checks_hand_made_parts_in_a_child():
             "holes_out_of_range": "part 0: holes must be a 1-D array of ids in [0, 8)",
             "holes_2d": "part 0: holes must be a 1-D array of ids in [0, 8), got dtype int32 shape (2, 2)",
             "order_none": "part 0: order must be a 1-D array of ids in [0, 6)",
-            "num_faces_wrong": "part 1: num_faces = 2147483648, but B* has 8 faces and holes 0"}
+            "num_faces_wrong": "part 1: num_faces = 2147483648, but B* has 8 faces and holes 0",
+            "B_unbalanced": "part 1: B is unbalanced at offset 0: ')' closes nothing",
+            "Bstar_unbalanced": "part 0: B* is unbalanced at offset 0: ')' closes nothing"}
     for name, msg in want.items():
         assert out[name][1].startswith("PEMB.concatenate: " + msg), (name, out[name])
 
