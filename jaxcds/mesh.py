@@ -14,6 +14,7 @@ import os
 import re
 import stat
 import struct
+import types
 from typing import Any, Optional, Sequence
 
 import numba
@@ -279,12 +280,31 @@ def _trimesh_load(stream, file_type: str):
     level = log.level
     log.setLevel(logging.CRITICAL)
     try:
+        if file_type == "stl":
+            return _stl_solids(stream)
         # maintain_order (OBJ): every "v" line in its order, those no face uses too (dropped
         # after welding and counted, as for the other formats)
         extra = {"maintain_order": True} if file_type == "obj" else {}
         return trimesh.load(stream, file_type=file_type, process=False, force="mesh", **extra)
     finally:
         log.setLevel(level)
+
+
+def _stl_solids(stream) -> types.SimpleNamespace:
+    """Every solid of an STL, concatenated in the file's order, three vertices per facet.
+    trimesh.load made a mesh of each solid of a multi-solid ASCII STL (gmsh's
+    ``Mesh.StlOneSolidPerSurface``, one solid per CAD face) with its vertices merged whatever
+    ``process`` said: ``--no-weld`` merged them anyway and ``welded_vertices`` missed them."""
+    from trimesh.exchange.stl import load_stl
+
+    loaded = load_stl(stream)
+    solids = list(loaded["geometry"].values()) if "geometry" in loaded else [loaded]
+    vertices = [np.asarray(s["vertices"], dtype=np.float64).reshape(-1, 3) for s in solids]
+    starts = np.cumsum([0] + [len(v) for v in vertices])
+    faces = [np.asarray(s["faces"], dtype=np.int64).reshape(-1, 3) + start
+             for s, start in zip(solids, starts)]
+    return types.SimpleNamespace(vertices=np.concatenate(vertices or [np.zeros((0, 3))]),
+                                 faces=np.concatenate(faces or [np.zeros((0, 3), np.int64)]))
 
 
 def _file_kind(mode: int) -> str:

@@ -607,6 +607,27 @@ def test_ascii_stl_with_a_bad_normal_loads_without_a_traceback(tmp_path, capfd):
     assert logging.getLogger("trimesh").level == level  # put back as it was
 
 
+def test_multi_solid_ascii_stl_keeps_every_facet_vertex_until_welded(tmp_path):
+    """Sweep 52a (gmsh's ``Mesh.StlOneSolidPerSurface``: one solid per CAD face): trimesh merged
+    the vertices within each solid of a multi-solid ASCII STL whatever ``process`` said, so
+    ``weld=False`` (--no-weld) kept only the seams between solids apart and ``welded_vertices``
+    counted those alone (gmsh's cube: 76 instead of 1,348 as one solid)."""
+    def solid(name, faces):
+        return (f"solid {name}\n" + "".join(
+            "facet normal 0 0 0\nouter loop\n"
+            + "".join(f"vertex {' '.join(map(str, _TET_V[i]))}\n" for i in f)
+            + "endloop\nendfacet\n" for f in faces) + f"endsolid {name}\n")
+
+    two = _write(tmp_path, "two.stl", solid("a", _TET_F[:2]) + solid("b", _TET_F[2:]))
+    one = _write(tmp_path, "one.stl", solid("a", _TET_F))
+    apart = load_mesh(two, weld=False)
+    assert apart.num_vertices == 12 and apart.welded == 0
+    assert np.array_equal(apart.faces, np.arange(12).reshape(4, 3))
+    welded = load_mesh(two)
+    assert welded.welded == load_mesh(one).welded == 8
+    assert topology(welded)["closed"] and welded.num_vertices == 4
+
+
 # ------------------------------------------------------------------------- every text format
 _TRIANGLE = {
     "obj": ("v 0 0 0\nv 1 0 0\nv 0 1 {z}\nf 1 2 {i}\n", "line 3: coordinate '1_0'",
