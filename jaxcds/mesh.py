@@ -58,6 +58,9 @@ class TriMesh:
         input vertices of one position (``None``: no record, e.g. a mesh made by hand). Defect
         messages name a welded vertex as such, since a merge is a common cause of a defect the
         file itself does not have (two bodies touching at a point become a bow-tie).
+      face_polygons: for a file of polygons (faces of 4+ corners, split into triangles on
+        load), the file's face (counting from 0) each triangle came from; ``None`` otherwise.
+        Defect messages name the file's face beside the triangle's id.
 
     Made by hand, ``vertices`` may be any real ``(V, 3)`` (or planar ``(V, 2)``, z = 0) array
     or nested lists and ``faces`` any integer ``(F, 3)`` ones (floats of integral value too, as
@@ -75,6 +78,7 @@ class TriMesh:
     dummy_faces: Optional[np.ndarray] = None
     source: str = "arrays"
     welded_ids: Optional[np.ndarray] = None
+    face_polygons: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         # A TriMesh made by hand may hold big-endian, float, unsigned, strided or list arrays:
@@ -125,12 +129,12 @@ def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
     """
     if isinstance(obj, TriMesh):
         return obj
-    source = "arrays"
+    source, polygons = "arrays", None
     if faces is not None:
         vertices = obj
     elif isinstance(obj, (str, os.PathLike)):
         source = os.fspath(obj)
-        vertices, faces = _read_file(source)
+        vertices, faces, polygons = _read_file(source)
     elif isinstance(obj, tuple) and len(obj) == 2:
         vertices, faces = obj
     else:
@@ -145,12 +149,13 @@ def load_mesh(obj: Any, faces: Any = None, *, weld: bool = True) -> TriMesh:
             raise errors.UnreadableMeshError(
                 f"cannot load a mesh from an object of type {type(obj).__name__}; "
                 "give a path, a trimesh.Trimesh, a TriMesh or (vertices, faces) arrays")
-    return _from_arrays(vertices, faces, source=source, weld=weld)
+    return _from_arrays(vertices, faces, source=source, weld=weld, face_polygons=polygons)
 
 
-def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(vertices, faces)`` of the file: every vertex it holds, in its order (those no face
-    uses too: :func:`_from_arrays` drops and counts them)."""
+def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
+    """``(vertices, faces, face_polygons)`` of the file: every vertex it holds, in its order
+    (those no face uses too: :func:`_from_arrays` drops and counts them), and for an OBJ or
+    OFF file of polygons the file face of each triangle (:attr:`TriMesh.face_polygons`)."""
     try:
         os.stat(path)
     except (OSError, ValueError):
@@ -196,7 +201,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
             if suffix == ".ply":
                 mixed = _check_ply(raw, path)
                 if mixed is not None:  # a binary PLY of mixed polygons (trimesh cannot read it)
-                    return mixed
+                    return mixed + (None,)
                 if ((b"\v" in raw or b"\f" in raw or b"\t" in raw)
                         and b"format ascii" in raw[:raw.find(b"end_header")]):
                     # ASCII values split on any blank (trimesh dropped a face line with a
@@ -213,7 +218,8 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
                 # a well-formed OFF trimesh could not read: polygons of 5+ corners among faces of
                 # another size (trimesh 4-5's fan triangulation fails on them under numpy 2)
                 try:
-                    return _read_off_polygons(text)
+                    vertices, faces = _read_off_polygons(text)
+                    return vertices, faces, _face_polygons(text, suffix, faces)
                 except (ValueError, IndexError):  # a variant this reader does not know: named below
                     pass
         elif suffix == ".stl":
@@ -264,7 +270,108 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray]:
         # trimesh returns an empty mesh for a file of vertices only (a point cloud) too
         raise errors.EmptyMeshError(f"{path}: no faces could be read (a point cloud, or an "
                                     "empty or unparsable file)")
-    return vertices, faces
+    return vertices, faces, (None if text is None else _face_polygons(text, suffix, faces))
+
+
+def _face_polygons(text: str, suffix: str, faces: np.ndarray) -> Optional[np.ndarray]:
+    """The file face each triangle of ``faces`` was fanned from, for an OBJ or OFF text with
+    faces of 4+ corners (trimesh splits them and lists the triangles grouped by polygon size,
+    so a triangle's id said nothing of where the file has it: sweep 52a, gmsh's quad meshes);
+    ``None`` for a file of triangles, or where the file's polygons as read here do not fan into
+    exactly the triangles trimesh read (then no message names a file face)."""
+    try:
+        records = (_off_face_count(text) if suffix == ".off"
+                   else text.count("\nf ") + text.startswith("f "))
+        if records == faces.shape[0]:
+            return None  # as many triangles as face records: triangles only
+        ids, sizes = _off_polygons(text) if suffix == ".off" else _obj_polygons(text)
+    except (ValueError, IndexError):
+        return None
+    if sizes.size == faces.shape[0] or np.any(sizes < 3) or int(np.sum(sizes - 2)) != faces.shape[0]:
+        return None
+    owner = np.repeat(np.arange(sizes.size), sizes - 2)  # polygon of each fan triangle
+    corner0 = (np.cumsum(sizes) - sizes)[owner]
+    i = np.arange(owner.size) - (np.cumsum(sizes - 2) - (sizes - 2))[owner]  # 0 .. size - 3
+    fan = np.stack([ids[corner0], ids[corner0 + i + 1], ids[corner0 + i + 2]], axis=1)
+    own_key, own_order = _rotation_keys(fan)
+    key, order = _rotation_keys(np.asarray(faces, np.int64))
+    if not np.array_equal(own_key[own_order], key[order]):
+        return None
+    result = np.empty(faces.shape[0], dtype=np.int64)
+    result[order] = owner[own_order]
+    return result
+
+
+def _rotation_keys(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle rotated to start at its smallest id (orientation kept: trimesh writes a
+    quad's second half (2, 3, 0) where a fan has (0, 2, 3)) and the order that sorts them."""
+    shift = np.argmin(tri, axis=1)
+    rows = np.arange(tri.shape[0])[:, None]
+    key = tri[rows, (shift[:, None] + np.arange(3)) % 3]
+    return key, np.lexsort(key.T[::-1])
+
+
+def _off_face_count(text: str) -> int:
+    """The face count of a prepared OFF text's header (after the keyword or on the next line)."""
+    rows = []
+    for line in io.StringIO(text):
+        if line.split():
+            rows.append(line.split())
+        if len(rows) == 2:
+            break
+    return int((rows[0][1:] or rows[1])[1])
+
+
+def _off_polygons(text: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(corner ids, corners per face)`` of a prepared OFF text's face lines (values after a
+    face's corners, colours, ignored as trimesh ignores them)."""
+    lines = [line for line in text.splitlines() if line and not line.isspace()]
+    head = lines[0].split()[1:]
+    start = 1 if head else 2
+    nv, nf = (int(x) for x in (head or lines[1].split())[:2])
+    face_lines = lines[start + nv:start + nv + nf]
+    values = _plain_ints(" ".join(face_lines))
+    sizes, at = np.empty(len(face_lines), np.int64), 0
+    for k in range(sizes.size):  # one walk: a face line is its size, then its corners
+        sizes[k] = values[at]
+        at += values[at] + 1
+    if at != values.size:  # extra values on some line (a colour): line by line
+        rows = [line.split() for line in face_lines]
+        sizes = np.array([int(r[0]) for r in rows], dtype=np.int64)
+        return np.array([t for r in rows for t in r[1:1 + int(r[0])]], dtype=np.int64), sizes
+    return values[_corner_positions(sizes)], sizes
+
+
+def _plain_ints(text: str) -> np.ndarray:
+    """The integers of a text of blank-separated integers; ValueError at any other token
+    (where numpy's parser stops with a warning)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            return np.fromstring(text, dtype=np.int64, sep=" ")
+        except DeprecationWarning as exc:
+            raise ValueError(str(exc)) from None
+
+
+def _corner_positions(sizes: np.ndarray) -> np.ndarray:
+    """Positions of every corner in the concatenated OFF face rows (each its size, then its
+    ``sizes[k]`` corners)."""
+    row_start = np.cumsum(sizes + 1) - (sizes + 1)
+    within = np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    return np.repeat(row_start + 1, sizes) + within
+
+
+def _obj_polygons(text: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(corner ids from 0, corners per face)`` of every 'f' line; a negative index counts back
+    from the file's last vertex, as trimesh reads it (:func:`_absolute_obj_indices` has
+    rewritten the others). Corners are plain ids here (:func:`_prepare_obj` cut the rest)."""
+    nv = text.count("\nv ") + text.startswith("v ")
+    face_lines = [line[2:] for line in text.split("\n") if line.startswith("f ")]
+    sizes = np.array([len(line.split()) for line in face_lines], dtype=np.int64)
+    ids = _plain_ints(" ".join(face_lines))
+    return np.where(ids > 0, ids - 1, nv + ids), sizes
 
 
 def _trimesh_load(stream, file_type: str):
@@ -1386,7 +1493,8 @@ def _parse_failure(raw: bytes, suffix: str, exc: Exception) -> str:
     return f"the file is neither well-formed binary nor text: cannot read {where}"
 
 
-def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMesh:
+def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool,
+                 face_polygons: Optional[np.ndarray] = None) -> TriMesh:
     try:
         v = np.asarray(vertices)
         f = np.asarray(faces)
@@ -1425,7 +1533,8 @@ def _from_arrays(vertices: Any, faces: Any, *, source: str, weld: bool) -> TriMe
         merged = remap[merged[used[merged]]]
     return TriMesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f, dtype=np.int32),
                    welded=int(welded), removed_unreferenced=removed, source=source,
-                   welded_ids=merged.astype(np.int32) if weld else None)
+                   welded_ids=merged.astype(np.int32) if weld else None,
+                   face_polygons=face_polygons)
 
 
 def _int64_ids(f: np.ndarray, num_vertices: int, source: str, *,
@@ -1639,7 +1748,7 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
         fi = int(degenerate[0])
         found.append(errors.DegenerateFaceError(
             f"{src}: face {fi} repeats a vertex {f[fi].tolist()} ({degenerate.size} degenerate faces)"
-            f"{_weld_hint(mesh, f[degenerate], 'faces')}"))
+            f"{_polygon_hint(mesh, [fi])}{_weld_hint(mesh, f[degenerate], 'faces')}"))
     et = edge_table(mesh.faces) if et is None else et
     partner, ok = kernels.duplicate_faces(f, et.order, et.starts, 64)
     if not ok:  # a huge non-manifold edge: sort the faces instead of comparing pairs
@@ -1649,7 +1758,8 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
         fi = int(dup[0])
         found.append(errors.DuplicateFaceError(
             f"{src}: faces {fi} and {int(partner[fi])} use the same vertices {f[fi].tolist()} "
-            f"({dup.size} faces in duplicate groups){_weld_hint(mesh, f[dup], 'faces')}"))
+            f"({dup.size} faces in duplicate groups){_polygon_hint(mesh, [fi, int(partner[fi])])}"
+            f"{_weld_hint(mesh, f[dup], 'faces')}"))
     nm = np.nonzero(et.count > 2)[0]
     if nm.size:
         a, b = (int(x) for x in et.edges[nm[0]])
@@ -1671,7 +1781,8 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
                   "orientable surface")
         found.append(errors.InconsistentOrientationError(
             f"{src}: faces {faces_on.tolist()} both traverse edge ({a}, {b}) in the same direction "
-            f"({same_dir.size} such edges); {advice}{_weld_hint(mesh, et.edges[same_dir], 'edges')}"))
+            f"({same_dir.size} such edges); {advice}{_polygon_hint(mesh, faces_on.tolist())}"
+            f"{_weld_hint(mesh, et.edges[same_dir], 'edges')}"))
     if not nm.size and not degenerate.size:
         fans = _fans_per_vertex(f, et, mesh.num_vertices)
         bad_v = np.nonzero(fans > 1)[0]
@@ -1680,6 +1791,21 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
                 f"{src}: vertex {int(bad_v[0])} joins {int(fans[bad_v[0]])} separate fans of faces "
                 f"({bad_v.size} non-manifold vertices){_weld_hint(mesh, bad_v)}"))
     return found
+
+
+def _polygon_hint(mesh: TriMesh, face_ids: list) -> str:
+    """``""`` unless the mesh was read from a file of polygons (``mesh.face_polygons``); then
+    the clause that names the file's face of each triangle in ``face_ids``: the triangles'
+    ids count the pieces the polygons were split into, not the file's faces."""
+    owners = mesh.face_polygons
+    if owners is None:
+        return ""
+    named = [f"face {fi} is part of the file's face {int(owners[fi])}" for fi in face_ids
+             if 0 <= fi < len(owners)]
+    if not named:
+        return ""
+    return ("; face ids count triangles, the file's faces of 4+ corners split into several "
+            f"(file faces counted from 0): {', '.join(named)}")
 
 
 def _weld_hint(mesh: TriMesh, involved: np.ndarray, items: str = "vertices") -> str:

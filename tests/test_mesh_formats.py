@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from jaxcds import errors
-from jaxcds.mesh import load_mesh, read_regular_file, topology
+from jaxcds.mesh import load_mesh, read_regular_file, topology, validate
 
 _TET_V = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
 _TET_F = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
@@ -626,6 +626,37 @@ def test_multi_solid_ascii_stl_keeps_every_facet_vertex_until_welded(tmp_path):
     welded = load_mesh(two)
     assert welded.welded == load_mesh(one).welded == 8
     assert topology(welded)["closed"] and welded.num_vertices == 4
+
+
+_STRIP_V = [(x, y, 0) for y in (0, 1) for x in range(5)]  # a row of four unit quads
+
+
+def _strip_files(tmp_path, quads):
+    obj = "".join(f"v {x} {y} {z}\n" for x, y, z in _STRIP_V) + "".join(
+        "f " + " ".join(str(i + 1) for i in q) + "\n" for q in quads)
+    off = f"OFF\n{len(_STRIP_V)} {len(quads)} 0\n" + "".join(
+        f"{x} {y} {z}\n" for x, y, z in _STRIP_V) + "".join(
+        f"{len(q)} " + " ".join(map(str, q)) + "\n" for q in quads)
+    return _write(tmp_path, "strip.obj", obj), _write(tmp_path, "strip.off", off)
+
+
+@pytest.mark.parametrize("fmt", [0, 1], ids=["obj", "off"])
+def test_a_defect_in_a_polygon_file_names_the_files_face(fmt, tmp_path):
+    """Sweep 52a (gmsh's quad meshes, Mesh.RecombineAll): the quads are split into triangles
+    listed first halves then second halves, so a defect named 'face 6' in a file of four faces;
+    the message now names the file's face each named triangle is part of."""
+    quads = [(0, 1, 6, 5), (1, 2, 7, 6), (2, 3, 8, 8), (3, 4, 9, 8)]  # file face 2 repeats 8
+    path = _strip_files(tmp_path, quads)[fmt]
+    m = load_mesh(path, weld=False)
+    assert m.face_polygons.tolist() == [0, 1, 2, 3, 0, 1, 2, 3]
+    bad = int(np.flatnonzero(m.faces[:, 0] == m.faces[:, 1])[0])
+    with pytest.raises(errors.DegenerateFaceError,
+                       match=f"face {bad} repeats .* face {bad} is part of the file's face 2$"):
+        validate(m)
+    flipped = [(0, 1, 6, 5), (1, 2, 7, 6), (2, 3, 8, 7), (8, 9, 4, 3)]  # file face 3 reversed
+    with pytest.raises(errors.InconsistentOrientationError, match="part of the file's face 3"):
+        validate(load_mesh(_strip_files(tmp_path, flipped)[fmt]))
+    assert load_mesh(_write(tmp_path, "tet.obj", _TET_OBJ)).face_polygons is None
 
 
 # ------------------------------------------------------------------------- every text format
