@@ -398,6 +398,29 @@ def _check_neigh(path: str, faces: np.ndarray, nf: int, base: int) -> None:
             raise errors.PolyllaError(
                 f"{path}: triangle {int(t[i])} lists triangle {int(nb[t[i], k[i]])} as neighbour "
                 f"{int(k[i])}, but they do not share edge ({int(a[i])}, {int(b[i])})")
+    _check_neigh_borders(path, faces, nb)
+
+
+def _check_neigh_borders(path: str, faces: np.ndarray, nb: np.ndarray) -> None:
+    """Every ``-1`` in ``.neigh`` stands for a border edge. The reference trusts the file: an
+    edge two triangles share but listed without a neighbour is a cut in its domain, while the
+    triangles here are paired by their corners, so the polygons differed without a word."""
+    a = faces[:, [1, 2, 0]].astype(np.int64).ravel()  # the edge opposite corner k
+    b = faces[:, [2, 0, 1]].astype(np.int64).ravel()
+    key = np.minimum(a, b) * (int(faces.max()) + 1) + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    pair = key[order[1:]] == key[order[:-1]]
+    other = np.full(key.size, -1, np.int64)  # a half-edge of another triangle on the same edge
+    other[order[1:][pair]] = order[:-1][pair]
+    other[order[:-1][pair]] = order[1:][pair]
+    cut = np.flatnonzero((nb.ravel() < 0) & (other >= 0))
+    if cut.size:
+        i = int(cut[0])
+        t, k = divmod(i, 3)
+        raise errors.PolyllaError(
+            f"{path}: triangle {t} lists no neighbour (-1) as neighbour {k}, but triangle "
+            f"{int(other[i]) // 3} shares that edge ({int(a[i])}, {int(b[i])}): a .neigh lists "
+            "every neighbour (the reference would cut the domain along that edge)")
 
 
 def read_off_2d(path: str) -> Triangulation2D:

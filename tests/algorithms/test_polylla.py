@@ -683,6 +683,23 @@ def test_bad_ele_and_neigh(tmp_path):
     assert io.read_triangle(str(tmp_path / "a.node")).num_faces == 2
 
 
+@pytest.mark.parametrize("neigh,match", [
+    ("2 3\n0 -1 -1 -1\n1 -1 -1 -1\n", r"triangle 0 lists no neighbour \(-1\) as neighbour 1, "
+     r"but triangle 1 shares that edge \(2, 0\)"),
+    ("2 3\n0 -1 1 -1\n1 -1 -1 -1\n", r"triangle 1 lists no neighbour \(-1\) as neighbour 2, "
+     r"but triangle 0 shares that edge \(0, 2\)"),
+])
+def test_neigh_with_a_border_where_triangles_meet_is_refused(tmp_path, neigh, match):
+    """Sweep 52b: a .neigh listing -1 across an edge that two triangles share passed its check;
+    the reference, which trusts the file, cuts the domain there (a gmsh plate with six such
+    edges gave it 69 polygons against our 66), so the run differed without a word."""
+    (tmp_path / "a.node").write_text(_NODE4)
+    (tmp_path / "a.ele").write_text("2 3 0\n0 0 1 2\n1 0 2 3\n")
+    (tmp_path / "a.neigh").write_text(neigh)
+    with pytest.raises(errors.PolyllaError, match=match):
+        P.run(str(tmp_path / "a.node"))
+
+
 def test_bad_inputs(tmp_path):
     with pytest.raises(errors.PolyllaError, match="no such file"):
         P.run(str(tmp_path / "missing.off"))
