@@ -1760,7 +1760,10 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
             f"{src}: faces {fi} and {int(partner[fi])} use the same vertices {f[fi].tolist()} "
             f"({dup.size} faces in duplicate groups){_polygon_hint(mesh, [fi, int(partner[fi])])}"
             f"{_weld_hint(mesh, f[dup], 'faces')}"))
-    nm = np.nonzero(et.count > 2)[0]
+    # a degenerate face's side from a vertex to itself is no edge (named above as that face):
+    # welded slivers made "edge (0, 0) is shared by 850 faces" the first non-manifold edge
+    real = et.edges[:, 0] != et.edges[:, 1]
+    nm = np.nonzero((et.count > 2) & real)[0]
     if nm.size:
         a, b = (int(x) for x in et.edges[nm[0]])
         found.append(errors.NonManifoldEdgeError(
@@ -1768,7 +1771,7 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
             f"({nm.size} non-manifold edges); a manifold edge has at most 2"
             f"{_weld_hint(mesh, et.edges[nm], 'edges')}"))
     two = et.count == 2
-    same_dir = np.nonzero(two & (et.forward != 1))[0]
+    same_dir = np.nonzero(two & (et.forward != 1) & real)[0]
     if same_dir.size:
         a, b = (int(x) for x in et.edges[same_dir[0]])
         faces_on = np.nonzero(et.dart_edge.reshape(-1, 3) == same_dir[0])[0]

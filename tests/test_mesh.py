@@ -191,6 +191,17 @@ def test_degenerate_face():
         validate(load_mesh(OCT_V, f))
 
 
+def test_a_degenerate_faces_side_from_a_vertex_to_itself_is_no_edge():
+    """Sweep 52a (gmsh's OFF writes 6 digits: a sphere at 1e5 welded into slivers): the side
+    (v, v) of degenerate faces was named as the first non-manifold edge, "edge (0, 0) is shared
+    by 850 faces", and as edges "traversed in the same direction"; only real edges are named."""
+    f = np.concatenate([OCT_F, [[0, 0, 5], [0, 5, 0], [5, 0, 0], [1, 1, 2], [1, 1, 2]]])
+    defects = find_defects(load_mesh(OCT_V, f))
+    assert [type(d) for d in defects] == [errors.DegenerateFaceError, errors.DuplicateFaceError,
+                                          errors.NonManifoldEdgeError]
+    assert "edge (0, 5) is shared" in str(defects[2]) and "(2 non-manifold edges)" in str(defects[2])
+
+
 def test_duplicate_face():
     f = np.concatenate([OCT_F, [[4, 0, 2]]])
     with pytest.raises(errors.DuplicateFaceError, match="faces 0 and 8"):
