@@ -1969,10 +1969,15 @@ def _fast_check(mesh: TriMesh, components: bool, unreferenced_ok: bool = False) 
 
 
 def _components_error(mesh: TriMesh, ncomp: int, structure: str) -> errors.MeshError:
+    name = _kind_name(structure)
+    if name == "name":  # not a structure (the 4n-bit encoding): there is nothing to pack
+        advice = "split it with jaxcds.mesh.split_components(mesh) and take each component on its own"
+    else:
+        advice = ("use jaxcds.mesh.split_components(mesh) and build one structure per component, "
+                  f"or pack them into one: jaxcds.batch.pack(split_components(mesh), {name})")
     return errors.UnsupportedTopologyError(
         f"{mesh.source}: {structure} needs a connected mesh, this one has {ncomp} components; "
-        "use jaxcds.mesh.split_components(mesh) and build one structure per component, or "
-        f"pack them into one: jaxcds.batch.pack(split_components(mesh), {_kind_name(structure)})")
+        f"{advice}")
 
 
 def _kind_name(structure: str) -> str:

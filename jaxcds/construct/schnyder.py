@@ -1170,8 +1170,9 @@ def prepare_mesh(mesh, structure: str = "a Schnyder wood"):
         holes = f" after closing {loops} boundary loop(s)" if loops else ""
         raise errors.UnsupportedTopologyError(
             f"{m.source}: {structure} needs a genus-0 surface (a planar triangulation); this mesh has "
-            f"genus {(2 - chi) // 2} (Euler characteristic {chi}{holes}); use the 'lr' or "
-            "'halfedge' structure for it")
+            f"genus {(2 - chi) // 2} (Euler characteristic {chi}{holes}); "
+            + ("it has no such form: keep it as a mesh file (the 'lr' and 'halfedge' structures "
+               "take it)" if "encoding" in structure else "use the 'lr' or 'halfedge' structure for it"))
     if m.num_vertices < 4:
         raise errors.UnsupportedTopologyError(
             f"{m.source}: {structure} needs at least 4 vertices, got {m.num_vertices}")

@@ -103,6 +103,28 @@ def test_genus_refusal_of_the_encoder_names_the_file(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["torus.off"]
 
 
+def test_encoder_refusals_do_not_advise_building_or_packing(tmp_path):
+    """Sweep 52a (gmsh's two spheres in one file, a torus): `jaxcds encode` answered "pack them
+    into one: jaxcds.batch.pack(split_components(mesh), name)" (a placeholder, and a batch is no
+    encoding) and "use the 'lr' or 'halfedge' structure for it", as if one could encode with
+    them; it says what the encoding cannot take and what to do with the mesh instead."""
+    import trimesh
+
+    from jaxcds.mesh import load_mesh
+
+    ico = icosphere(1)
+    v, f = ico.vertices, ico.faces
+    two = load_mesh(np.concatenate([v, v + 3.0]), np.concatenate([f, f + len(v)]))
+    with pytest.raises(errors.UnsupportedTopologyError, match="2 components") as refused:
+        write_cds(tmp_path / "two.cds", two)
+    assert "pack" not in str(refused.value) and "split_components(mesh)" in str(refused.value)
+    t = trimesh.creation.torus(1.0, 0.3, major_sections=12, minor_sections=6)
+    with pytest.raises(errors.UnsupportedTopologyError, match="genus 1") as refused:
+        write_cds(tmp_path / "t.cds", load_mesh(t))
+    assert "use the 'lr'" not in str(refused.value) and "keep it as a mesh file" in str(refused.value)
+    assert os.listdir(tmp_path) == []
+
+
 @pytest.mark.parametrize("ext", [".off", ".obj", ".ply"])
 def test_decoded_mesh_files_keep_every_float32_digit(tmp_path, ext):
     """Robustness sweep: `jaxcds decode -o x.obj|x.off` wrote the coordinates with trimesh's
