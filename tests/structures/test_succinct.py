@@ -386,3 +386,28 @@ def test_succinct_query_arguments_besides_ids_are_checked():
     assert int(P.fwd(1, 2**40)) == 1 and int(P.bwd(8, -2**40)) == P.size
     assert int(P.closes_of(np.int32(3), True)) == 6
     assert np.asarray(P.closes_of(np.array([[0, 1], [3, 4]]), True)).tolist() == [[7, 2], [6, 5]]
+
+
+def test_rank_select_and_compaction_under_rank_promotion_raise():
+    """Users of a JAX library may run with ``jax.numpy_rank_promotion("raise")``: a block's
+    word lanes were a bare ``(8,)`` vector broadcast against ``(..., 1)`` queries, and the
+    compaction's bit column against ``(n, 32)`` words, so every pemb operator raised JAX's
+    ValueError there (sweep 52c). Same answers as the numpy oracle, 1-D and 2-D ids."""
+    from jaxcds.structures.succinct.bitvector import _compact_indices
+
+    bits = _bits(7, 2600, 0.5)
+    ones, zeros = np.flatnonzero(bits), np.flatnonzero(bits == 0)
+    rank = np.concatenate([[0], np.cumsum(bits)])
+    i = np.arange(0, bits.size + 1, 7, dtype=np.int32)[:360].reshape(20, 18)
+    k = np.arange(360, dtype=np.int32).reshape(20, 18) % min(ones.size, zeros.size)
+    miss = np.random.default_rng(1).random(1000) < 0.3
+    with jax.numpy_rank_promotion("raise"):
+        bv = BitVector.from_bits(bits)
+        r1, r0, s1, s0, _ = _bv_all(bv, jnp.asarray(i), jnp.asarray(k))
+        idx, count = jax.jit(_compact_indices, static_argnums=1)(jnp.asarray(miss), 1024)
+    np.testing.assert_array_equal(np.asarray(r1), rank[i])
+    np.testing.assert_array_equal(np.asarray(r0), i - rank[i])
+    np.testing.assert_array_equal(np.asarray(s1), ones[k])
+    np.testing.assert_array_equal(np.asarray(s0), zeros[k])
+    assert int(count) == miss.sum()
+    np.testing.assert_array_equal(np.asarray(idx)[: miss.sum()], np.flatnonzero(miss))

@@ -89,7 +89,8 @@ def _compact_indices(mask, size: int):
     n = mask.shape[0]
     n32 = -(-n // 32) * 32
     m = jnp.pad(mask, (0, n32 - n)).reshape(-1, 32).astype(jnp.uint32)
-    words = jnp.sum(m << jnp.arange(32, dtype=jnp.uint32), axis=1)  # distinct bits: sum = or
+    # the bit column as a row, explicitly: rank promotion may be set to raise (sweep 52c)
+    words = jnp.sum(m << jnp.arange(32, dtype=jnp.uint32)[None, :], axis=1)  # distinct bits: sum = or
     cnt = popcount(words)
     before = jnp.cumsum(cnt, dtype=jnp.int32) - cnt  # int32 also under enable_x64 (Polylla)
     lane = jnp.arange(n, dtype=jnp.int32)
@@ -281,6 +282,13 @@ def bits_array(bits, what: str) -> np.ndarray:
     return a.astype(bool)
 
 
+def _block_lanes(ndim: int) -> jnp.ndarray:
+    """``(1, ..., 1, 8)``: a block's word lanes as a row of rank ``ndim + 1``, to meet queries
+    of rank ``ndim`` widened by ``[..., None]``. Written out rather than left to broadcasting:
+    users may run with ``jax.numpy_rank_promotion("raise")`` (sweep 52c); same program."""
+    return jnp.arange(BLOCK_WORDS, dtype=jnp.int32).reshape((1,) * ndim + (BLOCK_WORDS,))
+
+
 @pytree_dataclass
 class BitVector:
     """A static bit vector with rank and select.
@@ -371,7 +379,7 @@ class BitVector:
 
     def _block_words(self, b) -> jnp.ndarray:
         """``(..., 8)`` words of block ``b``."""
-        idx = b[..., None] * BLOCK_WORDS + jnp.arange(BLOCK_WORDS, dtype=jnp.int32)
+        idx = b[..., None] * BLOCK_WORDS + _block_lanes(jnp.ndim(b))
         return self.words[idx]
 
     def with_word_rank(self) -> "BitVector":
@@ -391,7 +399,7 @@ class BitVector:
             return self.word_rank[w] + popcount(self.words[w] & _low_mask(i & 31))
         b = i >> 8
         words = self._block_words(b)
-        k = jnp.arange(BLOCK_WORDS, dtype=jnp.int32)
+        k = _block_lanes(jnp.ndim(i))
         wi = (i >> 5) & (BLOCK_WORDS - 1)
         # whole words before the word of i, then the low (i % 32) bits of that word
         r = jnp.where(k == wi[..., None], jnp.asarray(i & 31, jnp.int32)[..., None],
@@ -454,7 +462,7 @@ class BitVector:
             incl = jnp.cumsum(cnt, axis=-1, dtype=jnp.int32)
             j = jnp.minimum(jnp.sum((incl <= r[..., None]).astype(jnp.int32), axis=-1,
                                     dtype=jnp.int32), BLOCK_WORDS - 1)
-            sel = jnp.arange(BLOCK_WORDS, dtype=jnp.int32) == j[..., None]  # one-hot pick
+            sel = _block_lanes(jnp.ndim(j)) == j[..., None]  # one-hot pick
             before = jnp.sum(jnp.where(sel, incl - cnt, 0), axis=-1, dtype=jnp.int32)
             w = jnp.max(jnp.where(sel, words, jnp.uint32(0)), axis=-1)
             pos = BLOCK_BITS * lo + 32 * j + _select_in_word(w, jnp.clip(r - before, 0, 31))
