@@ -180,7 +180,8 @@ def _without_dummies(ring, dummy, whole, n, max_degree):
     real = ring < n
     is_dummy = real & dummy[jnp.where(real, ring, 0)]
     count = jnp.sum(real, axis=-1, keepdims=True)
-    pos = jnp.arange(ring.shape[-1], dtype=jnp.int32)
+    # a row of the ring's rank (not a bare vector): rank promotion may be set to raise
+    pos = jnp.arange(ring.shape[-1], dtype=jnp.int32).reshape((1,) * (ring.ndim - 1) + (-1,))
     after = jnp.argmax(is_dummy, axis=-1, keepdims=True).astype(jnp.int32) + 1
     rotate = whole[..., None] & jnp.any(is_dummy, axis=-1, keepdims=True)
     key = jnp.where(rotate, (pos - after) % jnp.maximum(count, 1), pos)

@@ -733,3 +733,21 @@ def test_normalize_takes_lists_and_names_non_numbers():
         normalize("abc")
     g = jax.grad(lambda x: normalize(x)[0])(jnp.array([3.0, 0.0, 4.0]))
     np.testing.assert_allclose(np.asarray(g), [0.128, 0.0, -0.096], atol=1e-6)
+
+
+def test_one_ring_of_a_holed_cds_under_rank_promotion_raise():
+    """A CDS closes holes with dummy vertices; one_ring drops them with a (slots,) position row
+    that met ``(vertices, 1)`` columns by rank promotion, so users running with
+    ``jax.numpy_rank_promotion("raise")`` got JAX's ValueError (sweep 52c). The rings and
+    degrees are the default setting's, and the degrees the open mesh's."""
+    from jaxcds.structures import registry
+
+    m = load_shared("2triangles.off")
+    s = registry.build("cds6n", m)
+    v = jnp.arange(s.num_vertices, dtype=jnp.int32)
+    with jax.numpy_rank_promotion("raise"):
+        ring, deg = one_ring(s, v, 4)
+    want_ring, want_deg = one_ring(s, v, 4)
+    np.testing.assert_array_equal(np.asarray(ring), np.asarray(want_ring))
+    np.testing.assert_array_equal(np.asarray(deg)[:4], np.asarray(vertex_degrees(HalfEdge.from_mesh(m))))
+    np.testing.assert_array_equal(np.asarray(deg), np.asarray(want_deg))
