@@ -983,3 +983,19 @@ def test_id_shifting_needs_one_count_per_part_and_concatenate_a_list():
         B.concatenate(None)
     with pytest.raises(errors.EmptyMeshError):
         B.concatenate([])
+
+
+def test_packed_lr_normals_under_rank_promotion_raise():
+    """A packed LR batch gathers each mesh's T0 rows at ``(rows, 1)`` starts plus a ``(3,)``
+    column offset, which met by rank promotion: users running with
+    ``jax.numpy_rank_promotion("raise")`` got JAX's ValueError from vertex_normals (sweep 52c).
+    The normals are the half-edge batch's."""
+    ms = [icosphere(1), load_shared("grid.off"), random_planar_triangulation(30, seed=1)]
+    b = B.pack(ms, "lr")
+    pos = B.pack_positions(b, ms)
+    with jax.numpy_rank_promotion("raise"):
+        got = vertex_normals(b, pos)
+    h = B.pack(ms, "halfedge")
+    want = np.asarray(vertex_normals(h, B.pack_positions(h, ms)))
+    order = np.asarray(b.vertex_order) if b.vertex_order is not None else np.arange(len(want))
+    np.testing.assert_allclose(np.asarray(got), want[order], rtol=1e-5, atol=1e-6)

@@ -289,7 +289,8 @@ class _PackedMixin:
             t0 = self.V0.reshape(self.num_t0, 3)
         else:
             v0_start = self.mesh_array_offsets[mesh0, self._arrays.index("V0")]
-            t0 = self.V0[(v0_start + 3 * j)[:, None] + jnp.arange(3, dtype=jnp.int32)]
+            # the column offsets as a row: users may run with rank promotion set to raise
+            t0 = self.V0[(v0_start + 3 * j)[:, None] + jnp.arange(3, dtype=jnp.int32)[None, :]]
         if self.has_border:
             nv0 = nvm[mesh0][:, None]
             ok0 = jnp.all(t0 < nv0, axis=1)
