@@ -1766,9 +1766,11 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
     nm = np.nonzero((et.count > 2) & real)[0]
     if nm.size:
         a, b = (int(x) for x in et.edges[nm[0]])
+        on_edge = et.order[et.starts[nm[0]]:et.starts[nm[0] + 1]] // 3
         found.append(errors.NonManifoldEdgeError(
             f"{src}: edge ({a}, {b}) is shared by {int(et.count[nm[0]])} faces "
             f"({nm.size} non-manifold edges); a manifold edge has at most 2"
+            f"{_polygon_hint(mesh, sorted(set(on_edge.tolist()))[:2])}"
             f"{_weld_hint(mesh, et.edges[nm], 'edges')}"))
     two = et.count == 2
     same_dir = np.nonzero(two & (et.forward != 1) & real)[0]
@@ -1803,11 +1805,14 @@ def _polygon_hint(mesh: TriMesh, face_ids: list) -> str:
     owners = mesh.face_polygons
     if owners is None:
         return ""
-    named = [f"face {fi} is part of the file's face {int(owners[fi])}" for fi in face_ids
-             if 0 <= fi < len(owners)]
+    named = [f"face {fi} is part of the file's face {int(owners[fi])} "
+             f"({int(np.count_nonzero(owners == owners[fi])) + 2} corners)"
+             for fi in face_ids if 0 <= fi < len(owners)]
     if not named:
         return ""
-    return ("; face ids count triangles, the file's faces of 4+ corners split into several "
+    # a gmsh second-order triangle in OBJ is a face of 6 nodes, mid-edge nodes last: its fan
+    # overlaps itself, and the message names the edge only; the file's faces say what it is
+    return ("; face ids count triangles, the file's faces of 4+ corners split into fans "
             f"(file faces counted from 0): {', '.join(named)}")
 
 

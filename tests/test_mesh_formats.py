@@ -651,12 +651,34 @@ def test_a_defect_in_a_polygon_file_names_the_files_face(fmt, tmp_path):
     assert m.face_polygons.tolist() == [0, 1, 2, 3, 0, 1, 2, 3]
     bad = int(np.flatnonzero(m.faces[:, 0] == m.faces[:, 1])[0])
     with pytest.raises(errors.DegenerateFaceError,
-                       match=f"face {bad} repeats .* face {bad} is part of the file's face 2$"):
+                       match=rf"face {bad} repeats .* face {bad} is part of the file's face 2 \(4 corners\)$"):
         validate(m)
     flipped = [(0, 1, 6, 5), (1, 2, 7, 6), (2, 3, 8, 7), (8, 9, 4, 3)]  # file face 3 reversed
     with pytest.raises(errors.InconsistentOrientationError, match="part of the file's face 3"):
         validate(load_mesh(_strip_files(tmp_path, flipped)[fmt]))
     assert load_mesh(_write(tmp_path, "tet.obj", _TET_OBJ)).face_polygons is None
+
+
+def test_a_second_order_obj_names_its_six_node_faces(tmp_path):
+    """Sweep 52a: gmsh writes a second-order triangle to OBJ as a face of six nodes, the three
+    mid-edge nodes last; split by a fan, such faces overlap and the mesh is refused with a
+    non-manifold edge, which named the edge alone. It names the file's faces and their corners."""
+    mids = {}
+    lines = [f"v {x} {y} {z}" for x, y, z in _TET_V]
+    faces = []
+    for f in _TET_F:
+        corners = [i + 1 for i in f]
+        for a, b in zip(f, f[1:] + f[:1]):
+            key = (min(a, b), max(a, b))
+            if key not in mids:
+                mid = (np.add(_TET_V[a], _TET_V[b]) / 2).tolist()
+                lines.append("v {} {} {}".format(*mid))
+                mids[key] = len(lines)
+            corners.append(mids[key])
+        faces.append("f " + " ".join(map(str, corners)))
+    path = _write(tmp_path, "p2.obj", "\n".join(lines + faces) + "\n")
+    with pytest.raises(errors.MeshError, match=r"part of the file's face \d \(6 corners\)"):
+        validate(load_mesh(path))
 
 
 # ------------------------------------------------------------------------- every text format
