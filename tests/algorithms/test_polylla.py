@@ -8,6 +8,7 @@ import math
 import os
 import pathlib
 import re
+import types
 
 import jax
 import numpy as np
@@ -970,7 +971,11 @@ def test_reference_mode_gives_the_compiled_references_file(case, structure):
     got = P.polylla(P.build_structure(tri, structure), tri.points, corners=tri.input_faces)
     assert got.polygons() == [list(map(int, p)) for p in ref]
     if not tri.flipped:  # clockwise input: clockwise polygons, as the reference's
-        check_partition(tri, got)
+        # the reference's crossing-off of repaired pieces is incomplete: it can list a piece
+        # twice (``gmsh_blob_flipped``), and so does reference mode; the others tile the domain
+        polygons = got.polygons()
+        distinct = [p for i, p in enumerate(polygons) if p not in polygons[:i]]
+        check_partition(tri, types.SimpleNamespace(polygons=lambda: distinct))
 
 
 def test_orientation_signs_are_exact_on_slivers():
