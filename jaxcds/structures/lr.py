@@ -287,7 +287,8 @@ class _LRNavigation(MeshStructure):
         # T^i (Sec. 4.5): "VO* holds triplets (v.l, v.0.o, v.2.o) and (v.r, v.4.o, v.6.o)"
         irr_l = (d.irl == 1) & ((i == 0) | (i == 2))
         irr_r = (d.irr == 1) & ((i == 4) | (i == 6))
-        k = jnp.where(irr_l, d.lo + (i == 2), jnp.where(irr_r, d.ro + (i == 6), 0))
+        # the second triplet's index as an explicit int: users may run with strict dtype promotion
+        k = jnp.where(irr_l, d.lo + (i == 2).astype(d.lo.dtype), jnp.where(irr_r, d.ro + (i == 6).astype(d.ro.dtype), 0))
         k = jnp.clip(k, 0, self.VOs.shape[0] - 1)
         ring = jnp.where(irr_l | irr_r, take_nonnegative(self.VOs, k), cheap)
         return jnp.where(t0, self.O0[self._t0_index(c)], ring).astype(jnp.int32)

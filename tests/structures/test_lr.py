@@ -666,3 +666,20 @@ def test_builder_flags_and_corner_table_arguments_are_checked():
         with pytest.raises(errors.ArgumentError, match="seeds must be a count"):
             LR.from_corner_table(ct, seeds=seeds)
     assert LR.from_corner_table(ct, dummy=np.zeros(6, bool), check=np.True_).num_vertices == 6
+
+
+def test_lr_operators_under_strict_dtype_promotion():
+    """Users of a JAX library may run with ``jax.numpy_dtype_promotion("strict")``: LR's
+    opposite corner added a bool (second corner of a VO* triplet) to an int32 index, so every
+    operator through ``c.o`` raised JAX's TypePromotionError there (sweep 52c). Every operator
+    on every dart agrees with the half-edge under that setting."""
+    from jaxcds.structures import registry
+    from jaxcds.verify import verify
+
+    m = random_planar_triangulation(40, seed=3)
+    s = registry.build("lr", m)
+    assert s.VOs.shape[0] > 0  # irregular triangles: the VO* route is taken
+    with jax.numpy_dtype_promotion("strict"):
+        rep = verify(s, m)
+    assert rep.checked > 10 * m.num_faces
+    assert rep.mismatches == 0, str(rep)
