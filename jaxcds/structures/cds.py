@@ -785,8 +785,19 @@ class _RowColumns:
 
 
 def _psel(cond, a, b):
-    """``jnp.where`` over two darts in parts."""
-    return tuple(jnp.where(cond, x, y) for x, y in zip(a, b))
+    """``jnp.where`` over two darts in parts (a bool ``r`` meeting an int32 one is converted
+    here, as default promotion would: users may run with strict dtype promotion)."""
+    return tuple(jnp.where(cond, *_same_dtype(x, y)) for x, y in zip(a, b))
+
+
+def _same_dtype(x, y):
+    """``x, y`` with a bool one converted to the other's integer dtype."""
+    x, y = jnp.asarray(x), jnp.asarray(y)
+    if x.dtype == bool and y.dtype != bool:
+        return x.astype(y.dtype), y
+    if y.dtype == bool and x.dtype != bool:
+        return x, y.astype(x.dtype)
+    return x, y
 
 
 class _CDS(MeshStructure):
@@ -1062,7 +1073,7 @@ class _CDS(MeshStructure):
         scale, step = _layout(n, by_colour)
         vals = []
         for c, ((src, col, r), ok) in enumerate(zip(lfs, self._valid_cols())):
-            leaving = r == 0
+            leaving = r.astype(jnp.int32) == 0  # r may be a bool: explicit for strict promotion
             val = jnp.where(leaving | ~ok, src, -(scale * src + step * col) - 1)
             # _EXTERIOR: the walk around V_red ends at (V_blue, V_red), around V_blue at (V_black, V_blue)
             if c == RED:
@@ -1168,12 +1179,13 @@ class _CDS(MeshStructure):
         if self._fusible_targets:  # a while_loop's result is in memory already
             t_r, t_b, t_k = _materialize_loop((t_r, t_b, t_k))
         # red triangles: w = Source(LeftFront) when it is w_red entering v, else Target(v_blue)
-        entering_r = lf_r[2] == 1
+        # r is a bool or an int32 (_parts): converted explicitly for strict dtype promotion
+        entering_r = lf_r[2].astype(jnp.int32) == 1
         w_r = jnp.where(entering_r, lf_r[0], _take(t_b, jnp.where(entering_r, 0, lf_r[0])))
         red = jnp.stack([u, t_r, w_r], axis=1)
         # black triangle of b (LeftFront(b_black) black, entering) or blue triangle of F_blue[b]:
         # the blue triangle of every vertex as one (n, 3) table, so F_blue costs one row gather
-        black_matched = (lf_k[2] == 1) & self._valid_cols()[BLACK]
+        black_matched = (lf_k[2].astype(jnp.int32) == 1) & self._valid_cols()[BLACK]
         blue_o = _take(jnp.stack([u, t_b, lf_b[0]], axis=1), self.F_blue)
         black = jnp.stack([u, t_k, lf_k[0]], axis=1)
         kb = jnp.where(black_matched[:, None], black, blue_o)
@@ -1421,13 +1433,13 @@ class _CDS(MeshStructure):
     def _compact(self, slot):
         k = jnp.zeros_like(slot)
         for x in self.unused_slots:
-            k = k + (slot > x)
+            k = k + (slot > x).astype(k.dtype)  # explicit: strict dtype promotion (sweep 52c)
         return (slot - k).astype(jnp.int32)
 
     def _expand(self, f):
         s = f
         for x in self.unused_slots:  # sorted
-            s = s + (s >= x)
+            s = s + (s >= x).astype(s.dtype)
         return s
 
     def face_slot(self, d: Int) -> Int:

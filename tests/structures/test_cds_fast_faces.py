@@ -314,3 +314,29 @@ def test_small_mesh_normals_split_no_more_kernels_over_threads_than_the_face_lis
 
     face_list = splits(face_list_vertex_normals, pos, faces)
     assert splits(lambda s, p: normals_module._vertex_normals.__wrapped__(s, p), s, pos) <= face_list
+
+
+@pytest.mark.parametrize("structure", ["cds6n", "cds5n-o1"])
+def test_cds_under_strict_dtype_promotion(structure):
+    """Users of a JAX library may run with ``jax.numpy_dtype_promotion("strict")``: a CDS keeps
+    a LeftFront's entering flag as a bool or an int32 (``_parts``) and compared or selected it
+    against ints, and its face slots added bools to ints, so face_vertices, the operators,
+    degrees and normals raised JAX's TypePromotionError there (sweep 52c). On a holed mesh (a
+    dummy vertex), every operator agrees with the half-edge and the normals and degrees with
+    the default setting's."""
+    from jaxcds.algorithms import vertex_degrees, vertex_normals
+    from jaxcds.mesh import close_boundaries
+    from jaxcds.structures import registry
+    from jaxcds.verify import verify
+
+    m = load_shared("2triangles.off")
+    s = registry.build(structure, m)
+    pos = jnp.asarray(close_boundaries(m).vertices, jnp.float32)
+    pos = pos if s.vertex_order is None else pos[s.vertex_order]
+    with jax.numpy_dtype_promotion("strict"):
+        rep = verify(s, m)
+        got = vertex_normals(s, pos), vertex_normals(s, pos, "gather"), vertex_degrees(s)
+    assert rep.mismatches == 0 and rep.checked > 0, str(rep)
+    want = vertex_normals(s, pos), vertex_normals(s, pos, "gather"), vertex_degrees(s)
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
