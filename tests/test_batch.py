@@ -999,3 +999,18 @@ def test_packed_lr_normals_under_rank_promotion_raise():
     want = np.asarray(vertex_normals(h, B.pack_positions(h, ms)))
     order = np.asarray(b.vertex_order) if b.vertex_order is not None else np.arange(len(want))
     np.testing.assert_allclose(np.asarray(got), want[order], rtol=1e-5, atol=1e-6)
+
+
+def test_packed_cds_under_strict_dtype_promotion():
+    """A packed CDS batch compacts union face slots by adding bools to ints: users running with
+    ``jax.numpy_dtype_promotion("strict")`` got JAX's TypePromotionError from its face
+    operators (sweep 52c). The batch's faces of every dart are the default setting's."""
+    ms = [icosphere(1), random_planar_triangulation(30, seed=1)]
+    b = B.pack(ms, "cds5n")
+    e = jnp.arange(b.num_darts, dtype=jnp.int32)
+    faces = jax.jit(lambda b, e: (b.face_left(e), b.face_right(e), b.edge_of_face(
+        jnp.arange(b.num_faces, dtype=jnp.int32))))
+    with jax.numpy_dtype_promotion("strict"):
+        got = faces(b, e)
+    for g, w in zip(got, faces(b, e)):
+        np.testing.assert_array_equal(np.asarray(g), np.asarray(w))

@@ -66,7 +66,7 @@ class _ViewMixin:
         loc = jnp.where(slot < n, slot - self._voff, self._nv + slot - n - self._voff)
         k = jnp.zeros_like(loc)
         for x in self._un:
-            k = k + (loc > x)
+            k = k + (loc > x).astype(k.dtype)  # explicit: strict dtype promotion (sweep 52c)
         return (self._foff + loc - k).astype(jnp.int32)
 
     def _expand(self, f):
@@ -85,7 +85,7 @@ def _expand_union(f_local, un, voff, nv, n):
     slot (red ``voff + s``; black/blue ``N + voff + s - n_i``)."""
     s = f_local
     for x in un:
-        s = s + (s >= x)
+        s = s + (s >= x).astype(s.dtype)
     return jnp.where(s < nv, voff + s, n + voff + s - nv).astype(jnp.int32)
 
 
