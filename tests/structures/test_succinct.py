@@ -411,3 +411,23 @@ def test_rank_select_and_compaction_under_rank_promotion_raise():
     np.testing.assert_array_equal(np.asarray(s0), zeros[k])
     assert int(count) == miss.sum()
     np.testing.assert_array_equal(np.asarray(idx)[: miss.sum()], np.flatnonzero(miss))
+
+
+def test_parens_searches_and_bool_bits_under_strict_dtype_promotion():
+    """Users may run with ``jax.numpy_dtype_promotion("strict")``: the word scans of the
+    parenthesis searches wrote ``~fw`` of a Python bool (an int, -1 or -2, that met bool
+    arrays), and ``select(k, bit)`` compared a bool ``bit`` with 0, so pemb's operators raised
+    JAX's TypePromotionError there (sweep 52c). Same answers as the stack oracle."""
+    b = _balanced(11, 700, True)
+    match, enclose = _bp_oracle(b)
+    bits = _bits(3, 2600, 0.5)
+    k = jnp.arange(100, dtype=jnp.int32)
+    with jax.numpy_dtype_promotion("strict"):
+        bp = BalancedParens.from_bits(b)
+        got = _bp_all(bp, jnp.arange(b.size, dtype=jnp.int32))
+        bv = BitVector.from_bits(bits)
+        sel = jax.jit(lambda bv, k, bit: bv.select(k, bit))(bv, k, jnp.ones(100, bool))
+    np.testing.assert_array_equal(np.asarray(got[0]), match)
+    op = b == 1
+    np.testing.assert_array_equal(np.asarray(got[3])[op], enclose[op])
+    np.testing.assert_array_equal(np.asarray(sel), np.flatnonzero(bits)[:100])

@@ -107,7 +107,8 @@ def bit_arg(bit, what: str) -> jnp.ndarray:
     if isinstance(bit, jax.Array):
         if bit.dtype != jnp.bool_ and not jnp.issubdtype(bit.dtype, jnp.integer):
             raise errors.InvalidIndexError(f"{what} must be 0/1 integers or booleans, got dtype {bit.dtype}")
-        return bit != 0
+        # a bool as it is (compared with 0 it raised under strict dtype promotion)
+        return bit if bit.dtype == jnp.bool_ else bit != 0
     try:
         a = np.asarray(bit)
     except ValueError as exc:  # ragged nested lists

@@ -321,7 +321,9 @@ class BalancedParens:
             m = jnp.minimum(table[lo16].astype(jnp.int32),
                             2 * popcount(lo16.astype(jnp.uint32)) - 16 + table[hi16].astype(jnp.int32))
             hit = (n > 0) & (s_a + m <= t)
-            take = hit & (~found | ~fw)  # forward: the first hit word; backward: the last
+            # not ~fw: fw is often a Python bool, whose ~ is an int (-1, -2) that met bool
+            # arrays by promotion (a TypePromotionError under strict dtype promotion)
+            take = hit & (~found | jnp.logical_not(fw))  # forward: the first hit word; backward: the last
             wJ = jnp.where(take, sw, wJ)
             sJ = jnp.where(take, s_a, sJ)
             nJ = jnp.where(take, n, nJ)
@@ -365,7 +367,7 @@ class BalancedParens:
         for q in range(8):
             s = s + 2 * ((w >> jnp.uint32(q)) & jnp.uint32(1)).astype(jnp.int32) - 1
             ok = (q < n) & (s <= t)
-            qq = jnp.where(ok & (~fq | ~fw), q, qq)
+            qq = jnp.where(ok & (~fq | jnp.logical_not(fw)), q, qq)
             fq = fq | ok
         return off + qq
 
