@@ -165,7 +165,9 @@ def _label_body(s, positions, vertex_ids, corners=None):
 
     l0, l1, l2 = length(p0, p1), length(p1, p2), length(p2, p0)
     top = jnp.maximum(jnp.maximum(l0, l1), l2)
-    tied = jnp.any(((l0 == top).astype(jnp.int32) + (l1 == top) + (l2 == top)) > 1)
+    # each flag converted explicitly: users may run with strict dtype promotion
+    i32 = jnp.int32
+    tied = jnp.any(((l0 == top).astype(i32) + (l1 == top).astype(i32) + (l2 == top).astype(i32)) > 1)
     if corners is None:
         k0 = (jnp.minimum(i0, i1), jnp.maximum(i0, i1))
         k1 = (jnp.minimum(i1, i2), jnp.maximum(i1, i2))

@@ -1221,3 +1221,20 @@ def test_reference_walks_checks_arrays_it_did_not_make():
     assert len(refusals) == len(expect), refusals
     for pattern, message in zip(expect, refusals):
         assert re.match(r"ArgumentError: reference_walks: " + pattern, message), message
+
+
+@pytest.mark.parametrize("mode", ["reference", "canonical"])
+def test_polylla_under_strict_dtype_promotion(mode, tmp_path):
+    """Users of a JAX library may run with ``jax.numpy_dtype_promotion("strict")``: the label
+    phase added two bool tie flags to an int32 one, so Polylla raised JAX's TypePromotionError
+    there (sweep 52c). An integer grid (tied longest edges) gives the default setting's
+    polygons."""
+    g = np.arange(6.0)
+    pts = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
+    pts[:, 0] += 0.5 * (pts[:, 1] % 2)  # a triangular lattice: equally long edges everywhere
+    tri = io.from_points(pts)
+    with jax.numpy_dtype_promotion("strict"):
+        got = P.run(tri, tmp_path / "strict.off", mode=mode)
+    want = P.run(tri, tmp_path / "default.off", mode=mode)
+    assert got["polygons"] == want["polygons"] > 0
+    assert (tmp_path / "strict.off").read_text() == (tmp_path / "default.off").read_text()
