@@ -47,7 +47,12 @@ def normalize(x, axis: int = -1, eps: float = 0.0):
       ArgumentError: ``x`` is not real numbers (a list raised JAX's TypeError 'absolute
         requires ndarray or scalar arguments', a string its 'Error interpreting argument')."""
     x = number_array(x, "normalize: x", error=errors.ArgumentError, bools=True)
-    return _normalize(x if isinstance(x, jax.Array) else jnp.asarray(x), axis, eps)
+    x = x if isinstance(x, jax.Array) else jnp.asarray(x)
+    if not jnp.issubdtype(x.dtype, jnp.inexact):
+        # integers and bools in the default float dtype, as their promotion with the float
+        # constants below gave them, but explicit: strict dtype promotion raised (sweep 52c)
+        x = x.astype(jnp.result_type(float))
+    return _normalize(x, axis, eps)
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(1, 2))
