@@ -1122,6 +1122,49 @@ def _run_by_component(tri, parts, structure: str, *, check: bool, tables: bool,
     return mesh, t_build
 
 
+def _run_whole(tri, structure: str, *, check: bool, tables: bool, mode: str):
+    """``(PolyllaMesh, build seconds)`` of :func:`run` on a read triangulation ``tri``."""
+    t0 = time.perf_counter()
+    parts = _components_of(tri) if structure != "halfedge" else None
+    if parts is not None:  # pemb is one connected planar embedding: one run per piece
+        return _run_by_component(tri, parts, structure, check=check, tables=tables, mode=mode)
+    s = build_structure(tri, structure, check=check)
+    t_build = time.perf_counter() - t0
+    # the input's corner order and orientation: ties and clockwise inputs as the reference
+    mesh = polylla(s, tri.points, corners=tri.input_faces, clockwise=tri.all_clockwise,
+                   tables=tables, mode=mode)
+    return mesh, t_build
+
+
+def _split_pinch_vertices(tri):
+    """``(tri', copy_of)``: ``tri`` with every pinch vertex (a point where separate fans of
+    triangles touch: a hole's corner on the outer border, two pieces meeting at a corner) made
+    one point per fan, the copies appended after the input's points (their positions the
+    same), and ``copy_of[v]`` the input point of every point of ``tri'``; ``(tri, None)`` when
+    there is none or an edge is shared by more than two triangles (validation names it).
+
+    Why: the structures need a manifold vertex, but Triangle and gmsh mesh such domains and the
+    reference meshes them; its walks stay in one fan at a pinch (a border edge there is a
+    frontier edge, so no clockwise turn crosses the outside), so the fans can be walked apart
+    and the polygons given back in the input's ids (checked against the compiled reference on
+    736 such inputs, stop 52). Only the refused input pays for the split."""
+    from jaxcds import polylla_io
+    from jaxcds.mesh import split_nonmanifold_vertices
+
+    try:
+        split = split_nonmanifold_vertices(_as_trimesh(tri))
+    except errors.MeshError:
+        return tri, None
+    if split.num_vertices == tri.num_vertices:
+        return tri, None
+    copy_of = np.arange(split.num_vertices, dtype=np.int64)
+    copy_of[split.faces.reshape(-1)] = tri.faces.reshape(-1)  # a copy's corners name its point
+    out = polylla_io.Triangulation2D(
+        points=np.ascontiguousarray(split.vertices[:, :2]), faces=split.faces, source=tri.source,
+        flipped=tri.flipped, clockwise=tri.clockwise)
+    return out, copy_of
+
+
 def _piece_refused(c: int, ncomp: int, rows: np.ndarray, structure: str, exc) -> str:
     """The message for connected piece ``c`` (input triangles ``rows``) that ``structure``
     refused: which piece, by its input triangles, then the structure's own reason."""
@@ -1152,7 +1195,9 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
 
     Raises:
       PolyllaError (unreadable or degenerate input, naming file and line/triangle; an unknown
-      ``mode``), MeshError (non-manifold triangulations, naming the edge/vertex), OutputError
+      ``mode``), MeshError (an edge of more than two triangles, overlapping triangles... naming
+      the edge or vertex; a pinch vertex, where fans of triangles touch at one point, is meshed
+      fan by fan, see :func:`_split_pinch_vertices`), OutputError
       (``output`` cannot be written: checked before any work), ArgumentError (``output`` not a
       path, ``check`` or ``tables`` not a bool).
     """
@@ -1175,17 +1220,15 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
         tri = polylla_io.read_input(name)
     else:
         tri, name = polylla_io.from_points(source), "points"
-    t0 = time.perf_counter()
-    parts = _components_of(tri) if structure != "halfedge" else None
-    if parts is not None:  # pemb is one connected planar embedding: one run per piece
-        mesh, t_build = _run_by_component(tri, parts, structure, check=check, tables=tables,
-                                          mode=mode)
-    else:
-        s = build_structure(tri, structure, check=check)
-        t_build = time.perf_counter() - t0
-        # the input's corner order and orientation: ties and clockwise inputs as the reference
-        mesh = polylla(s, tri.points, corners=tri.input_faces, clockwise=tri.all_clockwise,
-                       tables=tables, mode=mode)
+    try:
+        mesh, t_build = _run_whole(tri, structure, check=check, tables=tables, mode=mode)
+    except errors.NonManifoldVertexError:
+        split, copy_of = _split_pinch_vertices(tri)
+        if copy_of is None:
+            raise
+        mesh, t_build = _run_whole(split, structure, check=check, tables=tables, mode=mode)
+        mesh = dataclasses.replace(mesh, points=tri.points,
+                                   indices=copy_of[mesh.indices].astype(np.int32))
     if output is not None:
         polylla_io.write_polygon_off(output, tri.points, mesh.offsets, mesh.indices)
     out = mesh.summary()

@@ -958,8 +958,14 @@ def test_overlapping_triangles_are_named_as_a_fold_not_an_orientation(tmp_path, 
 REFERENCE_CASES = pathlib.Path(__file__).resolve().parents[1] / "data" / "polylla_reference"
 
 
+def _reference_cases(pinched: bool) -> list:
+    """The stored cases; ``pinch_*`` ones have a pinch vertex, which only :func:`P.run` takes."""
+    return sorted(p.name for p in REFERENCE_CASES.iterdir()
+                  if p.is_dir() and p.name.startswith("pinch_") == pinched)
+
+
 @pytest.mark.parametrize("structure", STRUCTURES)
-@pytest.mark.parametrize("case", sorted(p.name for p in REFERENCE_CASES.iterdir() if p.is_dir()))
+@pytest.mark.parametrize("case", _reference_cases(pinched=False))
 def test_reference_mode_gives_the_compiled_references_file(case, structure):
     """Outputs of the compiled reference (tests/data/polylla_reference/README.md): reference
     mode gives its polygons in its order, each from its first vertex. ``mixedscale`` failed
@@ -976,6 +982,38 @@ def test_reference_mode_gives_the_compiled_references_file(case, structure):
         polygons = got.polygons()
         distinct = [p for i, p in enumerate(polygons) if p not in polygons[:i]]
         check_partition(tri, types.SimpleNamespace(polygons=lambda: distinct))
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("case", _reference_cases(pinched=True))
+def test_pinch_vertices_are_meshed_as_the_reference_meshes_them(case, structure, tmp_path):
+    """Sweep 52b: a hole's corner on the outer border (a pinch vertex: two fans of triangles
+    touch there) was refused ("vertex 1 joins 2 separate fans"), where Triangle and gmsh make
+    such meshes and the reference meshes them. ``run`` now walks the fans apart (a copy of the
+    point per fan) and gives the polygons back in the input's ids: the reference's file."""
+    d = REFERENCE_CASES / case
+    tri = io.read_triangle(str(d / "in.node"))
+    with pytest.raises(errors.NonManifoldVertexError, match="separate fans"):
+        P.build_structure(tri, structure)  # a structure still needs manifold vertices
+    out = tmp_path / "out.off"
+    got = P.run(str(d / "in"), str(out), structure=structure)
+    _, ref = io.read_polygon_off(str(d / "reference.off"))
+    _, polys = io.read_polygon_off(str(out))
+    assert [list(map(int, p)) for p in polys] == [list(map(int, p)) for p in ref]
+    assert got["vertices"] == tri.num_vertices and got["barrier_edge_tips"] == 1
+
+
+def test_pieces_meeting_at_a_corner_are_meshed_apart(tmp_path):
+    """Two squares that share one corner (a pinch between two pieces): one polygon each, in
+    the input's ids, on the half-edge and on pemb (one run per connected piece)."""
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [2, 1], [2, 2], [1, 2]], float)
+    faces = np.array([[0, 1, 2], [0, 2, 3], [2, 4, 5], [2, 5, 6]], np.int32)
+    for structure in ("halfedge", "pemb"):
+        out = tmp_path / f"{structure}.off"
+        got = P.run(io.Triangulation2D(points=pts, faces=faces), str(out), structure=structure)
+        _, polys = io.read_polygon_off(str(out))
+        assert got["vertices"] == 7, (structure, got)
+        assert sorted(sorted(map(int, p)) for p in polys) == [[0, 1, 2, 3], [2, 4, 5, 6]]
 
 
 def test_orientation_signs_are_exact_on_slivers():
