@@ -757,7 +757,8 @@ def _lf_word(p):
     2.03 -> 1.65; packed 10,000 meshes (27.5M vertices) cds6n 1.96 -> 1.59, cds4n 1.79 -> 1.80;
     reading the parts off the rows in every consumer instead (no word) was as fast on small
     meshes and 1.9x at 10,000 meshes."""
-    return (p[0] << 3) | (p[1] << 1) | p[2]
+    # r may be a bool (_parts): converted explicitly for strict dtype promotion (sweep 52c)
+    return (p[0] << 3) | (p[1] << 1) | jnp.asarray(p[2], jnp.int32)
 
 
 def _lf_unword(q):

@@ -340,3 +340,17 @@ def test_cds_under_strict_dtype_promotion(structure):
     want = vertex_normals(s, pos), vertex_normals(s, pos, "gather"), vertex_degrees(s)
     for g, w in zip(got, want):
         np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+
+
+def test_slot_faces_as_lf_words_under_strict_dtype_promotion(monkeypatch):
+    """The LeftFront word (from 8,192 vertices) or-ed a bool entering flag into an int32, so
+    users running with ``jax.numpy_dtype_promotion("strict")`` got JAX's TypePromotionError
+    from face_vertices and the normals of larger meshes (sweep 52c). The word route forced on
+    a small mesh: the default setting's faces."""
+    from jaxcds.structures import cds as cds_module
+
+    s = registry.build("cds5n", _mesh("random:500/4"))
+    monkeypatch.setattr(cds_module, "_WORD_MIN_VERTICES", 0)
+    with jax.numpy_dtype_promotion("strict"):
+        got = np.asarray(s.face_vertices())
+    np.testing.assert_array_equal(got, np.asarray(s.face_vertices()))
