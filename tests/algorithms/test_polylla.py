@@ -1016,6 +1016,61 @@ def test_pieces_meeting_at_a_corner_are_meshed_apart(tmp_path):
         assert sorted(sorted(map(int, p)) for p in polys) == [[0, 1, 2, 3], [2, 4, 5, 6]]
 
 
+_NEAR_TIES_CHILD = r"""
+import jax, jax.numpy as jnp, numpy as np
+from jaxcds.algorithms import polylla as P
+from jaxcds.structures.halfedge import HalfEdge
+
+rng = np.random.default_rng(52)
+n = 400
+apex = rng.uniform(-1, 1, (n, 2))
+r, th, dth = rng.uniform(0.1, 1, n), rng.uniform(0, 2 * np.pi, n), rng.uniform(0.05, 0.5, n)
+p1 = apex + r[:, None] * np.column_stack([np.cos(th), np.sin(th)])
+p2 = apex + r[:, None] * np.column_stack([np.cos(th + dth), np.sin(th + dth)])
+
+
+def rounded_apart(a, b):  # numpy rounds each product: no contraction
+    d = a - b
+    return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+
+
+l01, l20 = rounded_apart(apex, p1), rounded_apart(p2, apex)  # the short base aside
+s = HalfEdge.from_faces(np.array([[0, 1, 2]], np.int32), 3)  # one triangle: a short array
+d = jnp.arange(s.num_darts, dtype=jnp.int32)
+ends = np.stack([np.asarray(s.origin(d)), np.asarray(s.target(d))], axis=1)
+wrong, tried = [], 0
+for i in np.flatnonzero(l01 != l20):
+    with jax.enable_x64(True):
+        max_edge, _, _ = P.label_phase(s, jnp.asarray(np.stack([apex[i], p1[i], p2[i]])),
+                                       jnp.arange(3, dtype=jnp.int32))
+    got = set(ends[int(np.flatnonzero(np.asarray(max_edge))[0])].tolist())
+    tried += 1
+    if got != ({0, 1} if l01[i] > l20[i] else {0, 2}):
+        wrong.append(int(i))
+print(tried, wrong)
+"""
+
+
+def test_longest_edges_are_taken_on_squares_rounded_apart():
+    """Two sides of a triangle within an ulp of each other: the longest is the reference's,
+    ``sqrt(pow(dx, 2) + pow(dy, 2))`` with each square rounded. XLA:CPU fused a square into the
+    sum (a fused multiply-add) in the scalar loop that runs a short array, and the label took
+    the other side in 10 of these 199 near-isoceles triangles (sweep 52b: a polygon listed from
+    another vertex than the reference's). Run in a child at XLA's default optimisation: this
+    suite's -O0 (conftest) contracts nothing."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    flags = os.environ.get("XLA_FLAGS", "").replace("--xla_backend_optimization_level=0", "")
+    env = dict(os.environ, PYTHONPATH=str(ROOT), XLA_FLAGS=flags)
+    r = subprocess.run([sys.executable, "-c", _NEAR_TIES_CHILD], env=env, capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.split() == ["199", "[]"], r.stdout
+
+
 def test_orientation_signs_are_exact_on_slivers():
     """Near-collinear corners far from the origin, subnormal features next to huge ones: the
     floating-point determinant decides only where its error bound allows, the rest exactly."""
