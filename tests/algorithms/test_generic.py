@@ -754,12 +754,12 @@ def test_one_ring_of_a_holed_cds_under_rank_promotion_raise():
 
 
 def test_normalize_of_integers_under_strict_dtype_promotion():
-    """``normalize`` takes integers and bools (as float32, the default float dtype): their
+    """``normalize`` takes integers and bools (in the default float dtype): their
     promotion with its float constants was implicit, so users running with
     ``jax.numpy_dtype_promotion("strict")`` got JAX's TypePromotionError (sweep 52c)."""
     x = np.array([[3, 4, 0], [0, 0, 0], [1, 1, 1]], np.int32)
     with jax.numpy_dtype_promotion("strict"):
         got = normalize(jnp.asarray(x)), normalize(x.astype(bool))
-    assert got[0].dtype == jnp.float32
+    assert got[0].dtype == jnp.result_type(float)  # float32, float64 under enable_x64
     np.testing.assert_allclose(np.asarray(got[0]), np.asarray(normalize(x.astype(np.float32))), rtol=1e-6)
     np.testing.assert_allclose(np.asarray(got[1])[2], np.full(3, 3 ** -0.5), rtol=1e-6)
