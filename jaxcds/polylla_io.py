@@ -405,21 +405,25 @@ def _check_neigh_borders(path: str, faces: np.ndarray, nb: np.ndarray) -> None:
     """Every ``-1`` in ``.neigh`` stands for a border edge. The reference trusts the file: an
     edge two triangles share but listed without a neighbour is a cut in its domain, while the
     triangles here are paired by their corners, so the polygons differed without a word."""
+    border = np.flatnonzero(nb.ravel() < 0)
+    if not border.size:
+        return
     a = faces[:, [1, 2, 0]].astype(np.int64).ravel()  # the edge opposite corner k
     b = faces[:, [2, 0, 1]].astype(np.int64).ravel()
     key = np.minimum(a, b) * (int(faces.max()) + 1) + np.maximum(a, b)
-    order = np.argsort(key, kind="stable")
-    pair = key[order[1:]] == key[order[:-1]]
-    other = np.full(key.size, -1, np.int64)  # a half-edge of another triangle on the same edge
-    other[order[1:][pair]] = order[:-1][pair]
-    other[order[:-1][pair]] = order[1:][pair]
-    cut = np.flatnonzero((nb.ravel() < 0) & (other >= 0))
+    # every side looked up among the border sides' edges only (sorted: a few per cent of the
+    # 3F sides): a sort of all 3F keys took about 0.4 s of a 6 s read at 1M triangles
+    bkey = np.sort(key[border])
+    at = np.minimum(np.searchsorted(bkey, key), bkey.size - 1)  # the first of equal keys
+    sides = np.bincount(at[bkey[at] == key], minlength=bkey.size)  # sides on each border edge
+    cut = border[sides[at[border]] > 1]  # a border side whose edge another side has too
     if cut.size:
         i = int(cut[0])
         t, k = divmod(i, 3)
+        other = int(next(j for j in np.flatnonzero(key == key[i]) if j != i))
         raise errors.PolyllaError(
             f"{path}: triangle {t} lists no neighbour (-1) as neighbour {k}, but triangle "
-            f"{int(other[i]) // 3} shares that edge ({int(a[i])}, {int(b[i])}): a .neigh lists "
+            f"{other // 3} shares that edge ({int(a[i])}, {int(b[i])}): a .neigh lists "
             "every neighbour (the reference would cut the domain along that edge)")
 
 
