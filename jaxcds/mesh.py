@@ -1767,8 +1767,12 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
     if nm.size:
         a, b = (int(x) for x in et.edges[nm[0]])
         on_edge = et.order[et.starts[nm[0]]:et.starts[nm[0] + 1]] // 3
+        # the count is of face sides: a degenerate face (a, a, b) runs along (a, b) twice
+        sides, faces_on = int(et.count[nm[0]]), np.unique(on_edge).size
+        shared = (f"{faces_on} faces" if faces_on == sides else
+                  f"{faces_on} faces ({sides} face sides: a degenerate face runs along it twice)")
         found.append(errors.NonManifoldEdgeError(
-            f"{src}: edge ({a}, {b}) is shared by {int(et.count[nm[0]])} faces "
+            f"{src}: edge ({a}, {b}) is shared by {shared} "
             f"({nm.size} non-manifold edges); a manifold edge has at most 2"
             f"{_polygon_hint(mesh, sorted(set(on_edge.tolist()))[:2])}"
             f"{_weld_hint(mesh, et.edges[nm], 'edges')}"))

@@ -200,6 +200,9 @@ def test_a_degenerate_faces_side_from_a_vertex_to_itself_is_no_edge():
     assert [type(d) for d in defects] == [errors.DegenerateFaceError, errors.DuplicateFaceError,
                                           errors.NonManifoldEdgeError]
     assert "edge (0, 5) is shared" in str(defects[2]) and "(2 non-manifold edges)" in str(defects[2])
+    # two octahedron faces and three degenerate ones, each along (0, 5) twice: 5 faces, 8 sides
+    assert ("shared by 5 faces (8 face sides: a degenerate face runs along it twice)"
+            in str(defects[2])), str(defects[2])
 
 
 def test_duplicate_face():
