@@ -684,6 +684,44 @@ def test_bad_ele_and_neigh(tmp_path):
     assert io.read_triangle(str(tmp_path / "a.node")).num_faces == 2
 
 
+def test_regular_triangle_files_are_read_in_one_pass(tmp_path, monkeypatch):
+    """A regular .node / .ele / .neigh (no comment, every line its header's field count) is
+    parsed by numpy in one pass (6.3 s -> 1.3 s for a 1M-triangle input, stop 52), giving the
+    line-by-line reader's triangulation bit for bit: ids from 1, attributes and markers, a
+    second-order .ele. A file with a comment or a short line goes line by line, as before."""
+    rng = np.random.default_rng(7)
+    pts = rng.uniform(-1, 1, (40, 2))
+    pts[0] = [0.1, 1e-300]  # digits the parsers must round alike
+    tri = io.from_points(pts)
+    F, V = tri.num_faces, tri.num_vertices
+    node = "\n".join([f"{V} 2 1 1"] + [f"{i + 1} {x!r} {y!r} 0.5 {i % 2}"
+                                         for i, (x, y) in enumerate(tri.points.tolist())])
+    mid = rng.integers(1, V + 1, (F, 3))  # second-order rows: 3 corners, then 3 midpoints
+    ele = "\n".join([f"{F} 6 0"] + [f"{t + 1} {a + 1} {b + 1} {c + 1} {m[0]} {m[1]} {m[2]}"
+                                      for t, ((a, b, c), m) in enumerate(zip(tri.faces.tolist(), mid.tolist()))])
+    (tmp_path / "r.node").write_text(node + "\n\n")
+    (tmp_path / "r.ele").write_text(ele + "\n")
+    read_by_lines = []
+    real_rows = io._rows
+    monkeypatch.setattr(io, "_rows", lambda path: read_by_lines.append(path) or real_rows(path))
+    fast = io.read_triangle(str(tmp_path / "r.node"))
+    assert read_by_lines == []
+    monkeypatch.setattr(io, "_regular_table", lambda *a: None)
+    slow = io.read_triangle(str(tmp_path / "r.node"))
+    assert len(read_by_lines) == 2
+    assert np.array_equal(fast.points, slow.points) and np.array_equal(fast.faces, slow.faces)
+    assert fast.points[0].tolist() == [0.1, 1e-300] and fast.faces.dtype == np.int32
+    monkeypatch.undo()
+    lines = node.split("\n")
+    # a comment; a line one field short (its marker): not taken in one pass, read line by line
+    # (which takes the first three fields of each line), the same triangulation
+    for broken in (lines[:3] + ["# a comment"] + lines[3:],
+                   lines[:5] + [lines[5].rsplit(" ", 1)[0]] + lines[6:]):
+        (tmp_path / "r.node").write_text("\n".join(broken))
+        assert io._regular_table(str(tmp_path / "r.node"), lambda h: 5) is None
+        assert np.array_equal(io.read_triangle(str(tmp_path / "r.node")).points, slow.points)
+
+
 @pytest.mark.parametrize("neigh,match", [
     ("2 3\n0 -1 -1 -1\n1 -1 -1 -1\n", r"triangle 0 lists no neighbour \(-1\) as neighbour 1, "
      r"but triangle 1 shares that edge \(2, 0\)"),
