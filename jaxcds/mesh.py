@@ -343,14 +343,19 @@ def _off_polygons(text: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _plain_ints(text: str) -> np.ndarray:
-    """The integers of a text of blank-separated integers; ValueError at any other token
-    (where numpy's parser stops with a warning)."""
+    """The integers of a text of blank-separated integers; ValueError at any other token."""
+    return _plain_numbers(text, np.int64)
+
+
+def _plain_numbers(text: str, dtype) -> np.ndarray:
+    """The numbers of a text of blank-separated numbers of ``dtype``, parsed by numpy in one
+    pass; ValueError at any other token (where numpy's parser stops with a warning, or raises)."""
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         try:
-            return np.fromstring(text, dtype=np.int64, sep=" ")
+            return np.fromstring(text, dtype=dtype, sep=" ")
         except DeprecationWarning as exc:
             raise ValueError(str(exc)) from None
 
@@ -1768,13 +1773,14 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
         a, b = (int(x) for x in et.edges[nm[0]])
         on_edge = et.order[et.starts[nm[0]]:et.starts[nm[0] + 1]] // 3
         # the count is of face sides: a degenerate face (a, a, b) runs along (a, b) twice
-        sides, faces_on = int(et.count[nm[0]]), np.unique(on_edge).size
-        shared = (f"{faces_on} faces" if faces_on == sides else
-                  f"{faces_on} faces ({sides} face sides: a degenerate face runs along it twice)")
+        faces_on = np.unique(on_edge)  # sorted
+        sides = int(et.count[nm[0]])
+        shared = (f"{faces_on.size} faces" if faces_on.size == sides else
+                  f"{faces_on.size} faces ({sides} face sides: a degenerate face runs along it twice)")
         found.append(errors.NonManifoldEdgeError(
             f"{src}: edge ({a}, {b}) is shared by {shared} "
             f"({nm.size} non-manifold edges); a manifold edge has at most 2"
-            f"{_polygon_hint(mesh, sorted(set(on_edge.tolist()))[:2])}"
+            f"{_polygon_hint(mesh, faces_on[:2].tolist())}"
             f"{_weld_hint(mesh, et.edges[nm], 'edges')}"))
     two = et.count == 2
     same_dir = np.nonzero(two & (et.forward != 1) & real)[0]

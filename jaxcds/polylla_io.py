@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import warnings
 from typing import Callable, Optional
 
 import numpy as np
@@ -115,10 +114,15 @@ def _input_file(path: str) -> bytes:
     return read_regular_file(path, error=errors.PolyllaError)
 
 
-def _rows(path: str) -> list[list[str]]:
-    """Non-empty, non-comment lines of a text file, split on whitespace (a UTF-8 byte-order mark
-    before the first line is dropped)."""
-    text = _input_file(path).decode("utf-8-sig", errors="replace")
+def _text(path: str) -> str:
+    """The text of ``path`` (a UTF-8 byte-order mark before the first line dropped)."""
+    return _input_file(path).decode("utf-8-sig", errors="replace")
+
+
+def _rows(path: str, text: Optional[str] = None) -> list[list[str]]:
+    """Non-empty, non-comment lines of a text file (``text``: its :func:`_text`, when already
+    read), split on whitespace."""
+    text = _text(path) if text is None else text
     rows = []
     for line in text.splitlines():
         line = line.split("#", 1)[0].strip()
@@ -129,9 +133,9 @@ def _rows(path: str) -> list[list[str]]:
     return rows
 
 
-def _regular_table(path: str, fields: Callable[[list[str]], int]):
-    """``(header fields, (n, k) float64 rows)`` of a Triangle file read in one pass, when it is
-    regular: no comment, ``n`` (its header's first field) data lines of ``k = fields(header)``
+def _regular_table(text: str, fields: Callable[[list[str]], int]):
+    """``(header fields, (n, k) float64 rows)`` of a Triangle file's text parsed in one pass,
+    when it is regular: no comment, ``n`` (its header's first field) data lines of ``k = fields(header)``
     numbers each, the first column counting them from 0 or 1. ``None`` for any other file: the
     line-by-line reader (:func:`_rows`, :func:`_table`) reads it then and names what is wrong.
 
@@ -139,7 +143,8 @@ def _regular_table(path: str, fields: Callable[[list[str]], int]):
     ``.node``, ``.ele`` and ``.neigh``), where Polylla itself runs in a fraction of a second.
     numpy parses the numbers in C, as Python's ``float`` (correctly rounded); a line with a
     missing or an extra field shifts the first column off its count, so it is not taken."""
-    text = _input_file(path).decode("utf-8-sig", errors="replace")
+    from jaxcds.mesh import _plain_numbers
+
     if "#" in text:
         return None
     head, _, body = text.strip().partition("\n")
@@ -152,10 +157,8 @@ def _regular_table(path: str, fields: Callable[[list[str]], int]):
     if n < 1 or k < 1 or body.count("\n") + 1 != n:
         return None
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # numpy warns (or raises) where parsing stops early
-            values = np.fromstring(body, dtype=np.float64, sep=" ")
-    except (ValueError, DeprecationWarning):
+        values = _plain_numbers(body, np.float64)
+    except ValueError:
         return None
     if values.size != n * k:
         return None
@@ -389,12 +392,13 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
     if neigh is None and os.path.exists(stem + ".neigh"):
         neigh = stem + ".neigh"
     # id, x, y, attributes, boundary marker; a regular file in one pass, else line by line
-    fast = _regular_table(node, lambda h: 1 + int(h[1]) + int(h[2]) + int(h[3]))
+    text = _text(node)
+    fast = _regular_table(text, lambda h: 1 + int(h[1]) + int(h[2]) + int(h[3]))
     if fast is not None and fast[0][1] == "2" and fast[1].shape[0] >= 3:
         tab = fast[1][:, :3]
         nv = tab.shape[0]
     else:
-        rows = _rows(node)
+        rows = _rows(node, text)
         nv = _count(rows[0], 0, node, "vertex count", least=3)
         dim = _count(rows[0], 1, node, "dimension", default=2)
         if dim != 2:
@@ -411,10 +415,11 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
             f"{node}: vertex ids must run consecutively from 0 or 1; line {bad + 1} has id {int(ids[bad])}")
     points = tab[:, 1:3]
     # id, the corners (3, or 6 for second-order triangles), attributes
-    fast = _regular_table(ele, lambda h: 1 + int(h[1]) + int(h[2]))
+    text = _text(ele)
+    fast = _regular_table(text, lambda h: 1 + int(h[1]) + int(h[2]))
     et = None if fast is None or fast[0][1] not in ("3", "6") else _integer_columns(fast[1], slice(0, 4))
     if et is None:
-        erows = _rows(ele)
+        erows = _rows(ele, text)
         nt = _count(erows[0], 0, ele, "triangle count", least=1)
         per = _count(erows[0], 1, ele, "nodes per triangle", default=3)
         if per not in (3, 6):
@@ -431,10 +436,11 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
 
 def _check_neigh(path: str, faces: np.ndarray, nf: int, base: int) -> None:
     """Every neighbour listed in ``.neigh`` shares the edge opposite the corner it is listed at."""
-    fast = _regular_table(path, lambda h: 4)
+    text = _text(path)
+    fast = _regular_table(text, lambda h: 4)
     tab = None if fast is None or fast[1].shape[0] != nf else _integer_columns(fast[1], slice(1, 4))
     if tab is None:
-        rows = _rows(path)
+        rows = _rows(path, text)
         n = _count(rows[0], 0, path, "triangle count")
         if n != nf:
             raise errors.PolyllaError(f"{path}: {n} triangles in the header, the .ele file has {nf}")

@@ -1152,7 +1152,7 @@ def _split_pinch_vertices(tri):
     reference meshes them; its walks stay in one fan at a pinch (a border edge there is a
     frontier edge, so no clockwise turn crosses the outside), so the fans can be walked apart
     and the polygons given back in the input's ids (checked against the compiled reference on
-    736 such inputs, stop 52). Only the refused input pays for the split."""
+    1,444 such inputs, stop 52). Only the refused input pays for the split."""
     from jaxcds import polylla_io
     from jaxcds.mesh import split_nonmanifold_vertices
 

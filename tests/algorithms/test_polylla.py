@@ -703,7 +703,8 @@ def test_regular_triangle_files_are_read_in_one_pass(tmp_path, monkeypatch):
     (tmp_path / "r.ele").write_text(ele + "\n")
     read_by_lines = []
     real_rows = io._rows
-    monkeypatch.setattr(io, "_rows", lambda path: read_by_lines.append(path) or real_rows(path))
+    monkeypatch.setattr(io, "_rows",
+                        lambda path, *text: read_by_lines.append(path) or real_rows(path, *text))
     fast = io.read_triangle(str(tmp_path / "r.node"))
     assert read_by_lines == []
     monkeypatch.setattr(io, "_regular_table", lambda *a: None)
@@ -718,7 +719,7 @@ def test_regular_triangle_files_are_read_in_one_pass(tmp_path, monkeypatch):
     for broken in (lines[:3] + ["# a comment"] + lines[3:],
                    lines[:5] + [lines[5].rsplit(" ", 1)[0]] + lines[6:]):
         (tmp_path / "r.node").write_text("\n".join(broken))
-        assert io._regular_table(str(tmp_path / "r.node"), lambda h: 5) is None
+        assert io._regular_table(io._text(str(tmp_path / "r.node")), lambda h: 5) is None
         assert np.array_equal(io.read_triangle(str(tmp_path / "r.node")).points, slow.points)
 
 
