@@ -811,16 +811,37 @@ def schnyder_wood(faces, num_vertices: int, root_face: Optional[int] = None,
 _PATTERN = ((True, RED), (False, BLACK), (True, BLUE), (False, RED), (True, BLACK), (False, BLUE))
 
 
+def _entry_edges(out, u, nb, bad):
+    """For the unlabelled rotations of a :class:`WoodOut`: whether each entry ``u -> x`` is the
+    outgoing side of an edge of ``out`` (``out[u, c] == x``) or its incoming side (``out[x, c] ==
+    u``), and that edge's colour ``c``. An entry that is neither, or both (an edge listed in both
+    directions), is refused by name."""
+    columns = [np.ascontiguousarray(out[:, c]) for c in (RED, BLUE, BLACK)]
+    is_out = [t[u] == nb for t in columns]  # u -> x is out's edge of colour c
+    is_in = [t[nb] == u for t in columns]  # x -> u is
+    hit_out, hit_in = is_out[0] | is_out[1] | is_out[2], is_in[0] | is_in[1] | is_in[2]
+    # at most one colour matches each way (out's three edges of a vertex have three targets,
+    # checked before), so the colour is a sum of the masks (np.where chains took 2x longer)
+    col_out, col_in = (m[1].view(np.uint8) + (m[2].view(np.uint8) << 1) for m in (is_out, is_in))
+    col = np.where(hit_out, col_out, col_in).astype(np.int32)
+    w = hit_out == hit_in
+    if w.any():
+        k = int(np.argmax(w))
+        bad(f"rotation entry {k} of vertex {int(u[k])}: the edge to {int(nb[k])} is "
+            + ("in out both ways" if hit_out[k] else "no edge of out"))
+    return hit_out, col
+
+
 def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
     """Raise :class:`~jaxcds.errors.StructureError` naming the first entry of ``wood`` that the
     CDS builders' kernels cannot take (``ArgumentError`` if it is not a :class:`SchnyderWood`
     or a :class:`WoodOut`; of a ``WoodOut``, without colours, the checks up to the rotations
     listing both sides of every edge of ``out``).
 
-    Vectorised, O(n log n) (one sort to pair the two sides of every edge), so the public
+    Vectorised and linear (the two sides of every edge are counted, not sorted), so the public
     ``from_wood`` constructors can afford it on a wood they did not make; the builders skip it
-    on their own. Checked: the outer vertices, ``out`` (``n`` exactly at the six absent slots of
-    Sec. 2.1), the CSR rotations (offsets, every neighbour and colour in range, each rotation
+    on their own. Checked: the outer vertices, ``out`` (``n`` exactly at the six absent slots
+    of Sec. 2.1), the CSR rotations (offsets, every neighbour and colour in range, each rotation
     starting at ``out[u, red]``, at ``V_red`` at ``V_blue``), each edge's two sides agreeing on
     its colour and orientation, and the local Schnyder rule at every inner vertex (Definition
     1). A hand-made wood out of range made the numba kernels read and write out of bounds:
@@ -854,8 +875,9 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
             got = (f"{a.dtype} {a.shape}" if isinstance(a, np.ndarray) else type(a).__name__)
             kind = "bool" if name == "outgoing" else "integer"
             bad(f"{name} must be a numpy {kind} array of shape {shape}, got {got}")
-        arrays[name] = a.astype(bool) if name == "outgoing" else a.astype(np.int64)
-    out, off, nb = (arrays[k] for k in ("out", "offsets", "neighbors"))
+        arrays[name] = a.astype(bool) if name == "outgoing" else a  # range checks first, below
+    out, nb = arrays["out"], arrays["neighbors"]
+    off = arrays["offsets"].astype(np.int64)  # (np.diff of unsigned offsets would wrap)
     R, Bl, Bk = (int(v) for v in outer)
     absent = np.zeros((n, 3), bool)
     absent[R, :] = True
@@ -867,6 +889,12 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
         bad(f"out[{u}, {COLOUR_NAMES[c]}] = {int(out[u, c])}: "
             + ("absent (n) exactly at the six outer slots of Sec. 2.1" if 0 <= out[u, c] <= n
                else f"outside [0, {n}]"))
+    for c1, c2 in ((RED, BLUE), (RED, BLACK), (BLUE, BLACK)):  # a simple graph: no double edge
+        w = (out[:, c1] == out[:, c2]) & (out[:, c1] != n)
+        if w.any():
+            k = int(np.argmax(w))
+            bad(f"out[{k}] = {out[k].tolist()}: vertex {k}'s {COLOUR_NAMES[c1]} and "
+                f"{COLOUR_NAMES[c2]} edges lead to the same vertex")
     if off[0] != 0 or off[-1] != m or np.any(np.diff(off) < 3):
         k = 0 if off[0] != 0 else (n if off[-1] != m else int(np.argmax(np.diff(off) < 3)))
         bad(f"offsets[{k}] = {int(off[k])}: offsets must run from 0 to {m} (6n - 12), each vertex "
@@ -877,34 +905,37 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
         if w.any():
             k = int(np.argmax(w))
             bad(f"{name}[{k}] = {int(a[k])} is outside [0, {top})")
-    u = np.repeat(np.arange(n, dtype=np.int64), np.diff(off))
-    # every rotation entry u -> x is one side of an edge of out, and each side is listed once
-    src, c = np.nonzero(~absent)
-    tgt = out[src, c]
-    sides = np.sort(np.concatenate([src * n + tgt, tgt * n + src]))
-    if not np.array_equal(np.sort(u * n + nb), sides):
-        bad("the rotations do not list both sides of every edge of out exactly once")
+    # From here on int32 (every value is in range, and 6n - 12 < 2^31 for any n a CDS takes):
+    # half the memory traffic of int64 at 10M vertices, where this check is 60M entries long.
+    out, off, nb = (x.astype(np.int32) for x in (out, off, nb))
+    u = np.repeat(np.arange(n, dtype=np.int32), np.diff(off))
+    if lean:  # no labels: each entry's edge is the one of out that joins it, either way
+        og, col = _entry_edges(out, u, nb, bad)
+        edge = 3 * np.where(og, u, nb) + col
+    else:
+        col, og = arrays["colour"].astype(np.int32), arrays["outgoing"]
+        # each entry agrees with out: u -> x outgoing of colour c (edge 3u + c), or x -> u
+        # incoming (edge 3x + c)
+        edge = 3 * np.where(og, u, nb) + col
+        w = out.ravel()[edge] != np.where(og, nb, u)
+        if w.any():
+            k = int(np.argmax(w))
+            bad(f"rotation entry {k} of vertex {int(u[k])}: edge to {int(nb[k])} marked "
+                f"{'outgoing' if og[k] else 'incoming'} {COLOUR_NAMES[int(col[k])]} disagrees with out")
+    # Every entry now names one edge of out (id 3 * source + colour) and one of its sides. Each
+    # edge listed once from its source and once from its target accounts for all 6n - 12 entries:
+    # the rotations list both sides of every edge exactly once (linear: counts, no sort).
+    sides = np.bincount(2 * edge + og, minlength=6 * n).reshape(3 * n, 2)
+    once = sides == (~absent).reshape(-1, 1)  # (entries of absent slots disagree with out, above)
+    if not once.all():
+        e, at_source = (int(x) for x in np.argwhere(~once)[0])
+        v, c = divmod(e, 3)
+        where = f"vertex {v}" if at_source else f"vertex {int(out[v, c])} (its target)"
+        bad(f"the rotation of {where} lists the {COLOUR_NAMES[c]} edge {v} -> {int(out[v, c])} "
+            f"{'nowhere' if sides[e, at_source] == 0 else f'{int(sides[e, at_source])} times'}: "
+            "the rotations must list both sides of every edge of out exactly once")
     if lean:
         return
-    col, og = arrays["colour"], arrays["outgoing"]
-    # each entry agrees with out: u -> x outgoing of colour c, or x -> u incoming
-    w = np.where(og, out[u, col] != nb, out[nb, col] != u)
-    if w.any():
-        k = int(np.argmax(w))
-        bad(f"rotation entry {k} of vertex {int(u[k])}: edge to {int(nb[k])} marked "
-            f"{'outgoing' if og[k] else 'incoming'} {COLOUR_NAMES[int(col[k])]} disagrees with out")
-    count = np.bincount(u[og] * 3 + col[og], minlength=3 * n)
-    once = count == (~absent).ravel()  # (entries of absent slots disagree with out, above)
-    if not once.all():
-        k = int(np.argmax(~once))
-        bad(f"vertex {k // 3}: its rotation lists its outgoing {COLOUR_NAMES[k % 3]} edge "
-            f"{'more than once' if count[k] else 'nowhere'}")
-    # both sides of every edge present once: outgoing (u, x, c) and incoming (x, u, c) pair up
-    keys_out = np.sort((u * n + nb)[og] * 3 + col[og])
-    keys_in = np.sort((nb * n + u)[~og] * 3 + col[~og])
-    if keys_out.size != keys_in.size or not np.array_equal(keys_out, keys_in):
-        bad("the two sides of the edges do not pair up (an edge is listed once, twice, or with "
-            "two colours)")
     first = off[:-1]
     start = np.where(np.arange(n) == R, Bl, out[np.arange(n), RED])
     w = nb[first] != start
@@ -914,24 +945,25 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
             f"{'V_blue' if k == R else 'its outgoing red edge'} ({int(start[k])})")
     # local rule at inner vertices: codes out red 0, in black 1, out blue 2, in red 3, out black
     # 4, in blue 5 never decrease along a rotation (the three outgoing are there once, by out)
-    code = np.where(og, 2 * col, (2 * col + 3) % 6)
-    inner = (u != R) & (u != Bl) & (u != Bk)
-    step = np.ones(m, bool)
-    step[1:] = (code[1:] >= code[:-1]) | (u[1:] != u[:-1])
-    w = ~step & inner
+    code = np.array([3, 5, 1, 0, 2, 4], np.int8)[3 * og + col]  # [incoming c, outgoing c]
+    w = np.zeros(m, bool)
+    w[1:] = code[1:] < code[:-1]
+    w[first] = False  # each rotation starts afresh
+    outer_rows = [(v, c, slice(int(off[v]), int(off[v + 1])))
+                  for v, c in sorted(((R, RED), (Bl, BLUE), (Bk, BLACK)))]
+    for _, _, rows in outer_rows:
+        w[rows] = False
     if w.any():
         k = int(np.argmax(w))
         bad(f"vertex {int(u[k])}: its ccw rotation breaks the local Schnyder rule (Definition 1) "
             f"at entry {k - int(off[u[k]])}")
     # outer vertices: every edge to an inner vertex incoming, of the vertex's own colour
-    own = np.full(n, -1, np.int64)
-    own[[R, Bl, Bk]] = [RED, BLUE, BLACK]
-    to_inner = (nb != R) & (nb != Bl) & (nb != Bk)
-    w = ~inner & to_inner & (og | (col != own[u]))
-    if w.any():
-        k = int(np.argmax(w))
-        bad(f"outer vertex {int(u[k])}: its edge to {int(nb[k])} is not incoming "
-            f"{COLOUR_NAMES[int(own[u[k]])]}")
+    for v, own, rows in outer_rows:
+        x = nb[rows]
+        w = (x != R) & (x != Bl) & (x != Bk) & (og[rows] | (col[rows] != own))
+        if w.any():
+            k = int(np.argmax(w))
+            bad(f"outer vertex {v}: its edge to {int(x[k])} is not incoming {COLOUR_NAMES[own]}")
 
 
 def check_schnyder_wood(wood: SchnyderWood, faces: Optional[np.ndarray] = None,

@@ -1641,7 +1641,7 @@ class CDS6n(_CDS):
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False, check: bool = True) -> "CDS6n":
         """Build from a (maximal, for the face map) Schnyder wood in linear time (one numba
         pass, :func:`_cds_rows`). Every CDS's ``from_wood`` first checks a wood it did not make
-        (``check=True``: :func:`~jaxcds.construct.schnyder.check_wood_arrays`, O(n log n),
+        (``check=True``: :func:`~jaxcds.construct.schnyder.check_wood_arrays`, linear,
         ``StructureError`` naming the entry); the builders pass theirs with ``check=False``."""
         _checked_wood(cls, wood, check)
         refs, fblue, static = _build_rows(wood, _KIND_6N)
