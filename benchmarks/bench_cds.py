@@ -143,7 +143,7 @@ def bench_build_stages(mesh_name: str, mesh, repeats: int = 1) -> list[dict]:
     and without the mesh checks, and the process's peak RSS (``VmHWM``, absolute: mesh included)
     over the build, reset before each structure. Medians of ``repeats`` runs (after a warm-up on
     a small mesh: numba compilation excluded)."""
-    from jaxcds.construct.schnyder import prepare_mesh, schnyder_wood
+    from jaxcds.construct.schnyder import check_wood_arrays, prepare_mesh, schnyder_wood
     from jaxcds.generators import random_planar_triangulation
 
     small = random_planar_triangulation(64, seed=0)
@@ -153,17 +153,18 @@ def bench_build_stages(mesh_name: str, mesh, repeats: int = 1) -> list[dict]:
     nf = mesh.num_faces
     rows = []
     for name, cls in _cds_classes().items():
-        _reset_peak_rss()
         rss0 = _proc_status().get("VmRSS")
-        t_chk, t_wood, t_tab, c_build = [], [], [], []
+        t_chk, t_wood, t_tab, c_build, t_wcheck, peaks = [], [], [], [], [], []
         for _ in range(max(1, repeats)):
+            _reset_peak_rss()
             t0 = time.perf_counter()
             m, closed = prepare_mesh(mesh, structure=name)
             t1 = time.perf_counter()
             c1 = time.process_time()
-            wood = schnyder_wood(m.faces, m.num_vertices)
+            wood = schnyder_wood(m.faces, m.num_vertices, maximal=True)
             t2 = time.perf_counter()
-            s = cls.from_wood(wood, boundaries_closed=closed)
+            # as build_cds: its own wood needs no check_wood_arrays (timed apart, below)
+            s = cls.from_wood(wood, boundaries_closed=closed, check=False)
             s.refs.block_until_ready()
             t3 = time.perf_counter()
             c3 = time.process_time()
@@ -172,11 +173,19 @@ def bench_build_stages(mesh_name: str, mesh, repeats: int = 1) -> list[dict]:
             t_tab.append(t3 - t2)
             # process CPU time of wood + tables: the figure to trust on a loaded machine
             c_build.append(c3 - c1)
-            del wood, s
-        peak = _proc_status().get("VmHWM")
-        chk, wd, tab, cpu = (statistics.median(x) for x in (t_chk, t_wood, t_tab, c_build))
+            del s
+            peaks.append(_proc_status().get("VmHWM"))  # the build's, before the check below
+            # what a caller's own wood costs on top: from_wood(check=True)'s O(n log n) check
+            t4 = time.perf_counter()
+            check_wood_arrays(wood)
+            t_wcheck.append(time.perf_counter() - t4)
+            del wood
+        peak = max(peaks) if all(peaks) else None
+        chk, wd, tab, cpu, wchk = (statistics.median(x)
+                                   for x in (t_chk, t_wood, t_tab, c_build, t_wcheck))
         row = {"mesh": mesh_name, "structure": name, "vertices": mesh.num_vertices, "faces": nf,
                "checks_s": chk, "wood_s": wd, "tables_s": tab, "cpu_s": cpu,
+               "wood_check_s": wchk,
                "mfaces_per_s": nf / (wd + tab) / 1e6,
                "mfaces_per_cpu_s": nf / max(cpu, 1e-9) / 1e6,
                "mfaces_per_s_with_checks": nf / (chk + wd + tab) / 1e6,
@@ -184,20 +193,23 @@ def bench_build_stages(mesh_name: str, mesh, repeats: int = 1) -> list[dict]:
         rows.append(row)
         _log(f"  {name}: checks {chk:.2f} s, wood {wd:.2f} s, tables {tab:.2f} s (CPU {cpu:.2f} s): "
              f"{row['mfaces_per_s']:.2f} M faces/s ({row['mfaces_per_s_with_checks']:.2f} with the "
-             f"checks), peak RSS {peak / 2**30 if peak else float('nan'):.2f} GiB")
+             f"checks), peak RSS {peak / 2**30 if peak else float('nan'):.2f} GiB; a caller's own "
+             f"wood's check (from_wood(check=True)) {wchk:.2f} s more")
     return rows
 
 
 def stages_markdown(rows: list[dict]) -> str:
     out = ["| mesh | structure | faces | checks s | wood s | tables s | M faces/s (wood + tables) "
-           "| M faces/CPU s (wood + tables) | M faces/s (with checks) | peak RSS GiB |",
-           "|---|---|---|---|---|---|---|---|---|---|"]
+           "| M faces/CPU s (wood + tables) | M faces/s (with checks) | peak RSS GiB "
+           "| a caller's wood's check s |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         peak = f"{r['peak_rss_bytes'] / 2**30:.2f}" if r.get("peak_rss_bytes") else ""
         out.append(f"| {r['mesh']} | {r['structure']} | {r['faces']} | {r['checks_s']:.2f} | "
                    f"{r['wood_s']:.2f} | {r['tables_s']:.2f} | {r['mfaces_per_s']:.2f} | "
                    f"{r['mfaces_per_cpu_s']:.2f} | "
-                   f"{r['mfaces_per_s_with_checks']:.2f} | {peak} |")
+                   f"{r['mfaces_per_s_with_checks']:.2f} | {peak} | "
+                   f"{r.get('wood_check_s', float('nan')):.2f} |")
     return "\n".join(out)
 
 
