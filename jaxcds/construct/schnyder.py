@@ -847,8 +847,6 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
     1). A hand-made wood out of range made the numba kernels read and write out of bounds:
     interpreter crashes (stop 50). Not checked: planarity of the rotations and maximality (no
     clockwise triangle); :func:`check_schnyder_wood` (with the faces) checks the latter."""
-    from jaxcds._args import is_integer
-
     if not isinstance(wood, (SchnyderWood, WoodOut)):
         raise errors.ArgumentError(f"{what}: expected a SchnyderWood (jaxcds.construct.schnyder."
                                    f"schnyder_wood), got {type(wood).__name__}")
@@ -856,6 +854,27 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
 
     def bad(msg):
         raise errors.StructureError(f"{what}: {msg}")
+
+    n, outer, absent, arrays = _wood_in_range(wood, lean, bad)
+    # From here on int32 (every value is in range, and 6n - 12 < 2^31 for any n a CDS takes):
+    # half the memory traffic of int64 at 10M vertices, where this check is 60M entries long.
+    out, off, nb = (arrays[k].astype(np.int32) for k in ("out", "offsets", "neighbors"))
+    u = np.repeat(np.arange(n, dtype=np.int32), np.diff(off))
+    if lean:  # no labels: each entry's edge is the one of out that joins it, either way
+        og, col = _entry_edges(out, u, nb, bad)
+    else:
+        og, col = arrays["outgoing"], arrays["colour"].astype(np.int32)
+    _check_both_sides(out, absent, u, nb, og, col, check_labels=not lean, bad=bad)
+    if not lean:
+        _check_rotation_order(out, off, u, nb, og, col, outer, bad)
+
+
+def _wood_in_range(wood, lean: bool, bad):
+    """:func:`check_wood_arrays`' first part: ``num_vertices``, the outer vertices, every
+    array's type and shape, ``out`` (absent exactly at the six outer slots of Sec. 2.1, three
+    distinct targets per vertex), the offsets, and every neighbour and colour in range. Returns
+    ``(n, (R, Bl, Bk), absent, arrays)``, the arrays as given (offsets as int64)."""
+    from jaxcds._args import is_integer
 
     n = wood.num_vertices
     if not is_integer(n) or n < 3:
@@ -876,8 +895,8 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
             kind = "bool" if name == "outgoing" else "integer"
             bad(f"{name} must be a numpy {kind} array of shape {shape}, got {got}")
         arrays[name] = a.astype(bool) if name == "outgoing" else a  # range checks first, below
-    out, nb = arrays["out"], arrays["neighbors"]
-    off = arrays["offsets"].astype(np.int64)  # (np.diff of unsigned offsets would wrap)
+    arrays["offsets"] = off = arrays["offsets"].astype(np.int64)  # (np.diff of unsigned ones wraps)
+    out = arrays["out"]
     R, Bl, Bk = (int(v) for v in outer)
     absent = np.zeros((n, 3), bool)
     absent[R, :] = True
@@ -905,28 +924,26 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
         if w.any():
             k = int(np.argmax(w))
             bad(f"{name}[{k}] = {int(a[k])} is outside [0, {top})")
-    # From here on int32 (every value is in range, and 6n - 12 < 2^31 for any n a CDS takes):
-    # half the memory traffic of int64 at 10M vertices, where this check is 60M entries long.
-    out, off, nb = (x.astype(np.int32) for x in (out, off, nb))
-    u = np.repeat(np.arange(n, dtype=np.int32), np.diff(off))
-    if lean:  # no labels: each entry's edge is the one of out that joins it, either way
-        og, col = _entry_edges(out, u, nb, bad)
-        edge = 3 * np.where(og, u, nb) + col
-    else:
-        col, og = arrays["colour"].astype(np.int32), arrays["outgoing"]
-        # each entry agrees with out: u -> x outgoing of colour c (edge 3u + c), or x -> u
-        # incoming (edge 3x + c)
-        edge = 3 * np.where(og, u, nb) + col
+    return n, (R, Bl, Bk), absent, arrays
+
+
+def _check_both_sides(out, absent, u, nb, og, col, *, check_labels: bool, bad) -> None:
+    """Every rotation entry ``u -> x`` (``og``: outgoing, colour ``col``) is one side of an edge
+    of ``out`` -- id ``3 * source + colour`` -- and the rotations list both sides of every edge
+    exactly once. ``check_labels``: first check each labelled entry against ``out`` (the lean
+    entries were matched to ``out``'s edges by :func:`_entry_edges`). Linear: the sides are
+    counted per edge, not sorted."""
+    edge = 3 * np.where(og, u, nb) + col
+    if check_labels:  # u -> x outgoing of colour c: out[u, c] == x; x -> u incoming: out[x, c] == u
         w = out.ravel()[edge] != np.where(og, nb, u)
         if w.any():
             k = int(np.argmax(w))
             bad(f"rotation entry {k} of vertex {int(u[k])}: edge to {int(nb[k])} marked "
                 f"{'outgoing' if og[k] else 'incoming'} {COLOUR_NAMES[int(col[k])]} disagrees with out")
-    # Every entry now names one edge of out (id 3 * source + colour) and one of its sides. Each
-    # edge listed once from its source and once from its target accounts for all 6n - 12 entries:
-    # the rotations list both sides of every edge exactly once (linear: counts, no sort).
-    sides = np.bincount(2 * edge + og, minlength=6 * n).reshape(3 * n, 2)
-    once = sides == (~absent).reshape(-1, 1)  # (entries of absent slots disagree with out, above)
+    # each present edge listed once from its source and once from its target accounts for all
+    # 6n - 12 entries
+    sides = np.bincount(2 * edge + og, minlength=2 * out.size).reshape(out.size, 2)
+    once = sides == (~absent).reshape(-1, 1)  # (no entry names an absent slot: checked above)
     if not once.all():
         e, at_source = (int(x) for x in np.argwhere(~once)[0])
         v, c = divmod(e, 3)
@@ -934,10 +951,15 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
         bad(f"the rotation of {where} lists the {COLOUR_NAMES[c]} edge {v} -> {int(out[v, c])} "
             f"{'nowhere' if sides[e, at_source] == 0 else f'{int(sides[e, at_source])} times'}: "
             "the rotations must list both sides of every edge of out exactly once")
-    if lean:
-        return
-    first = off[:-1]
-    start = np.where(np.arange(n) == R, Bl, out[np.arange(n), RED])
+
+
+def _check_rotation_order(out, off, u, nb, og, col, outer, bad) -> None:
+    """Each rotation starts at the vertex's outgoing red edge (``V_red``'s at ``V_blue``), the
+    local Schnyder rule holds at every inner vertex (Definition 1), and every edge of an outer
+    vertex to an inner one is incoming, of the outer vertex's colour."""
+    R, Bl, Bk = outer
+    n, first = out.shape[0], off[:-1]
+    start = np.where(np.arange(n) == R, Bl, out[:, RED])
     w = nb[first] != start
     if w.any():
         k = int(np.argmax(w))
@@ -946,7 +968,7 @@ def check_wood_arrays(wood, what: str = "Schnyder wood") -> None:
     # local rule at inner vertices: codes out red 0, in black 1, out blue 2, in red 3, out black
     # 4, in blue 5 never decrease along a rotation (the three outgoing are there once, by out)
     code = np.array([3, 5, 1, 0, 2, 4], np.int8)[3 * og + col]  # [incoming c, outgoing c]
-    w = np.zeros(m, bool)
+    w = np.zeros(u.size, bool)
     w[1:] = code[1:] < code[:-1]
     w[first] = False  # each rotation starts afresh
     outer_rows = [(v, c, slice(int(off[v]), int(off[v + 1])))
