@@ -180,6 +180,28 @@ def test_wood_check_counts_both_sides_of_every_edge():
         check_wood_arrays(dataclasses.replace(lean, out=out))
 
 
+def test_wood_check_names_an_outer_vertex_with_a_foreign_colour():
+    """Definition 1 at the outer vertices: every edge from an inner vertex to V_red is red (to
+    V_blue blue, to V_black black). On the tetrahedron, the inner vertex's red and blue edges
+    swapped (its rotation started at its new red edge, both sides relabelled) pass every other
+    check -- the rotations are not checked for planarity -- and only this one names it."""
+    f = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]])
+    w = schnyder_wood(f, 4)
+    R, Bl, x = w.v_red, w.v_blue, 3
+    assert x not in w.outer and list(w.out[x, [RED, BLUE]]) == [R, Bl]
+    check_wood_arrays(w)
+    out, nb, col = w.out.copy(), w.neighbors.copy(), w.colour.copy()
+    out[x, [RED, BLUE]] = Bl, R
+    rot = slice(w.offsets[x], w.offsets[x + 1])
+    order = [Bl, R, int(w.out[x, BLACK])]  # out red, out blue, out black: the local rule holds
+    nb[rot], col[rot] = order, [RED, BLUE, BLACK]
+    for v, c in ((R, BLUE), (Bl, RED)):  # the other side of each swapped edge
+        j = w.offsets[v] + list(w.neighbors[w.offsets[v]:w.offsets[v + 1]]).index(x)
+        col[j] = c
+    with pytest.raises(errors.StructureError, match=rf"outer vertex {R}: its edge to {x} is not incoming red"):
+        check_wood_arrays(dataclasses.replace(w, out=out, neighbors=nb, colour=col))
+
+
 def test_non_maximal_wood_is_valid_but_has_cw_triangles():
     """The other conquest order gives a Schnyder wood (Definition 1 holds) with clockwise oriented
     triangles, which the maximal rule avoids: the checker sees the difference."""
