@@ -588,7 +588,7 @@ def _obj_trailing_comment(text: str) -> bool:
 #: searched once for "\nf"; the negative lookahead fails a good line at its third token
 #: without backtracking (0.11 s on a 1M-face OBJ; a numpy pass over the bytes took 0.4 s).
 #: Blanks are str.split()'s, as trimesh's; the first line is matched after a "\n" put before it.
-_OBJ_SHORT_FACE = re.compile(r"\nf(?![^\S\n]+\S+[^\S\n]+\S+[^\S\n]+\S)(?:\s|\Z)")
+_OBJ_SHORT_FACE = re.compile(r"\nf(?![^\S\n]+\S+[^\S\n]+\S+[^\S\n]+\S)(?=\s|\Z)")
 
 
 #: a vertex line (v, vt, vn) with a token holding "+e" or "-e": never a number (an exponent's
@@ -633,20 +633,27 @@ def _refuse_obj_short_face(text: str, path: str) -> None:
             at = np.array([m.start() for m in re.finditer(r"\\\n", text)], dtype=np.int64)
             joins = at - 2 * np.arange(at.size)
             text = text.replace("\\\n", "")
-    if _OBJ_SHORT_FACE.match("\n" + text[:text.find("\n") + 1 or len(text)]):
-        at = 0
-    else:
-        hit = _OBJ_SHORT_FACE.search(text)
-        if hit is None:
-            return
-        at = hit.start() + 1
-    stop = text.find("\n", at)
-    corners = len(text[at + 1:stop if stop >= 0 else len(text)].split())
-    line = text.count("\n", 0, at) + 1
+    starts = [0] if _OBJ_SHORT_FACE.match("\n" + text[:text.find("\n") + 1 or len(text)]) else []
+    hit = _OBJ_SHORT_FACE.search(text)
+    if hit is None and not starts:
+        return
+    if hit is not None:  # the error path only: every short line, to count them
+        starts += [m.start() + 1 for m in _OBJ_SHORT_FACE.finditer(text, hit.start())]
+    # line numbers counted from one short line to the next (not from the start each time)
+    lines = np.cumsum([text.count("\n", a, b) for a, b in zip([0] + starts[:-1], starts)]) + 1
     if joins is not None:
-        line += int(np.searchsorted(joins, at, side="right"))
-    raise errors.InvalidIndexError(f"{path}: line {line}: a face of {corners} corner(s); a face "
-                                   "needs at least 3")
+        lines = lines + np.searchsorted(joins, starts, side="right")
+    stop = text.find("\n", starts[0])
+    corners = len(text[starts[0] + 1:stop if stop >= 0 else len(text)].split())
+    # exporters write a mesh's loose edges as "f a b" (22 of Sweet Home 3D's 820 furniture
+    # models, up to 700 lines each): the count and a fix that works say more than one line
+    loose = " (a loose edge, as some exporters write one)" if corners == 2 else ""
+    more = (f"; {len(lines)} such face lines, the last at line {lines[-1]}" if len(lines) > 1
+            else "")
+    raise errors.InvalidIndexError(
+        f"{path}: line {lines[0]}: a face of {corners} corner(s){loose}; a face needs at least 3"
+        f"{more}. To read the surface without them, delete those lines, or write a loose edge as "
+        "a polyline line ('l a b' for 'f a b'), which jaxcds skips")
 
 
 def _absolute_obj_indices(text: str, path: str) -> str:

@@ -91,6 +91,23 @@ def test_obj_short_face_is_named_among_polygons(text, line, corners, tmp_path):
         load_mesh(_write(tmp_path, "s.obj", text))
 
 
+def test_obj_loose_edges_as_faces_are_counted_and_the_advice_works(tmp_path):
+    """Exporters write a model's loose edges as 2-corner faces (22 of Sweet Home 3D's furniture
+    models, up to 700 lines each): the message named the first line only and said nothing of
+    what to do. It counts them, names the last, and its advice ('l a b' for 'f a b') loads."""
+    edges = "f 5 6\nf 6 7\nf\t7  5 \r\n"  # lines 9-11
+    text = _QUAD_V + "v 3 3 0\nf 1 2 3 4\n" + edges + "f 2 5 3\n"
+    with pytest.raises(errors.InvalidIndexError,
+                       match=r"line 9: a face of 2 corner\(s\) \(a loose edge, .*3 such face lines, "
+                             r"the last at line 11\..*'l a b' for 'f a b'"):
+        load_mesh(_write(tmp_path, "e.obj", text))
+    as_lines = re.sub(r"(?m)^f(\s+\S+\s+\S+\s*)$", r"l\1", text)
+    mesh = load_mesh(_write(tmp_path, "l.obj", as_lines), weld=False)
+    without = load_mesh(_write(tmp_path, "w.obj", text.replace(edges, "")), weld=False)
+    np.testing.assert_array_equal(mesh.faces, without.faces)
+    assert mesh.removed_unreferenced == 2  # vertices 6 and 7: on the loose edges only
+
+
 def test_obj_polygons_and_continued_face_lines_still_load(tmp_path):
     """A face line continued with a backslash (trimesh joins it) is one face, not a short one."""
     text = _QUAD_V + "vt 0 0\nf 1/1 2/1 \\\n3/1 4/1\nf 2 \\\r\n5 3\nf\t5 6 2\n"
