@@ -414,6 +414,7 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
         raise errors.PolyllaError(
             f"{node}: vertex ids must run consecutively from 0 or 1; line {bad + 1} has id {int(ids[bad])}")
     points = tab[:, 1:3]
+    _require_ele(node, ele)
     # id, the corners (3, or 6 for second-order triangles), attributes
     text = _text(ele)
     fast = _regular_table(text, lambda h: 1 + int(h[1]) + int(h[2]))
@@ -432,6 +433,17 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
     if neigh is not None:
         _check_neigh(neigh, faces - 0, tri.num_faces, base)
     return tri
+
+
+def _require_ele(node: str, ele: str) -> None:
+    """A .node without its .ele: Triangle's own program would triangulate those points, Polylla
+    meshes a given triangulation; "x.ele: no such file" alone did not say why an .ele is needed
+    nor how to give a point set (sweep 53b)."""
+    if not os.path.lexists(ele):
+        raise errors.PolyllaError(
+            f"{node}: its triangles file {os.path.basename(ele)} does not exist; Polylla meshes "
+            "a triangulation (put Triangle's .ele beside the .node), or give the points as "
+            ".xy/.txt/.csv/.npy to have them Delaunay-triangulated")
 
 
 def _check_neigh(path: str, faces: np.ndarray, nf: int, base: int) -> None:

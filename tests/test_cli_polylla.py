@@ -11,6 +11,7 @@ import pathlib
 import numpy as np
 import pytest
 
+from jaxcds import errors
 from jaxcds import polylla_io as io
 from jaxcds.algorithms import polylla as P
 from jaxcds.cli import main
@@ -153,6 +154,19 @@ def _refused(capsys, argv, out, match):
     err = capsys.readouterr().err
     assert rc == 2 and match in err and "Traceback" not in err, err
     assert not os.path.exists(out)
+
+
+def test_a_node_file_without_its_ele_says_how_to_give_points(capsys, tmp_path):
+    """Sweep 53b: a .node alone (a point set, as Triangle's own program takes it) was refused
+    as "p.ele: no such file", which did not say that Polylla wants the triangles, nor that a
+    point list (.xy, ...) is triangulated; typed, nothing written, both spellings of the input."""
+    (tmp_path / "p.node").write_text("4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
+    out = str(tmp_path / "o.off")
+    for given in ("p.node", "p"):
+        _refused(capsys, ["polylla", str(tmp_path / given), "-o", out], out,
+                 "p.node: its triangles file p.ele does not exist")
+    with pytest.raises(errors.PolyllaError, match=r"give the points as \.xy"):
+        io.read_input(str(tmp_path / "p.node"))
 
 
 def test_errors_write_nothing(capsys, tmp_path):
