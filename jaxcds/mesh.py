@@ -1811,7 +1811,8 @@ def find_defects(mesh: TriMesh, et: Optional[EdgeTable] = None) -> list[errors.M
         if bad_v.size:
             found.append(errors.NonManifoldVertexError(
                 f"{src}: vertex {int(bad_v[0])} joins {int(fans[bad_v[0]])} separate fans of faces "
-                f"({bad_v.size} non-manifold vertices){_weld_hint(mesh, bad_v)}"))
+                f"({bad_v.size} non-manifold vertices); jaxcds.mesh.split_nonmanifold_vertices(mesh) "
+                f"gives each fan its own copy of the vertex{_weld_hint(mesh, bad_v)}"))
     return found
 
 
