@@ -1909,9 +1909,13 @@ def split_nonmanifold_vertices(mesh: TriMesh) -> TriMesh:
     f = _mesh_arg(mesh, "split_nonmanifold_vertices").faces.astype(np.int64)
     _check_indices(f, mesh.num_vertices, mesh.source)
     et = edge_table(f)
-    if np.any(et.count > 2):
+    nm = np.flatnonzero(et.count > 2)
+    if nm.size:  # named as find_defects names it: the advice is in the NonManifoldEdgeError
+        a, b = (int(x) for x in et.edges[nm[0]])
         raise errors.NonManifoldEdgeError(
-            f"{mesh.source}: cannot split vertices while edges are non-manifold")
+            f"{mesh.source}: cannot split vertices while edges are non-manifold: edge ({a}, {b}) "
+            f"is on {int(et.count[nm[0]])} face sides ({nm.size} non-manifold edges); "
+            "split_nonmanifold_vertices repairs vertices whose edges are manifold")
     key = _corner_fans(f, et)
     uniq, inv = np.unique(key, return_inverse=True)
     inv = inv.ravel()

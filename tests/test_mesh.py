@@ -338,6 +338,18 @@ def test_bow_tie_message_names_the_repair_that_works():
     assert validate(split_nonmanifold_vertices(m)).num_vertices == 6
 
 
+def test_split_nonmanifold_vertices_names_the_edge_it_cannot_take():
+    """Its refusal of a non-manifold edge said only 'edges are non-manifold' (furniture models
+    have hundreds): it names the first edge, its face sides and the count, as validate does."""
+    from jaxcds.mesh import split_nonmanifold_vertices
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1]], dtype=float)
+    m = load_mesh(v, np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]]), weld=False)
+    with pytest.raises(errors.NonManifoldEdgeError,
+                       match=r"edge \(0, 1\) is on 3 face sides \(1 non-manifold edges\)"):
+        split_nonmanifold_vertices(m)
+
+
 @pytest.mark.parametrize("name", mesh_params(["grid.off", "2triangles.off", "stanford-bunny.obj",
                                               "camelhead.off", "beetle.off"]))
 def test_close_boundaries(name):
