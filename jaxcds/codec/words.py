@@ -214,8 +214,10 @@ def _split(bits, n, out):
         pr += 1
         if s == 0:
             while True:
-                if pi >= end or pb >= end:
+                if pi >= end:
                     return 1, pi
+                if pb >= end:  # more black bits than the 2n - 3 a black word holds
+                    return 4, pi
                 x = bits[pi]
                 pi += 1
                 out[pb] = x
@@ -238,7 +240,8 @@ def to_mixed(w: Words) -> Words:
     if status == 1:
         raise errors.EncodingError(f"black word ends inside a unary block (bit {pos - 2 * n} of the black word)")
     if status == 2:
-        raise errors.EncodingError(f"black word has {4 * n - 3 - pos} unused bits after bit {pos - 2 * n}")
+        raise errors.EncodingError(f"black word has {4 * n - 3 - pos} unused bits from bit {pos - 2 * n} on "
+                                   f"(the red word's {n} vertices read {pos - 2 * n} of its {2 * n - 3} bits)")
     return Words(n, pack(out), mixed=True)
 
 
@@ -251,8 +254,11 @@ def to_separate(w: Words) -> Words:
     status, pos = _split(w.unpacked(), n, out)
     if status == 1:
         raise errors.EncodingError(f"mixed word ends inside a black unary block (bit {pos})")
-    if status == 2:
+    if status == 2:  # not reached: 4n - 3 bits, at most 2n red and 2n - 3 black (statuses 3, 4)
         raise errors.EncodingError(f"mixed word: wrong red/black bit counts at the end (bit {pos})")
+    if status == 4:
+        raise errors.EncodingError(f"mixed word: the black blocks run past the 2n - 3 = {2 * n - 3} bits of a "
+                                   f"black word (bit {pos})")
     if status == 3:
         raise errors.EncodingError(f"mixed word: more than 2n = {2 * n} red symbols (bit {pos})")
     return Words(n, pack(out), mixed=False)

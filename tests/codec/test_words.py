@@ -86,3 +86,41 @@ def test_words_with_a_misshapen_buffer_are_refused():
     with pytest.raises(errors.EncodingError, match="bits must be a 1-d uint8 array of packed bytes, got list"):
         W.Words(10, [[1], [1, 2]])
     assert decode(W.Words(10, list(w.bits))).shape == (16, 3)
+
+
+@pytest.mark.parametrize("red,black,msg", [
+    (FIG9_RED_PLAIN.replace("(", "[", 1), FIG9_BLACK, r"red word: symbol '\[' at bit 0 is not a parenthesis"),
+    (FIG9_RED_PLAIN, "000001" + "2" + FIG9_BLACK[7:], r"black word: symbol '2' at bit 6 is not 0/1"),
+    (FIG9_RED_PLAIN[:-1], FIG9_BLACK, r"red word: length 19 is not 2n"),
+    ("(())", "0", r"red word: length 4 is not 2n for some n >= 3"),
+])
+def test_from_strings_names_the_bad_symbol_or_length(red, black, msg):
+    with pytest.raises(errors.EncodingError, match=msg):
+        W.from_strings(red, black)
+
+
+@pytest.mark.parametrize("black,msg", [
+    ("1" * 17, r"black word ends inside a unary block \(bit 17 of the black word\)"),
+    # Fig. 9's 10 opening parentheses read one bit each: bits 10..16 are left over
+    ("0" * 17, r"black word has 7 unused bits from bit 10 on .*read 10 of its 17 bits"),
+])
+def test_to_mixed_names_where_the_black_word_goes_wrong(black, msg):
+    with pytest.raises(errors.EncodingError, match=msg):
+        W.to_mixed(W.from_strings(FIG9_RED_PLAIN, black))
+
+
+def _mixed(bits: str) -> W.Words:
+    return W.Words((len(bits) + 3) // 4, W.pack(np.array([int(c) for c in bits], np.uint8)), mixed=True)
+
+
+@pytest.mark.parametrize("bits,msg", [
+    ("1" * 19 + "0" + "1" * 17, r"mixed word ends inside a black unary block \(bit 37\)"),
+    ("1" * 37, r"more than 2n = 20 red symbols \(bit 20\)"),
+    # 18 '(' each with an empty black block: the 18th block is past the 17 black bits
+    ("0" * 37, r"black blocks run past the 2n - 3 = 17 bits of a black word \(bit 35\)"),
+])
+def test_to_separate_names_where_the_mixed_word_goes_wrong(bits, msg):
+    """The third case said 'ends inside a black unary block' at bit 35 of 37: the word goes on;
+    its black blocks are what is too long."""
+    with pytest.raises(errors.EncodingError, match=msg):
+        W.to_separate(_mixed(bits))
