@@ -599,3 +599,56 @@ def test_a_read_only_output_is_refused_and_kept(tmp_path, monkeypatch):
     monkeypatch.setattr(ff.os, "access", lambda p, m: False if os.path.isdir(p) else real_access(p, m))
     with pytest.raises(errors.OutputError, match="is not writable"):
         write_cds(tmp_path / "new.cds", m)
+
+
+def _header_with(data: bytes, fmt: str, offset: int, value: int) -> bytes:
+    """``data`` with one header field set to ``value`` and the header's checksum made right."""
+    b = bytearray(data)
+    struct.pack_into(fmt, b, offset, value)
+    return bytes(_recrc_header(b))
+
+
+@pytest.mark.parametrize("fmt,offset,value,msg", [
+    ("<H", 10, 0x80, r"unknown flag bits 0x80 at byte 10"),
+    ("<I", 28, 5, r"reserved field at byte 28 is 5, must be 0"),
+])
+def test_header_fields_a_reader_does_not_know_are_refused(tmp_path, fmt, offset, value, msg):
+    _, data = _small_file(tmp_path)
+    with pytest.raises(errors.FormatError, match=msg):
+        read_cds(_header_with(data, fmt, offset, value))
+
+
+def test_connectivity_padding_bits_must_be_zero(tmp_path):
+    """12 vertices: 45 connectivity bits in 6 bytes, 3 padding bits in the last (checksum right)."""
+    _, data = _small_file(tmp_path)
+    b = bytearray(data)
+    start, size = ff.HEADER_SIZE, 6
+    b[start + size - 1] |= 1
+    struct.pack_into("<I", b, start + size, zlib.crc32(bytes(b[start:start + size])))
+    with pytest.raises(errors.FormatError, match=rf"non-zero padding bits in byte {start + size - 1} "
+                                                 r"\(connectivity bits 45\.\.47\)"):
+        read_cds(bytes(b))
+
+
+def test_a_dummy_mask_on_every_face_is_refused(tmp_path):
+    """The octahedron's two poles: no face holds both, but every face holds one, so nothing of
+    the surface would be left. Both ways in: the file's mask (FormatError naming its bytes) and
+    a mask given to decode (ArgumentError)."""
+    from jaxcds.codec import decode
+    from jaxcds.mesh import load_mesh
+
+    v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    f = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    path = tmp_path / "octa.cds"
+    write_cds(path, load_mesh((v, f)))
+    mesh, _, words = read_cds(path, original_order=False, return_words=True)
+    neighbours = np.zeros((6, 6), bool)
+    neighbours[mesh.faces, np.roll(mesh.faces, 1, axis=1)] = True
+    pole = int(np.flatnonzero(~neighbours[0] & (np.arange(6) != 0))[0])  # vertex 0's antipode
+    mask = np.isin(np.arange(6), [0, pole])
+    with pytest.raises(errors.FormatError, match=r"dummy mask \(bytes from \d+\) leaves no face without a "
+                                                 r"dummy vertex: the mask is corrupted"):
+        read_cds(_with_dummy_mask(path.read_bytes(), mask))
+    with pytest.raises(errors.ArgumentError, match=r"dummy mask leaves no face without a dummy vertex: "
+                                                   r"the mask does not fit this mesh"):
+        decode(words, structure="cds6n", dummy=mask)
