@@ -5,7 +5,7 @@ import pytest
 
 from jaxcds import errors
 from jaxcds.codec import words as W
-from jaxcds.codec.decode import decode_faces
+from jaxcds.codec.decode import decode_faces, decode_paper6n, faces_from_paper6n
 
 from codec_helpers import FIG9_BLACK, FIG9_MIXED, FIG9_RED_PLAIN, fig9
 
@@ -124,3 +124,51 @@ def test_to_separate_names_where_the_mixed_word_goes_wrong(bits, msg):
     its black blocks are what is too long."""
     with pytest.raises(errors.EncodingError, match=msg):
         W.to_separate(_mixed(bits))
+
+
+def _fig9_table_with(**arrays):
+    from jaxcds.codec import Paper6n
+
+    p = decode_paper6n(fig9())
+    fields = {"S": p.S, "C": p.C, "I": p.I, "T": p.T}
+    fields.update({k: f(fields[k]) for k, f in arrays.items()})
+    return Paper6n(**fields)
+
+
+def _set(index, value):
+    def f(a):
+        a = a.copy()
+        a[index] = value
+        return a
+    return f
+
+
+@pytest.mark.parametrize("table,error,msg", [
+    (lambda: "S", errors.ArgumentError, "expected a Paper6n, got str"),
+    (lambda: decode_paper6n(fig9(), targets=False),
+     errors.ArgumentError, "needs a table decoded with targets=True"),
+    (lambda: _fig9_table_with(S=lambda a: a[:, :, :3]), errors.EncodingError,
+     r"must have shapes .* got \(3, 2, 3\), \(3, 2, 10\), \(3, 10\)"),
+    (lambda: _fig9_table_with(S=lambda a: a.astype(float)), errors.EncodingError,
+     "S and T must be integers and C booleans, got dtypes float64, bool"),
+    (lambda: _fig9_table_with(S=_set((1, 0, 4), 10)), errors.EncodingError, r"S\[1, 0, 4\] = 10 is outside \[0, 9\]"),
+    (lambda: _fig9_table_with(T=_set((2, 3), -1)), errors.EncodingError, r"T\[2, 3\] = -1 is outside \[0, 10\]"),
+    (lambda: _fig9_table_with(T=np.zeros_like), errors.EncodingError,
+     r"not a triangulation \(vertex 2, n = 10\)"),
+    (lambda: _fig9_table_with(T=lambda a: np.full_like(a, 10)), errors.EncodingError,
+     r"not a triangulation \(0 faces found, n = 10\)"),
+])
+def test_faces_from_paper6n_checks_a_table_it_did_not_decode(table, error, msg):
+    with pytest.raises(error, match=msg):
+        faces_from_paper6n(table())
+
+
+@pytest.mark.parametrize("n,num_bytes,msg", [
+    (3, 2, "a triangulation needs n >= 4 vertices, got n = 3"),
+    (10, 3, r"word buffer holds 3 bytes, 5 needed for 4n-3 = 37 bits"),
+])
+def test_decode_refuses_words_too_small_for_a_triangulation(n, num_bytes, msg):
+    from jaxcds.codec import decode
+
+    with pytest.raises(errors.EncodingError, match=msg):
+        decode(W.Words(n, np.zeros(num_bytes, np.uint8)))
