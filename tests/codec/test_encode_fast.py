@@ -137,3 +137,52 @@ def test_encode_wood_and_dart_twins_check_their_arrays():
     assert lines[5] == ("ArgumentError encode_wood: red_parent must have shape (42,) (one entry per vertex), "
                         "got (5,)"), lines
     assert lines[6].startswith("ArgumentError encode_wood: outer must be three distinct vertex ids"), lines
+
+
+def _icosahedron_wood():
+    m = icosphere(0)
+    f = np.asarray(m.faces)
+    w = schnyder_wood(f, 12)
+    return f, w.out[:, 0].copy(), w.out[:, 2].copy(), w.outer
+
+
+def test_dart_twins_names_an_edge_without_its_opposite():
+    import re
+
+    from jaxcds.codec import dart_twins
+
+    f = _icosahedron_wood()[0][1:]  # one face gone: its three neighbours' edges lose their twins
+    with pytest.raises(errors.UnsupportedTopologyError, match="has no unique opposite half-edge") as exc:
+        dart_twins(f, 12)
+    a, b, face = (int(x) for x in re.match(r"edge \((\d+), (\d+)\) of face (\d+)", str(exc.value)).groups())
+    assert {a, b} <= set(f[face].tolist())
+
+
+def _swap_outer(outer):
+    return (outer[0], outer[2], outer[1])
+
+
+@pytest.mark.parametrize("change,error,msg", [
+    (lambda f, r, k, o: (f[1:], r, k, o), errors.UnsupportedTopologyError,
+     r"needs a genus-0 triangulation with n >= 4 and 2n - 4 faces; got n = 12, 19 faces"),
+    (lambda f, r, k, o: (f, r + 0.5, k, o), errors.ArgumentError, "encode_wood: red_parent must be integers"),
+    (lambda f, r, k, o: (f, r, k + 0.5, o), errors.ArgumentError, "encode_wood: black_parent must be integers"),
+    (lambda f, r, k, o: (f, np.full(12, -1), k, o), errors.StructureError,
+     "the red tree spans 1 of 12 vertices"),
+    (lambda f, r, k, o: (f, r, np.full(12, -1), o), errors.StructureError,
+     r"black tree does not have n - 3 = 9 edges"),
+    (lambda f, r, k, o: (f, r, k, _swap_outer(o)), errors.StructureError,
+     r"outer vertices misplaced \(V_red=\d+, V_blue=\d+, V_black=\d+ must be a clockwise outer face"),
+])
+def test_encode_wood_refuses_a_wood_that_is_not_one(change, error, msg):
+    """Parents of the wrong kind, or parents and outer vertices that are no Schnyder wood of
+    the faces: typed errors naming what is wrong (none of these ran in a test)."""
+    f, r, k, outer = change(*_icosahedron_wood())
+    with pytest.raises(error, match=msg):
+        encode_wood(f, 12, r, k, outer)
+
+
+def test_encode_wood_refuses_a_twin_array_of_floats():
+    f, r, k, outer = _icosahedron_wood()
+    with pytest.raises(errors.ArgumentError, match="encode_wood: twin must be integers, got dtype float64"):
+        encode_wood(f, 12, r, k, outer, twin=np.zeros(60) + 0.5)
