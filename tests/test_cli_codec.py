@@ -210,3 +210,13 @@ def test_decode_and_encode_onto_a_fifo_are_refused_and_leave_it(capsys, tmp_path
         assert "is a FIFO, not a regular file" in capsys.readouterr().err
         assert stat.S_ISFIFO(os.stat(fifo).st_mode)
     assert sorted(os.listdir(tmp_path)) == ["cube.cds", "p.cds", "p.off"]
+
+
+def test_decode_verify_without_a_structure_is_refused_before_reading(capsys, tmp_path, cube_cds):
+    """``--verify`` checks the decoded structure against the half-edge: with ``--structure
+    none`` there is none, refused by name before the file is read and nothing written."""
+    cds = tmp_path / "c.cds"
+    cds.write_bytes(cube_cds)
+    out = str(tmp_path / "c.off")
+    _refused(capsys, ["decode", str(cds), "-o", out, "--structure", "none", "--verify"], out,
+             r"--verify needs a decoded structure \(--structure cds6n\|cds5n\|cds4n\)")
