@@ -303,11 +303,18 @@ def _face_polygons(text: str, suffix: str, faces: np.ndarray) -> Optional[np.nda
 
 
 def _rotation_keys(tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each triangle rotated to start at its smallest id (orientation kept: trimesh writes a
-    quad's second half (2, 3, 0) where a fan has (0, 2, 3)) and the order that sorts them."""
-    shift = np.argmin(tri, axis=1)
-    rows = np.arange(tri.shape[0])[:, None]
-    key = tri[rows, (shift[:, None] + np.arange(3)) % 3]
+    """Each triangle as its smallest rotation (orientation kept: trimesh writes a quad's second
+    half (2, 3, 0) where a fan has (0, 2, 3)) and the order that sorts them. The smallest of
+    the three rotations, not the one that starts at the smallest id: a polygon that repeats a
+    corner (Blender writes "f 3 4 4 3") has triangles such as (4, 3, 3) and (3, 4, 3), the same
+    rotation, which the first smallest id turned into two keys."""
+    key = tri
+    for shift in (1, 2):
+        turned = np.roll(tri, -shift, axis=1)
+        a, b = turned, key
+        smaller = (a[:, 0] < b[:, 0]) | ((a[:, 0] == b[:, 0]) & (
+            (a[:, 1] < b[:, 1]) | ((a[:, 1] == b[:, 1]) & (a[:, 2] < b[:, 2]))))
+        key = np.where(smaller[:, None], turned, key)
     return key, np.lexsort(key.T[::-1])
 
 

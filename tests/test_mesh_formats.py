@@ -676,6 +676,22 @@ def test_a_defect_in_a_polygon_file_names_the_files_face(fmt, tmp_path):
     assert load_mesh(_write(tmp_path, "tet.obj", _TET_OBJ)).face_polygons is None
 
 
+@pytest.mark.parametrize("fmt", [0, 1], ids=["obj", "off"])
+def test_a_polygon_that_repeats_its_smallest_corner_is_named_as_the_files_face(fmt, tmp_path):
+    """Sweet Home 3D's tatami.obj (Blender) holds the quad 'f 3 4 4 3': trimesh's second half
+    (4, 3, 3) and the fan's (3, 4, 3) are one rotation, but keyed from the first smallest id they
+    differed, so the whole file lost its file-face numbers (3 of 820 furniture models) and its
+    degenerate faces were named by triangle id alone."""
+    quads = [(0, 1, 6, 5), (1, 2, 7, 6), (2, 7, 7, 2), (3, 4, 9, 8)]  # file face 2 folds on itself
+    m = load_mesh(_strip_files(tmp_path, quads)[fmt], weld=False)
+    assert m.face_polygons is not None and sorted(m.face_polygons.tolist()) == [0, 0, 1, 1, 2, 2, 3, 3]
+    bad = int(np.flatnonzero((m.faces[:, 0] == m.faces[:, 1]) | (m.faces[:, 1] == m.faces[:, 2])
+                             | (m.faces[:, 0] == m.faces[:, 2]))[0])
+    with pytest.raises(errors.DegenerateFaceError,
+                       match=rf"face {bad} repeats .* face {bad} is part of the file's face 2 \(4 corners\)$"):
+        validate(m)
+
+
 def test_a_second_order_obj_names_its_six_node_faces(tmp_path):
     """Sweep 52a: gmsh writes a second-order triangle to OBJ as a face of six nodes, the three
     mid-edge nodes last; split by a fan, such faces overlap and the mesh is refused with a
