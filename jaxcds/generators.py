@@ -418,9 +418,9 @@ def random_planar_triangulation(n: int, seed: int = 0, positions: str = "sphere"
     Raises:
       MeshError: ``n < 4`` or ``n`` too large for int32 ids (also a ``ValueError``).
     """
+    if positions != "sphere":  # before the faces: 3.5 s at 10M vertices spent for a refusal
+        raise errors.MeshError(f"random_planar_triangulation: positions must be 'sphere', got {positions!r}")
     f = random_planar_triangulation_faces(n, seed)
     n = int(n)
-    if positions != "sphere":
-        raise errors.MeshError(f"random_planar_triangulation: positions must be 'sphere', got {positions!r}")
     v = random_sphere_points(n, np.random.default_rng(seed).integers(2**63))
     return TriMesh(vertices=v, faces=f, source=f"random_planar_triangulation({n}, seed={seed})")

@@ -364,3 +364,32 @@ def test_generator_arguments_are_checked_by_name():
     # integral floats and numpy integers are integers
     assert G.icosphere(2.0).num_vertices == 162
     assert G.random_planar_triangulation(np.int64(8), seed=np.uint64(3)).num_vertices == 8
+
+
+@pytest.mark.parametrize("call,error,msg", [
+    (lambda G: G.icosphere(11), errors.MeshError, r"icosphere: subdivisions must be in \[0, 10\], got 11"),
+    (lambda G: G.icosphere(-1), errors.MeshError, r"icosphere: subdivisions must be in \[0, 10\], got -1"),
+    (lambda G: G.sphere_hull(3), errors.MeshError, "sphere_hull: need at least 4 points, got 3"),
+    (lambda G: G.delaunay_disk(np.zeros((2, 2))), errors.EmptyMeshError,
+     "delaunay_disk: need at least 3 points, got 2"),
+    (lambda G: G.delaunay_square(2), errors.MeshError, "delaunay_square: need at least 3 points, got 2"),
+    (lambda G: G.random_planar_triangulation(2**30 + 1), errors.MeshError,
+     "random_planar_triangulation: n = 1073741825 exceeds int32 dart ids"),
+])
+def test_generator_sizes_out_of_range_are_named(call, error, msg):
+    from jaxcds import generators as G
+
+    with pytest.raises(error, match=msg):
+        call(G)
+
+
+def test_random_planar_triangulation_refuses_unknown_positions_before_sampling(monkeypatch):
+    """The faces (3.5 s at 10M vertices) were sampled before ``positions`` was looked at."""
+    from jaxcds import generators as G
+
+    def sampled(*a, **k):
+        raise AssertionError("the faces were sampled before the refusal")
+
+    monkeypatch.setattr(G, "random_planar_triangulation_faces", sampled)
+    with pytest.raises(errors.MeshError, match="positions must be 'sphere', got 'plane'"):
+        G.random_planar_triangulation(10, positions="plane")
