@@ -4,6 +4,7 @@ slow Python versions of the listings, and the ring they produce (no JAX: cheap).
 from __future__ import annotations
 
 import collections
+import dataclasses
 
 import numpy as np
 import pytest
@@ -221,3 +222,64 @@ def test_ring_functions_check_a_corner_table_they_did_not_build():
         "StructureError lr_tables: ring entry 0 (order ",
         "StructureError improve_ring: O[7] = 10000000 is not a corner id in [0, 240)",
         "ArgumentError ring_cost: tm must be 80 flags 0/1 (one per triangle)"])), lines
+
+
+def _icosahedron_vo():
+    from jaxcds.generators import icosphere
+
+    return _vo(np.asarray(icosphere(0).faces), 12)
+
+
+def _with(a, index, value):
+    a = np.array(a)
+    a[index] = value
+    return a
+
+
+@pytest.mark.parametrize("call,error,msg", [
+    (lambda V, O: ring_expander(V, O, 12.5, 0), errors.ArgumentError,
+     r"ring_expander: num_vertices must be an integer in \[0, 2\^31\), got 12.5"),
+    (lambda V, O: ring_expander([[0, 1], [2]], O, 12, 0), errors.ArgumentError, "ring_expander: V is not an array"),
+    (lambda V, O: ring_expander(V.astype(float), O, 12, 0), errors.ArgumentError,
+     r"ring_expander: V must be a 1-D integer array of 3F > 0 corners, got dtype float64 shape \(60,\)"),
+    (lambda V, O: ring_expander(V, O[:-3], 12, 0), errors.ArgumentError,
+     r"V and O must have one length \(3F\), got 60 and 57"),
+    (lambda V, O: ring_expander(_with(V, 4, 12), O, 12, 0), errors.StructureError,
+     r"ring_expander: V\[4\] = 12 is outside \[0, 12\)"),
+    (lambda V, O: best_ring(V, _with(O, 5, -1), 12), errors.StructureError,
+     r"best_ring: O\[5\] = -1 is not a corner id in \[0, 60\)"),
+    (lambda V, O: ring_expander(V, O, 12, 0, dummy=np.zeros(11, bool)), errors.ArgumentError,
+     r"dummy must be 12 flags 0/1 \(one per vertex\), got dtype bool shape \(11,\)"),
+    (lambda V, O: ring_expander(V, O, 12, 0, dummy=np.full(12, 2)), errors.ArgumentError,
+     r"dummy must be 12 flags 0/1"),
+    (lambda V, O: best_ring(V, O, 12, seeds=0), errors.ArgumentError,
+     "seeds must be a count >= 1 or a list of corner ids, got 0"),
+    (lambda V, O: best_ring(V, O, 12, seeds=[]), errors.ArgumentError, "an empty list of seed corners"),
+    (lambda V, O: best_ring(V, O, 12, seeds=[99]), errors.ArgumentError,
+     r"seeds\[0\] = 99 is not a corner id in \[0, 60\)"),
+    (lambda V, O: best_ring(V, O, 12, seeds=[0], dummy=np.ones(12, bool)), errors.ArgumentError,
+     r"seeds\[0\] = corner 0 is on a hole-closing \(dummy\) triangle"),
+    (lambda V, O: best_ring(V, O, 12, dummy=np.ones(12, bool)), errors.UnsupportedTopologyError,
+     "no triangle without a dummy vertex to seed the ring"),
+])
+def test_ring_functions_name_a_bad_argument(call, error, msg):
+    """Checks before the kernels that no test ran in-process (the child-process test above
+    covers the ones that crashed)."""
+    V, O = _icosahedron_vo()
+    with pytest.raises(error, match=msg):
+        call(V, O)
+
+
+@pytest.mark.parametrize("change,error,msg", [
+    (lambda r: "ring", errors.ArgumentError, "lr_tables: ring must be a Ring .*got str"),
+    (lambda r: dataclasses.replace(r, order=r.order[:3], right_corner=r.right_corner[:3]), errors.StructureError,
+     r"ring.order and ring.right_corner must be 1-D integer arrays of one length >= 4, got int32 \(3,\)"),
+    (lambda r: dataclasses.replace(r, order=r.order.astype(float)), errors.StructureError,
+     r"1-D integer arrays of one length >= 4, got float64 \(12,\) and int32 \(12,\)"),
+])
+def test_lr_tables_names_a_ring_of_the_wrong_kind(change, error, msg):
+    from jaxcds.construct.ring_expander import lr_tables
+
+    V, O = _icosahedron_vo()
+    with pytest.raises(error, match=msg):
+        lr_tables(V, O, change(best_ring(V, O, 12)), 12)
