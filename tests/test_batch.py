@@ -1014,3 +1014,13 @@ def test_packed_cds_under_strict_dtype_promotion():
         got = faces(b, e)
     for g, w in zip(got, faces(b, e)):
         np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+
+
+@pytest.mark.parametrize("parts,error,msg", [
+    (5, errors.ArgumentError, "concatenate: give a list of structures, got int"),
+    (None, errors.ArgumentError, "concatenate: give a list of structures, got None"),
+    ([], errors.EmptyMeshError, "concatenate: no structures given"),
+])
+def test_concatenate_names_what_is_not_a_list_of_structures(parts, error, msg):
+    with pytest.raises(error, match=msg):
+        B.concatenate(parts)
