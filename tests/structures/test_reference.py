@@ -163,3 +163,14 @@ def test_from_faces_trusted_input_cannot_crash():
         assert out[f"{b}:nv_negative"][0] == "ArgumentError", out[f"{b}:nv_negative"]
     for b in ("he", "ct"):  # a structure without darts: every query's gather failed raw
         assert out[f"{b}:no_faces"][0] == "EmptyMeshError", out[f"{b}:no_faces"]
+
+
+@pytest.mark.parametrize("cls_name", ["HalfEdge", "CornerTable", "PEMB"])
+def test_from_faces_of_no_faces_is_an_empty_mesh_error(cls_name):
+    """No dart: every query's gather would index an empty table; refused by name."""
+    from jaxcds.structures.pemb import PEMB
+
+    cls = {"HalfEdge": HalfEdge, "CornerTable": CornerTable, "PEMB": PEMB}[cls_name]
+    with pytest.raises(errors.EmptyMeshError, match=rf"{cls.__name__}.from_faces: no faces \(3 vertices\); "
+                                                    "nothing to build"):
+        cls.from_faces(np.zeros((0, 3), np.int32), 3)
