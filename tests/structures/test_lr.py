@@ -14,6 +14,7 @@ structures are built once per module (``_built``) and each is checked by one jit
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import jax
@@ -683,3 +684,47 @@ def test_lr_operators_under_strict_dtype_promotion():
         rep = verify(s, m)
     assert rep.checked > 10 * m.num_faces
     assert rep.mismatches == 0, str(rep)
+
+
+def _icosahedron_table():
+    from jaxcds.generators import icosphere
+    from jaxcds.structures.corner_table import CornerTable
+
+    return np.asarray(icosphere(0).faces), CornerTable.from_faces(np.asarray(icosphere(0).faces), 12)
+
+
+@pytest.mark.parametrize("cls_name,change,error,msg", [
+    ("LR", lambda f, ct: dataclasses.replace(ct, V=ct.V[:-3]), errors.ArgumentError,
+     r"LR.from_corner_table: V and O must have 3F = 60 entries, got \(57,\) and \(60,\)"),
+    ("LR", lambda f, ct: dataclasses.replace(ct, V=ct.V.at[4].set(12)), errors.InvalidIndexError,
+     r"LR.from_corner_table: corner 4 \(face 1\) has vertex 12, outside \[0, 12\)"),
+    ("LRBits", lambda f, ct: dataclasses.replace(ct, O=ct.O.at[4].set(-1)), errors.UnsupportedTopologyError,
+     r"LRBits.from_corner_table: corner 4 \(vertex \d+, face 1\) has no opposite corner \(c.o = -1, "
+     r"outside \[0, 60\)\): the table has a border"),
+])
+def test_from_corner_table_names_a_table_it_cannot_take(cls_name, change, error, msg):
+    """Checks before RING-EXPANDER's kernels, which read the table unchecked; no test ran them."""
+    from jaxcds.structures.lr import LR, LRBits
+
+    cls = {"LR": LR, "LRBits": LRBits}[cls_name]
+    with pytest.raises(error, match=msg):
+        cls.from_corner_table(change(*_icosahedron_table()))
+
+
+def test_from_corner_table_of_an_open_mesh_names_its_border():
+    """CornerTable.from_faces takes an open mesh; its border corners have no opposite inside the
+    table, which the ring's kernel read out of bounds."""
+    from jaxcds.structures.corner_table import CornerTable
+    from jaxcds.structures.lr import LR
+
+    f, _ = _icosahedron_table()
+    with pytest.raises(errors.UnsupportedTopologyError, match=r"has no opposite corner .*LR needs a closed mesh"):
+        LR.from_corner_table(CornerTable.from_faces(f[1:], 12))
+
+
+def test_from_corner_table_with_every_vertex_dummy_has_no_seed():
+    from jaxcds.structures.lr import LR
+
+    _, ct = _icosahedron_table()
+    with pytest.raises(errors.UnsupportedTopologyError, match="no triangle without a dummy vertex to seed the ring"):
+        LR.from_corner_table(ct, dummy=np.ones(12, bool))
