@@ -446,7 +446,9 @@ class PEMB(MeshStructure):
                 arr = np.frombuffer(x.encode(), np.uint8) - ord("0")
                 if np.any(arr > 1):
                     k = int(np.argmax(arr > 1))
-                    raise errors.EncodingError(f"pemb: bit string {name} has {x[k]!r} at offset {k}")
+                    rule = " (the slides' convention: 0 is '(' and 1 is ')')" if paren else ""
+                    raise errors.EncodingError(f"pemb: bit string {name} has {x[k]!r} at offset {k}: a bit "
+                                               f"string holds the characters 0 and 1 only{rule}")
                 return (1 - arr) if paren else arr  # slides: 0 = '('
             # a cast to uint8 read 0.5 as 0 and 2.0 as 2, and a 2-D array was flattened
             return bits_array(x, f"pemb: the bits of {name}").astype(np.uint8)

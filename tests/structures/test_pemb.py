@@ -329,3 +329,48 @@ def test_pemb_build_scans_each_sequence_once(monkeypatch):
     with pytest.raises(errors.EncodingError, match="BalancedParens.from_bits: bits hold 2"):
         from jaxcds.structures.succinct import BalancedParens
         BalancedParens.from_bits([1, 2])
+
+
+@pytest.mark.parametrize("call,msg", [
+    (lambda enc, o, c, v: enc(o, c, v, 0), r"num_vertices must be an integer in \[1, 2\^31\), got 0"),
+    (lambda enc, o, c, v: enc([[1], [1, 2]], c, v, 12), "opp is not an array"),
+    (lambda enc, o, c, v: enc(o.astype(float), c, v, 12),
+     r"opp must be a non-empty 1-D integer array \(one entry per dart\), got dtype float64 shape \(60,\)"),
+    (lambda enc, o, c, v: enc(o, c[:-1], v, 12), "opp, ccw and vert must have one length, got 60, 59, 60"),
+    (lambda enc, o, c, v: enc(np.where(np.arange(60) == 0, 0, o), c, v, 12),
+     r"opp\[0\] = 0: opp must be an involution without fixed points"),
+    (lambda enc, o, c, v: enc(o, c, v, 12, start=1.5), r"start must be a dart id in \[0, 60\), got 1.5"),
+    (lambda enc, o, c, v: enc(o, c, v, 12, tree=np.zeros(3, bool)),
+     r"tree must be 60 booleans \(a dart mask\), got dtype bool shape \(3,\)"),
+])
+def test_encode_rotation_system_names_arguments_of_the_wrong_kind(call, msg):
+    """Checks no test ran (the child-process test above covers the entries out of range)."""
+    from jaxcds.generators import icosphere
+    from jaxcds.structures.pemb import encode_rotation_system, rotation_system_from_faces
+
+    opp, ccw, vert, _ = rotation_system_from_faces(icosphere(0).faces, 12)
+    with pytest.raises(errors.ArgumentError, match="encode_rotation_system: " + msg):
+        call(encode_rotation_system, opp, ccw, vert)
+
+
+def test_encode_rotation_system_whose_walk_misses_a_vertex():
+    """The icosahedron's rotation system said to have 13 vertices: the walk cannot reach all."""
+    from jaxcds.generators import icosphere
+    from jaxcds.structures.pemb import encode_rotation_system, rotation_system_from_faces
+
+    opp, ccw, vert, _ = rotation_system_from_faces(icosphere(0).faces, 12)
+    with pytest.raises(errors.UnsupportedTopologyError, match=r"pemb: the ccw walk around the spanning tree breaks at position \d+"):
+        encode_rotation_system(opp, ccw, vert, 13)
+
+
+@pytest.mark.parametrize("bits,msg", [
+    (("1102", "10", "10"), r"bit string A has '2' at offset 3: a bit string holds the characters 0 and 1 only$"),
+    # parentheses written as such: the strings are the slides' 0/1 ones
+    (("1100", "()", "10"), r"bit string B has '\(' at offset 0: .*0 and 1 only \(the slides' convention: "
+                           r"0 is '\(' and 1 is '\)'\)"),
+])
+def test_from_bits_names_a_character_that_is_no_bit(bits, msg):
+    """The message named the character and offset but not what a string holds, and ``"()"``
+    is what a user writes for parentheses."""
+    with pytest.raises(errors.EncodingError, match="pemb: " + msg):
+        PEMB.from_bits(*bits)
