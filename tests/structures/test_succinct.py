@@ -431,3 +431,21 @@ def test_parens_searches_and_bool_bits_under_strict_dtype_promotion():
     op = b == 1
     np.testing.assert_array_equal(np.asarray(got[3])[op], enclose[op])
     np.testing.assert_array_equal(np.asarray(sel), np.flatnonzero(bits)[:100])
+
+
+@pytest.mark.parametrize("build,bits,msg", [
+    (BitVector.from_bits, "0121", r"BitVector.from_bits: bit string has '2' at offset 2, expected '0' or '1'"),
+    (BalancedParens.from_bits, "(()x", r"BalancedParens.from_bits: parenthesis string has 'x' at offset 3, "
+                                       r"expected '\(', '\)', '1' or '0'"),
+    (BalancedParens.from_bits, "())(", r"unbalanced parentheses: '\)' at offset 2 closes nothing"),
+    (BitVector.from_bits, np.ma.array([0, 1, 1], mask=[0, 1, 0]),
+     r"BitVector.from_bits: bits must be plain bits, got a masked array"),
+    (BalancedParens.from_bits, np.ma.array([1, 0], mask=[0, 1]),
+     r"BalancedParens.from_bits: bits must be plain bits, got a masked array"),
+    (BitVector.from_bits, [[0, 1], [1]], r"BitVector.from_bits: bits are not an array of bits"),
+])
+def test_from_bits_names_the_builder_and_what_it_takes(build, bits, msg):
+    """The string refusals named neither the builder nor, for parentheses, what a string may
+    hold; none of these ran in a test."""
+    with pytest.raises(errors.EncodingError, match=msg):
+        build(bits)

@@ -319,7 +319,7 @@ class BitVector:
             bad = [i for i, c in enumerate(bits) if c not in "01"]
             if bad:
                 raise errors.EncodingError(
-                    f"bit string has {bits[bad[0]]!r} at offset {bad[0]}, expected '0' or '1'")
+                    f"BitVector.from_bits: bit string has {bits[bad[0]]!r} at offset {bad[0]}, expected '0' or '1'")
             bits = np.frombuffer(bits.encode(), dtype=np.uint8) - ord("0")
         return cls._from_valid_bits(bits_array(bits, "BitVector.from_bits: bits"))
 

@@ -231,7 +231,8 @@ class BalancedParens:
             table = {"(": 1, ")": 0, "1": 1, "0": 0}
             bad = [i for i, c in enumerate(bits) if c not in table]
             if bad:
-                raise errors.EncodingError(f"parenthesis string has {bits[bad[0]]!r} at offset {bad[0]}")
+                raise errors.EncodingError(f"BalancedParens.from_bits: parenthesis string has {bits[bad[0]]!r} "
+                                           f"at offset {bad[0]}, expected '(', ')', '1' or '0'")
             bits = np.array([table[c] for c in bits], dtype=np.uint8)
         check = flag_arg(check, "BalancedParens.from_bits: check")
         return cls._from_valid_bits(bits_array(bits, "BalancedParens.from_bits: bits"), check=check)
