@@ -601,3 +601,53 @@ def test_label_wood_and_schnyder_out_blk_check_their_arrays():
         "label": ["StructureError", "label_wood: neighbors[3] = 10000000 is outside [0, 42)"],
         "short": ["ArgumentError", "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int32 (2, 3)"],
         "int64": ["ArgumentError", "schnyder_out: blk must be a writable C-contiguous (42, 3) int32 array, got int64 (42, 3)"]}
+
+
+def _set(a, index, value):
+    a = np.array(a)
+    a[index] = value
+    return a
+
+
+def _rotation_of_3_turned(w):
+    """Vertex 3's rotation (neighbours, colours, directions together) turned by one entry."""
+    a, b = w.offsets[3], w.offsets[4]
+    arrays = {}
+    for name in ("neighbors", "colour", "outgoing"):
+        x = getattr(w, name).copy()
+        x[a:b] = np.roll(x[a:b], 1)
+        arrays[name] = x
+    return dataclasses.replace(w, **arrays)
+
+
+@pytest.mark.parametrize("change,msg", [
+    (lambda w: dataclasses.replace(w, num_vertices=2), "num_vertices must be an integer >= 3, got 2"),
+    (lambda w: dataclasses.replace(w, v_blue=w.v_red), r"the outer vertices \(0, 0, 11\) are not distinct"),
+    (lambda w: dataclasses.replace(w, out=w.out.tolist()), r"out must be a numpy integer array of shape \(12, 3\), got list"),
+    (lambda w: dataclasses.replace(w, colour=w.colour.astype(float)),
+     r"colour must be a numpy integer array of shape \(60,\), got float64 \(60,\)"),
+    # V_red (0) has no outgoing edge: an edge there is named as such, and a missing edge of an
+    # inner vertex too (the message said 'absent (n) exactly at the six outer slots' for both)
+    (lambda w: dataclasses.replace(w, out=_set(w.out, (0, RED), 3)),
+     r"out\[0, red\] = 3: must be absent \(n = 12\): V_red has no outgoing edge"),
+    (lambda w: dataclasses.replace(w, out=_set(w.out, (3, RED), 12)),
+     r"out\[3, red\] = 12: must be a vertex in \[0, 12\): only the six outer slots"),
+    (lambda w: dataclasses.replace(w, offsets=_set(w.offsets, 0, 1)),
+     r"offsets\[0\] = 1: offsets must run from 0 to 60 \(6n - 12\)"),
+    (lambda w: dataclasses.replace(w, colour=_set(w.colour, 5, 3)), r"colour\[5\] = 3 is outside \[0, 3\)"),
+    (_rotation_of_3_turned, r"the rotation of vertex 3 starts at \d+, not at its outgoing red edge"),
+])
+def test_wood_check_names_each_kind_of_bad_array(change, msg):
+    """check_wood_arrays on the icosahedron's wood with one thing wrong, none of which a test
+    ran in-process (the child-process fuzz draws some at random)."""
+    w = schnyder_wood(icosphere(0).faces, 12)
+    assert w.outer == (0, 5, 11)
+    check_wood_arrays(w)
+    with pytest.raises(errors.StructureError, match="Schnyder wood: " + msg):
+        check_wood_arrays(change(w))
+
+
+def test_wood_check_takes_only_woods():
+    with pytest.raises(errors.ArgumentError, match=r"encode_schnyder: expected a SchnyderWood \(jaxcds.construct"
+                                                   r".schnyder.schnyder_wood\), got str"):
+        check_wood_arrays("wood", "encode_schnyder")
