@@ -219,9 +219,14 @@ def relabel_wood(wood: SchnyderWood, order: np.ndarray) -> SchnyderWood:
     check_wood_arrays(wood, "relabel_wood")
     n = wood.num_vertices
     o = np.asarray(order)
-    if o.shape != (n,) or o.dtype.kind not in "iu" or not np.array_equal(np.sort(o), np.arange(n)):
+    if o.shape != (n,) or o.dtype.kind not in "iu":
         raise errors.StructureError(f"relabel_wood: order must be a permutation of the {n} vertices "
                                     f"(integers), got dtype {o.dtype} shape {o.shape}")
+    seen = np.zeros(n, bool)
+    seen[o[(o >= 0) & (o < n)]] = True
+    if not seen.all():  # the right shape: say which vertex it lacks (the message gave the shape)
+        raise errors.StructureError(f"relabel_wood: order must be a permutation of the {n} vertices; "
+                                    f"vertex {int(np.argmin(seen))} is missing from it")
     order = o.astype(np.int64)
     label = np.empty(n, dtype=np.int64)
     label[order] = np.arange(n)
@@ -1900,7 +1905,8 @@ class CDS5n(_CDS):
         """Build from a maximal Schnyder wood in linear time."""
         _checked_wood(cls, wood, check)
         if not wood.maximal:
-            raise errors.StructureError("CDS5n needs the maximal Schnyder wood (Thm 4)")
+            raise errors.StructureError("CDS5n needs the maximal Schnyder wood (Thm 4); this one was "
+                                        "built with maximal=False: schnyder_wood(faces, n) builds the maximal one")
         refs, fblue, static = _build_rows(wood, _KIND_5N)
         return cls(refs=_put(refs), F_blue=_put(fblue),
                    boundaries_closed=bool(boundaries_closed), **static)
@@ -1952,7 +1958,8 @@ class CDS4n(CDS5n):
         while the rows are written (:func:`_cds_rows`), no relabelled wood is built."""
         _checked_wood(cls, wood, check)
         if not wood.maximal:
-            raise errors.StructureError("CDS4n needs the maximal Schnyder wood (Thm 5)")
+            raise errors.StructureError("CDS4n needs the maximal Schnyder wood (Thm 5); this one was "
+                                        "built with maximal=False: schnyder_wood(faces, n) builds the maximal one")
         order, label, _ = _cwbfs_checked(wood)
         refs, fblue, static = _build_rows(wood, _KIND_4N, label)
         return cls(refs=_put(refs), F_blue=_put(fblue),
@@ -2142,7 +2149,8 @@ class CDS5nO1(CDS4n):
     def from_wood(cls, wood: SchnyderWood, *, boundaries_closed: bool = False, check: bool = True) -> "CDS5nO1":
         _checked_wood(cls, wood, check)
         if not wood.maximal:
-            raise errors.StructureError("CDS5n-O(1) needs the maximal Schnyder wood (Thm 6)")
+            raise errors.StructureError("CDS5n-O(1) needs the maximal Schnyder wood (Thm 6); this one was "
+                                        "built with maximal=False: schnyder_wood(faces, n) builds the maximal one")
         # cwBFS labels applied while the rows are written, D from the cwBFS itself, W from the
         # targets (:func:`_cds_rows`)
         order, label, even = _cwbfs_checked(wood)

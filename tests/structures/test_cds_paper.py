@@ -454,3 +454,30 @@ def test_progress_must_be_a_bool_or_none(rnd, capsys):
         with pytest.raises(errors.ArgumentError, match="build_cds: progress must be True, False or None"):
             cds.build_cds(cds.CDS6n, rnd, progress=bad)
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("cls_name,theorem", [("CDS5n", "4"), ("CDS4n", "5"), ("CDS5nO1", "6")])
+def test_from_wood_of_a_non_maximal_wood_says_how_to_get_the_maximal_one(cls_name, theorem):
+    from jaxcds.structures import cds
+
+    w = schnyder_wood(icosphere(0).faces, 12, maximal=False)
+    with pytest.raises(errors.StructureError, match=rf"needs the maximal Schnyder wood \(Thm {theorem}\); this one "
+                                                    r"was built with maximal=False: schnyder_wood\(faces, n\)"):
+        getattr(cds, cls_name).from_wood(w)
+
+
+@pytest.mark.parametrize("order,msg", [
+    (np.arange(11), r"got dtype int64 shape \(11,\)"),
+    (np.arange(12) + 0.0, r"got dtype float64 shape \(12,\)"),
+    (np.r_[0, 0, np.arange(2, 12)], "vertex 1 is missing from it"),
+    (np.r_[np.arange(11), 12], "vertex 11 is missing from it"),
+])
+def test_relabel_wood_names_what_is_wrong_with_the_order(order, msg):
+    """A permutation of the right shape but with a vertex twice was described by its dtype and
+    shape only, which were right."""
+    from jaxcds.structures.cds import relabel_wood
+
+    w = schnyder_wood(icosphere(0).faces, 12)
+    with pytest.raises(errors.StructureError, match=r"relabel_wood: order must be a permutation of the 12 vertices.*"
+                                                    + msg):
+        relabel_wood(w, order)
