@@ -65,3 +65,11 @@ def test_verify_refuses_a_reference_that_is_not_a_halfedge(built):
     s, m = built
     with pytest.raises(errors.ArgumentError, match="verify: reference must be the mesh's HalfEdge .*got TriMesh"):
         verify(s, m, reference=m)
+
+
+def test_verify_refuses_a_mesh_of_another_size(built):
+    """A structure checked against another mesh than its own: named before any comparison."""
+    s, _ = built  # the icosahedron's
+    with pytest.raises(errors.ArgumentError, match=r"verify: the halfedge has 12 vertices, the mesh 42: pass the "
+                                                   "mesh the structure was built from"):
+        verify(s, icosphere(1))
