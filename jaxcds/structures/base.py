@@ -682,8 +682,13 @@ class MeshStructure:
         test per query): an id out of range, or a dart id in a hole of the id space
         (``dart_valid`` False: an LR slot that is no corner, a CDS root's missing edge), answers
         an arbitrary value. Call this once on untrusted ids, or mask with :meth:`dart_valid`."""
-        if kind not in ("dart", "vertex", "face"):
-            raise errors.ArgumentError(f"unknown id kind {kind!r}: 'dart', 'vertex' or 'face'")
+        # an array as kind (the arguments swapped: check_ids(ids, "dart")) raised numpy's
+        # "truth value of an array is ambiguous" ValueError from the membership test
+        if not isinstance(kind, str) or kind not in ("dart", "vertex", "face"):
+            got = (f"a {type(kind).__name__}" if isinstance(kind, (np.ndarray, list, tuple))
+                   else repr(kind))
+            raise errors.ArgumentError(f"unknown id kind {got}: 'dart', 'vertex' or 'face' "
+                                       "(check_ids(kind, ids): the kind comes first)")
         a = integer_array(ids, f"{kind} ids")
         size = {"dart": self.num_darts, "vertex": self.num_vertices, "face": self.num_faces}[kind]
         # compared in their own dtype: a uint64 past 2^63 must not wrap to a negative int64

@@ -164,3 +164,16 @@ def test_half_precision_positions_are_summed_in_float32():
     got = np.asarray(vertex_normals(s, p.astype(np.float16)))  # all NaN before (cross products)
     np.testing.assert_allclose(got, np.asarray(vertex_normals(s, p.astype(np.float16).astype(np.float32))),
                                atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", [np.array([1, 2]), [0, 1], np.ma.array([1, 2], mask=[0, 1]), 7])
+def test_check_ids_with_the_arguments_swapped_is_an_argument_error(kind):
+    """``check_ids(ids, "dart")``: an array as the kind raised numpy's untyped 'truth value of an
+    array is ambiguous' ValueError from the membership test."""
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    s = registry.build("halfedge", icosphere(0))
+    with pytest.raises(errors.ArgumentError, match=r"unknown id kind .*: 'dart', 'vertex' or 'face' "
+                                                   r"\(check_ids\(kind, ids\): the kind comes first\)"):
+        s.check_ids(kind, "dart")
