@@ -200,6 +200,7 @@ class PackedBatch(MeshStructure):
         """Mesh owning global id(s) ``g`` of ``kind`` (``"vertex"``, ``"face"``, ``"dart"``);
         ``num_meshes`` for an absent id (one past the end, or any id out of range: a negative
         one too)."""
+        self._check_kind(kind, "mesh_of")
         g = _id_arg(g, "mesh_of: ids")
         if kind == "dart":
             extra = g >= self.num_primary_darts
@@ -218,6 +219,7 @@ class PackedBatch(MeshStructure):
         (JAX would wrap or clamp them into another mesh's ids), an integer past int32 included
         (a cast would wrap it into range). Broadcasts; floats, strings and shapes that do not
         broadcast are refused (:class:`~jaxcds.errors.InvalidIndexError`, ``ArgumentError``)."""
+        self._check_kind(kind, "to_global")
         mesh, local = _id_pair(mesh, local, f"to_global({kind!r})")
         out = (local < 0) | (mesh < 0) | (mesh >= self.num_meshes)
         mesh = jnp.clip(mesh, 0, max(self.num_meshes - 1, 0))
@@ -240,6 +242,7 @@ class PackedBatch(MeshStructure):
         index outside the batch reads as the nearest mesh (:meth:`query` sends only the
         sentinel then). Broadcasts; floats, strings and shapes that do not broadcast are refused
         (:class:`~jaxcds.errors.InvalidIndexError`, ``ArgumentError``: a cast read 1.9 as 1)."""
+        self._check_kind(kind, "to_local")
         mesh, g = _id_pair(mesh, g, f"to_local({kind!r})")
         mesh = jnp.clip(mesh, 0, max(self.num_meshes - 1, 0))
         if kind == "dart" and self.num_extra_darts == 0:
@@ -260,6 +263,16 @@ class PackedBatch(MeshStructure):
             return self.face_offsets, self.n_face, self.num_faces
         raise errors.ArgumentError(f"unknown id kind {kind!r}: 'vertex' or 'face' here "
                                    "('dart' only for mesh_of / to_global / to_local)")
+
+    @staticmethod
+    def _check_kind(kind, where: str) -> None:
+        """An id kind of :meth:`mesh_of` / :meth:`to_global` / :meth:`to_local` that is no string
+        (ids where the kind goes) raised numpy's untyped 'truth value of an array is
+        ambiguous' ValueError from ``kind == "dart"``."""
+        if not isinstance(kind, str) or kind not in ("vertex", "face", "dart"):
+            got = f"a {type(kind).__name__}" if not isinstance(kind, (str, int, float)) else repr(kind)
+            raise errors.ArgumentError(f"{where}: unknown id kind {got}: 'vertex', 'face' or 'dart' "
+                                       "(the kind comes first)")
 
     # ------------------------------------------------------------------ batched local queries
     def query(self, op: str, mesh: Int, local: Int) -> Int:

@@ -1024,3 +1024,18 @@ def test_packed_cds_under_strict_dtype_promotion():
 def test_concatenate_names_what_is_not_a_list_of_structures(parts, error, msg):
     with pytest.raises(error, match=msg):
         B.concatenate(parts)
+
+
+@pytest.mark.parametrize("method,args", [
+    ("mesh_of", (np.array([0, 1]), "dart")),
+    ("to_global", (np.array([0, 1]), 0, 3)),
+    ("to_local", (np.array([0, 1]), 0, 3)),
+    ("to_local", ("edge", 0, 3)),
+])
+def test_id_maps_name_an_id_kind_that_is_not_one(method, args):
+    """Ids where the kind goes: ``to_local`` / ``to_global`` raised numpy's untyped 'truth value of
+    an array is ambiguous' ValueError (``mesh_of`` an InvalidIndexError about its ids)."""
+    b = B.pack([load_mesh(*octahedron())] * 2, "halfedge")
+    with pytest.raises(errors.ArgumentError, match=rf"{method}: unknown id kind .*: 'vertex', 'face' or 'dart' "
+                                                   r"\(the kind comes first\)"):
+        getattr(b, method)(*args)
