@@ -118,7 +118,8 @@ def decode(words: Words, *, structure: str = "faces", dummy=None):
     if not isinstance(words, Words):  # bytes gave AttributeError: read_cds reads files
         raise errors.ArgumentError(f"decode: expected jaxcds.codec.Words, got {type(words).__name__} "
                                    "(a .cds file or its bytes: read_cds)")
-    if structure not in ("faces", "paper6n", "wood", "cds6n", "cds5n", "cds4n"):
+    # not a str: an array's membership test raised numpy's untyped "truth value" ValueError
+    if not isinstance(structure, str) or structure not in ("faces", "paper6n", "wood", "cds6n", "cds5n", "cds4n"):
         raise errors.ArgumentError(
             f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n, cds4n")
     if dummy is not None and structure not in ("cds6n", "cds5n", "cds4n"):

@@ -181,3 +181,11 @@ def test_decoded_cds_of_a_holed_mesh_keeps_its_dummies(structure, tmp_path):
         decode(words, structure="faces", dummy=mesh.dummy_vertices)
     with pytest.raises(errors.ArgumentError, match="unknown structure 'bogus'"):
         decode(words, structure="bogus")
+
+
+@pytest.mark.parametrize("structure", [np.array(["faces", "cds6n"]), ["faces"], 6])
+def test_decode_names_a_structure_that_is_no_name(structure):
+    """An array as ``structure`` raised numpy's untyped 'truth value of an array is ambiguous'
+    ValueError."""
+    with pytest.raises(errors.ArgumentError, match=r"unknown structure .*: faces, paper6n, wood, cds6n, cds5n, cds4n"):
+        decode(fig9(), structure=structure)
