@@ -406,6 +406,10 @@ class PEMB(MeshStructure):
         non-planar or disconnected input is ``UnsupportedTopologyError``. Other defects give
         answers that are unspecified, never a crash."""
         _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
+        # before any work; an array here raised numpy's untyped "truth value" ValueError
+        if not isinstance(tree, str) or tree not in ("bfs", "dfs", "stack"):
+            got = f"a {type(tree).__name__}" if isinstance(tree, (np.ndarray, list, tuple)) else repr(tree)
+            raise errors.ArgumentError(f"pemb: unknown spanning tree {got} (bfs, dfs or stack)")
         f = trusted_faces(faces, num_vertices, "PEMB.from_faces")
         nf = int(f.shape[0])
         if nf == 0:  # the walk's first dart would not exist
@@ -422,8 +426,6 @@ class PEMB(MeshStructure):
             mask = _bfs_tree(opp, ccw, vert, start, int(num_vertices))
         elif tree == "stack":
             mask = _stack_tree(opp, ccw, vert, start, int(num_vertices))
-        elif tree != "dfs":
-            raise errors.ArgumentError(f"pemb: unknown spanning tree {tree!r} (bfs, dfs or stack)")
         enc = _encode_rotation_system(opp, ccw, vert, num_vertices, start, mask)
         pf = enc["face"][enc["position"][is_border]]
         holes = np.unique(pf).astype(np.int32)

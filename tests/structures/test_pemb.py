@@ -374,3 +374,13 @@ def test_from_bits_names_a_character_that_is_no_bit(bits, msg):
     is what a user writes for parentheses."""
     with pytest.raises(errors.EncodingError, match="pemb: " + msg):
         PEMB.from_bits(*bits)
+
+
+@pytest.mark.parametrize("tree", [np.array(["bfs", "dfs"]), "xyz", 3])
+def test_from_faces_names_an_unknown_spanning_tree(tree):
+    """An array as ``tree`` raised numpy's untyped 'truth value of an array is ambiguous'
+    ValueError, after the rotation system was built."""
+    from jaxcds.generators import icosphere
+
+    with pytest.raises(errors.ArgumentError, match=r"pemb: unknown spanning tree .* \(bfs, dfs or stack\)"):
+        PEMB.from_faces(icosphere(0).faces, 12, tree=tree)
