@@ -1039,3 +1039,21 @@ def test_id_maps_name_an_id_kind_that_is_not_one(method, args):
     with pytest.raises(errors.ArgumentError, match=rf"{method}: unknown id kind .*: 'vertex', 'face' or 'dart' "
                                                    r"\(the kind comes first\)"):
         getattr(b, method)(*args)
+
+
+@pytest.mark.parametrize("name,change,msg", [
+    ("cds6n", lambda s: replace(s, num_faces=19),
+     r"CDS6n.concatenate: part 1 has F = 19 faces for n = 12 vertices, not 2n - 4 = 20"),
+    ("cds6n", lambda s: replace(s, unused_slots=tuple(sorted(s.unused_slots))[:3]),
+     r"CDS6n.concatenate: every part must have 4 unused face slots; part 1 has 3"),
+    ("lr", lambda s: replace(s, L=s.L[:-1]), r"LR.concatenate: part 1's L has \d+ entries, not 1 m_r = \d+"),
+])
+def test_concatenate_names_the_hand_made_part_that_does_not_fit(name, change, msg):
+    """Parts assembled by hand: the refusals did not say which part; three unused slots raised
+    numpy's untyped 'inhomogeneous shape' ValueError before the refusal meant for them."""
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    s = registry.build(name, icosphere(0))
+    with pytest.raises(errors.StructureError, match=msg):
+        B.concatenate([s, change(s)])

@@ -317,7 +317,9 @@ def concatenate_cds(cls, parts: Sequence) -> object:
     voff = np.concatenate([[0], np.cumsum(nv)[:-1]])
     nf = np.array([p.num_faces for p in parts], np.int64)
     if np.any(nf != 2 * nv - 4):
-        raise errors.StructureError(f"{cls.__name__}.concatenate: a part has F != 2n - 4")
+        i = int(np.argmax(nf != 2 * nv - 4))
+        raise errors.StructureError(f"{cls.__name__}.concatenate: part {i} has F = {int(nf[i])} faces for "
+                                    f"n = {int(nv[i])} vertices, not 2n - 4 = {2 * int(nv[i]) - 4}")
     foff = np.concatenate([[0], np.cumsum(nf)[:-1]])
     # refs: shift the 30-bit vertex field, keep the service bits 30-31 (Sec. 2.1)
     refs = []
@@ -327,9 +329,14 @@ def concatenate_cds(cls, parts: Sequence) -> object:
     refs = np.concatenate(refs).astype(np.uint32).view(np.int32)
     fblue = np.concatenate([np.asarray(p.F_blue, np.int64) + o for p, o in zip(parts, voff)]).astype(np.int32)
     roots = np.array([[p.v_red, p.v_blue, p.v_black] for p in parts], np.int64) + voff[:, None]
+    # counted before the array is made: a part with 3 made np.array's untyped "inhomogeneous shape"
+    # ValueError, and this refusal was never reached
+    counts = [len(p.unused_slots) for p in parts]
+    if any(c != 4 for c in counts):
+        i = next(k for k, c in enumerate(counts) if c != 4)
+        raise errors.StructureError(f"{cls.__name__}.concatenate: every part must have 4 unused face slots; "
+                                    f"part {i} has {counts[i]}")
     unused = np.array([sorted(p.unused_slots) for p in parts], np.int64)
-    if unused.shape != (len(parts), 4):
-        raise errors.StructureError(f"{cls.__name__}.concatenate: every part must have 4 unused face slots")
     kw = {f.name: getattr(parts[0], f.name) for f in dataclasses.fields(cls)}
     kw.update(refs=to_device(refs), F_blue=to_device(fblue), num_vertices=total,
               num_faces=int(nf.sum()), v_red=-1, v_blue=-1, v_black=-1, unused_slots=(),

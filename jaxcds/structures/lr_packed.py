@@ -449,8 +449,12 @@ def concatenate_lr(cls, parts: Sequence) -> object:
     ring = [a for a in ("L", "R", "LR16") if a in P._arrays]
     per_ring = 2 if ring == ["LR16"] else 1
     for a in ring:  # the slot plan of face_vertices_padded reads these by union ring index
-        if np.any(lens[:, P._arrays.index(a)] != per_ring * sizes[:, 2]):
-            raise errors.StructureError(f"{cls.__name__}.concatenate: {a} is not {per_ring} m_r long")
+        wrong = lens[:, P._arrays.index(a)] != per_ring * sizes[:, 2]
+        if np.any(wrong):
+            i = int(np.argmax(wrong))
+            raise errors.StructureError(f"{cls.__name__}.concatenate: part {i}'s {a} has "
+                                        f"{int(lens[i, P._arrays.index(a)])} entries, not {per_ring} m_r = "
+                                        f"{per_ring * int(sizes[i, 2])}")
     kw = {f.name: getattr(parts[0], f.name) for f in dataclasses.fields(cls)}
     for a in P._arrays:
         kw[a] = to_device(np.concatenate([np.asarray(getattr(p, a)) for p in parts]))
