@@ -850,3 +850,30 @@ def test_binary_stl_without_a_whole_triangle_names_its_sizes(data, kind, match, 
     with pytest.raises(kind, match=match):
         load_mesh(_write(tmp_path, "cut.stl", data))
     assert load_mesh(_write(tmp_path, "one.stl", _STL_ONE), weld=False).num_faces == 1
+
+
+_PLY_HEAD = "ply\nformat ascii 1.0\n"
+
+
+@pytest.mark.parametrize("name,content,error,msg", [
+    ("c.off", "# only\n\n# comments\n", errors.EmptyMeshError, r"c.off: no data, only comments or blank lines"),
+    ("p.ply", _PLY_HEAD + "property float x\nelement vertex 3\nend_header\n", errors.UnreadableMeshError,
+     r"p.ply: line 3: a property before any element"),
+    ("q.ply", _PLY_HEAD + "element vertex 3\nproperty float a\nproperty float b\nproperty float c\n"
+     "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+     errors.UnreadableMeshError, r"q.ply: line 3: the vertex element has no x, y, z property"),
+])
+def test_readers_name_a_file_with_nothing_or_no_coordinates_to_read(tmp_path, name, content, error, msg):
+    """Reader refusals no test ran: an OFF of comments only, a PLY property before any element,
+    a PLY vertex without coordinates; each names the file and, in a header, the line."""
+    path = tmp_path / name
+    path.write_text(content)
+    with pytest.raises(error, match=msg):
+        load_mesh(str(path))
+
+
+def test_a_folder_named_like_a_mesh_file_is_refused(tmp_path):
+    folder = tmp_path / "d.off"
+    folder.mkdir()
+    with pytest.raises(errors.UnreadableMeshError, match=r"d.off: is a directory, not a mesh file"):
+        load_mesh(str(folder))
