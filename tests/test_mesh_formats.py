@@ -852,14 +852,14 @@ def test_binary_stl_without_a_whole_triangle_names_its_sizes(data, kind, match, 
     assert load_mesh(_write(tmp_path, "one.stl", _STL_ONE), weld=False).num_faces == 1
 
 
-_PLY_HEAD = "ply\nformat ascii 1.0\n"
+_PLY_ASCII_START = "ply\nformat ascii 1.0\n"  # (_PLY_HEAD is taken above)
 
 
 @pytest.mark.parametrize("name,content,error,msg", [
     ("c.off", "# only\n\n# comments\n", errors.EmptyMeshError, r"c.off: no data, only comments or blank lines"),
-    ("p.ply", _PLY_HEAD + "property float x\nelement vertex 3\nend_header\n", errors.UnreadableMeshError,
+    ("p.ply", _PLY_ASCII_START + "property float x\nelement vertex 3\nend_header\n", errors.UnreadableMeshError,
      r"p.ply: line 3: a property before any element"),
-    ("q.ply", _PLY_HEAD + "element vertex 3\nproperty float a\nproperty float b\nproperty float c\n"
+    ("q.ply", _PLY_ASCII_START + "element vertex 3\nproperty float a\nproperty float b\nproperty float c\n"
      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
      errors.UnreadableMeshError, r"q.ply: line 3: the vertex element has no x, y, z property"),
 ])
