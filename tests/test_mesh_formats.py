@@ -877,3 +877,43 @@ def test_a_folder_named_like_a_mesh_file_is_refused(tmp_path):
     folder.mkdir()
     with pytest.raises(errors.UnreadableMeshError, match=r"d.off: is a directory, not a mesh file"):
         load_mesh(str(folder))
+
+
+@pytest.mark.parametrize("name,content,msg", [
+    ("neg.off", "OFF\n-3 1 0\n", r"neg.off: the OFF header declares -3 vertices and 1 faces"),
+    ("fx.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\nx 0 1 2\n",
+     r"fx.off: line 6: face 0 must start with its number of corners, got 'x'"),
+    ("e.ply", _PLY_ASCII_START + "element vertex\nend_header\n",
+     r"e.ply: line 3: an element line is 'element NAME COUNT', got 'element vertex'"),
+    ("pr.ply", _PLY_ASCII_START + "element vertex 3\nproperty floaty x\nend_header\n",
+     r"pr.ply: line 4: cannot read the property line 'property floaty x'"),
+])
+def test_header_and_face_lines_a_reader_cannot_read_are_named(tmp_path, name, content, msg):
+    path = tmp_path / name
+    path.write_text(content)
+    with pytest.raises(errors.UnreadableMeshError, match=msg):
+        load_mesh(str(path))
+
+
+def test_binary_ply_bytes_after_the_last_element_are_counted(tmp_path):
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
+    body = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<B3i", 3, 0, 1, 2)
+    path = tmp_path / "b.ply"
+    (tmp_path / "ok.ply").write_bytes(head + body)
+    assert load_mesh(str(tmp_path / "ok.ply"), weld=False).num_faces == 1
+    path.write_bytes(head + body + b"\x00\x01")
+    with pytest.raises(errors.UnreadableMeshError, match=rf"b.ply: 2 bytes after the last PLY element \(byte "
+                                                         rf"{len(head) + len(body)} on\): the header declares "
+                                                         r"3 vertex, 1 face"):
+        load_mesh(str(path))
+
+
+@pytest.mark.parametrize("obj,msg", [
+    (object(), r"cannot load a mesh from an object of type object; give a path"),
+    ((np.zeros((3, 4)), np.array([[0, 1, 2]])), r"arrays: vertices must have shape \(V, 3\), got \(3, 4\)"),
+    ((np.array([["a", "b", "c"]] * 3), np.array([[0, 1, 2]])), r"arrays: vertices/faces are not numeric arrays"),
+])
+def test_load_mesh_names_an_object_or_arrays_it_cannot_read(obj, msg):
+    with pytest.raises(errors.UnreadableMeshError, match=msg):
+        load_mesh(obj)
