@@ -497,10 +497,13 @@ def encode_schnyder(wood, *, mixed: bool = False) -> tuple[Words, np.ndarray]:
     one out of range crashed the encoder's kernel)."""
     from jaxcds.construct.schnyder import check_wood_arrays
 
+    from jaxcds._args import is_integer
+
+    n = getattr(wood, "num_vertices", None)
+    if is_integer(n) and n < 4:  # before the wood check, whose refusal of n = 3 did not say this
+        raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
     check_wood_arrays(wood, "encode_schnyder")
     n = int(wood.num_vertices)
-    if n < 4:
-        raise errors.UnsupportedTopologyError(f"the 4n-bit encoding needs n >= 4 vertices, got {n}")
     return _encode_lean(wood.offsets, wood.neighbors, wood.out, n, wood.v_red, wood.v_blue, wood.v_black, mixed)
 
 

@@ -917,10 +917,14 @@ def _wood_in_range(wood, lean: bool, bad):
             k = int(np.argmax(w))
             bad(f"out[{k}] = {out[k].tolist()}: vertex {k}'s {COLOUR_NAMES[c1]} and "
                 f"{COLOUR_NAMES[c2]} edges lead to the same vertex")
-    if off[0] != 0 or off[-1] != m or np.any(np.diff(off) < 3):
-        k = 0 if off[0] != 0 else (n if off[-1] != m else int(np.argmax(np.diff(off) < 3)))
+    if off[0] != 0 or off[-1] != m:
+        k = 0 if off[0] != 0 else n
         bad(f"offsets[{k}] = {int(off[k])}: offsets must run from 0 to {m} (6n - 12), each vertex "
             "holding at least 3 neighbours")
+    if np.any(np.diff(off) < 3):  # named by its vertex: "offsets[0] = 0" (right) was named before
+        k = int(np.argmax(np.diff(off) < 3))
+        bad(f"vertex {k} holds {int(off[k + 1] - off[k])} neighbours (offsets[{k}:{k + 2}] = "
+            f"{int(off[k])}, {int(off[k + 1])}): each vertex of a triangulation holds at least 3")
     for name, top in (("neighbors", n), ("colour", 3))[:1 if lean else 2]:
         a = arrays[name]
         w = (a < 0) | (a >= top)

@@ -186,3 +186,13 @@ def test_encode_wood_refuses_a_twin_array_of_floats():
     f, r, k, outer = _icosahedron_wood()
     with pytest.raises(errors.ArgumentError, match="encode_wood: twin must be integers, got dtype float64"):
         encode_wood(f, 12, r, k, outer, twin=np.zeros(60) + 0.5)
+
+
+@pytest.mark.parametrize("lean", [False, True])
+def test_encode_schnyder_of_three_vertices_says_the_encoding_needs_four(lean):
+    """The wood check ran first and refused n = 3 as 'offsets[0] = 0: offsets must run from 0 to 6',
+    which did not say that the 4n-bit encoding needs n >= 4 (encode_faces says so)."""
+    f = np.array([[0, 1, 2], [0, 2, 1]])
+    wood = schnyder_out(f, 3) if lean else schnyder_wood(f, 3)
+    with pytest.raises(errors.UnsupportedTopologyError, match="the 4n-bit encoding needs n >= 4 vertices, got 3"):
+        encode_schnyder(wood)

@@ -651,3 +651,12 @@ def test_wood_check_takes_only_woods():
     with pytest.raises(errors.ArgumentError, match=r"encode_schnyder: expected a SchnyderWood \(jaxcds.construct"
                                                    r".schnyder.schnyder_wood\), got str"):
         check_wood_arrays("wood", "encode_schnyder")
+
+
+def test_wood_check_names_a_vertex_with_too_few_neighbours():
+    """The wood of two triangles back to back (n = 3): each vertex holds 2 neighbours. The message
+    named 'offsets[0] = 0', a right value, instead of the vertex."""
+    w = schnyder_wood(np.array([[0, 1, 2], [0, 2, 1]]), 3)
+    with pytest.raises(errors.StructureError, match=r"Schnyder wood: vertex 0 holds 2 neighbours "
+                                                    r"\(offsets\[0:2\] = 0, 2\): each vertex of a triangulation"):
+        check_wood_arrays(w)
