@@ -352,6 +352,10 @@ def _improve_ring_trusted(V, O, tm, num_vertices: int, *, dummy: Optional[np.nda
                           progress: Optional[bool] = None):
     """:func:`improve_ring` on arrays the library built (unchecked)."""
     sweeps = check_sweeps(sweeps)
+    for name, t in (("t_hi", t_hi), ("t_lo", t_lo)):  # a str raised TypeError, an array ValueError
+        if isinstance(t, (bool, np.bool_)) or not isinstance(t, (int, float, np.integer, np.floating)):
+            raise errors.ArgumentError(f"improve_ring: {name} must be a number (a temperature in "
+                                       f"references), got {type(t).__name__} {t!r}")
     if not (0 < t_lo <= t_hi):
         raise errors.StructureError(f"temperatures must satisfy 0 < t_lo <= t_hi, got {t_lo}, {t_hi}")
     V = np.asarray(V, np.int32)

@@ -152,3 +152,20 @@ def test_searched_lr_passes_the_construction_check(n, seed, bits):
     build = LRBits.from_mesh if bits else LR.from_mesh
     s = build(m, check=True, ring_sweeps=5)
     assert stats(s)["ring_search_gain"] >= 0
+
+
+@pytest.mark.parametrize("kw,error,msg", [
+    (dict(t_lo=0.0), errors.StructureError, r"temperatures must satisfy 0 < t_lo <= t_hi, got 0.0, 3.0"),
+    (dict(t_lo=5.0, t_hi=1.0), errors.StructureError, r"0 < t_lo <= t_hi, got 5.0, 1.0"),
+    (dict(t_lo="a"), errors.ArgumentError, r"improve_ring: t_lo must be a number .*got str 'a'"),
+    (dict(t_hi=np.array([1.0, 2.0])), errors.ArgumentError, r"improve_ring: t_hi must be a number .*got ndarray"),
+    (dict(t_hi=True), errors.ArgumentError, r"improve_ring: t_hi must be a number .*got bool"),
+])
+def test_bad_temperatures_are_refused_by_name(kw, error, msg):
+    """A str raised TypeError ('<' not supported) and an array numpy's 'truth value' ValueError
+    from the range test; the range refusal itself had no test."""
+    ct = CornerTable.from_faces(random_planar_triangulation_faces(30, seed=1), 30)
+    V, O = np.asarray(ct.V), np.asarray(ct.O)
+    tm, _ = ring_expander(V, O, 30, 0)
+    with pytest.raises(error, match=msg):
+        improve_ring(V, O, tm, 30, sweeps=1, **kw)
