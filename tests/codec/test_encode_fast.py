@@ -196,3 +196,8 @@ def test_encode_schnyder_of_three_vertices_says_the_encoding_needs_four(lean):
     wood = schnyder_out(f, 3) if lean else schnyder_wood(f, 3)
     with pytest.raises(errors.UnsupportedTopologyError, match="the 4n-bit encoding needs n >= 4 vertices, got 3"):
         encode_schnyder(wood)
+
+
+def test_encode_faces_of_three_vertices_says_the_encoding_needs_four():
+    with pytest.raises(errors.UnsupportedTopologyError, match="the 4n-bit encoding needs n >= 4 vertices, got 3"):
+        encode_faces(np.array([[0, 1, 2], [0, 2, 1]]), 3)
