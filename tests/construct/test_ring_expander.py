@@ -283,3 +283,18 @@ def test_lr_tables_names_a_ring_of_the_wrong_kind(change, error, msg):
     V, O = _icosahedron_vo()
     with pytest.raises(error, match=msg):
         lr_tables(V, O, change(best_ring(V, O, 12)), 12)
+
+
+def test_lr_tables_refuses_a_ring_through_a_vertex_twice():
+    """One edge a -> b walked there and back twice: every entry a ring edge of the table, but
+    not a simple loop."""
+    from jaxcds.construct.ring_expander import lr_tables
+
+    V, O = _icosahedron_vo()
+    c = 0  # corner 0 faces the edge V[1] -> V[2]; its opposite corner faces V[2] -> V[1]
+    a, b = int(V[_nx(c)]), int(V[_pv(c)])
+    r = best_ring(V, O, 12)
+    back_and_forth = dataclasses.replace(r, order=np.array([a, b, a, b], np.int32),
+                                         right_corner=np.array([c, O[c], c, O[c]], np.int32))
+    with pytest.raises(errors.StructureError, match=r"lr_tables: ring.order repeats a vertex \(a ring is a simple loop\)"):
+        lr_tables(V, O, back_and_forth, 12)
