@@ -257,11 +257,14 @@ class PackedBatch(MeshStructure):
         return jnp.where(g >= total, cnt[mesh], g - off[mesh]).astype(jnp.int32)
 
     def _table(self, kind: str):
-        if kind == "vertex":
+        # a kind that is no str (an array: kind == "vertex" compared elementwise) raised numpy's
+        # untyped "truth value of an array is ambiguous" ValueError
+        if isinstance(kind, str) and kind == "vertex":
             return self.vertex_offsets, self.n_vertex, self.num_vertices
-        if kind == "face":
+        if isinstance(kind, str) and kind == "face":
             return self.face_offsets, self.n_face, self.num_faces
-        raise errors.ArgumentError(f"unknown id kind {kind!r}: 'vertex' or 'face' here "
+        got = repr(kind) if isinstance(kind, (str, int, float)) else f"a {type(kind).__name__}"
+        raise errors.ArgumentError(f"unknown id kind {got}: 'vertex' or 'face' here "
                                    "('dart' only for mesh_of / to_global / to_local)")
 
     @staticmethod

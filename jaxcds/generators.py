@@ -418,7 +418,9 @@ def random_planar_triangulation(n: int, seed: int = 0, positions: str = "sphere"
     Raises:
       MeshError: ``n < 4`` or ``n`` too large for int32 ids (also a ``ValueError``).
     """
-    if positions != "sphere":  # before the faces: 3.5 s at 10M vertices spent for a refusal
+    # before the faces (3.5 s at 10M vertices spent for a refusal); an array compared
+    # elementwise raised numpy's untyped "truth value" ValueError
+    if not isinstance(positions, str) or positions != "sphere":
         raise errors.MeshError(f"random_planar_triangulation: positions must be 'sphere', got {positions!r}")
     f = random_planar_triangulation_faces(n, seed)
     n = int(n)

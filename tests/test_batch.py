@@ -1057,3 +1057,12 @@ def test_concatenate_names_the_hand_made_part_that_does_not_fit(name, change, ms
     s = registry.build(name, icosphere(0))
     with pytest.raises(errors.StructureError, match=msg):
         B.concatenate([s, change(s)])
+
+
+@pytest.mark.parametrize("method", ["per_mesh_sum", "per_mesh_mean", "split"])
+def test_per_mesh_reductions_name_a_kind_that_is_no_string(method):
+    """An array as ``kind`` raised numpy's untyped 'truth value of an array is ambiguous'
+    ValueError from ``kind == "vertex"``."""
+    b = B.pack([load_mesh(*octahedron())] * 2, "halfedge")
+    with pytest.raises(errors.ArgumentError, match=r"unknown id kind a ndarray: 'vertex' or 'face' here"):
+        getattr(b, method)(jnp.ones(b.num_vertices), kind=np.array(["vertex", "face"]))

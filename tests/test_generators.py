@@ -393,3 +393,11 @@ def test_random_planar_triangulation_refuses_unknown_positions_before_sampling(m
     monkeypatch.setattr(G, "random_planar_triangulation_faces", sampled)
     with pytest.raises(errors.MeshError, match="positions must be 'sphere', got 'plane'"):
         G.random_planar_triangulation(10, positions="plane")
+
+
+def test_random_planar_triangulation_names_positions_that_are_no_string():
+    """An array as ``positions`` raised numpy's untyped 'truth value' ValueError."""
+    from jaxcds import generators as G
+
+    with pytest.raises(errors.MeshError, match="positions must be 'sphere', got array"):
+        G.random_planar_triangulation(10, positions=np.array(["sphere", "plane"]))
