@@ -52,6 +52,10 @@ def device_mesh(devices: Optional[Sequence] = None, axis: str = "d") -> Mesh:
     if isinstance(devices, (str, bytes)) or (devices is not None and not hasattr(devices, "__iter__")):
         raise errors.ArgumentError(f"device_mesh: devices must be a list of jax devices (e.g. "
                                    f"jax.devices('cpu')), got {type(devices).__name__} {devices!r}")
+    try:  # a list or an array raised TypeError 'unhashable type' from jax's Mesh
+        hash(axis)
+    except TypeError:
+        raise errors.ArgumentError(f"device_mesh: axis must be a name (a str), got {type(axis).__name__}") from None
     devs = list(jax.devices() if devices is None else devices)
     bad = [d for d in devs if not isinstance(d, jax.Device)]
     if bad:

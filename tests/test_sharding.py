@@ -595,3 +595,15 @@ def test_device_mesh_names_devices_that_are_not_devices(devices):
     with pytest.raises(errors.ArgumentError, match="device_mesh: devices must be"):
         S.device_mesh(devices)
     assert S.device_mesh(jax.devices("cpu")[:1]).devices.size == 1
+
+
+@pytest.mark.parametrize("axis", [["d"], {"d": 0}])
+def test_device_mesh_names_an_axis_that_is_no_name(axis):
+    """A list as the axis name raised TypeError ('unhashable type') from jax's Mesh."""
+    import jax
+
+    from jaxcds import errors
+    from jaxcds import sharding as S
+
+    with pytest.raises(errors.ArgumentError, match=r"device_mesh: axis must be a name \(a str\), got"):
+        S.device_mesh(jax.devices("cpu")[:1], axis=axis)
