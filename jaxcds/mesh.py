@@ -2030,6 +2030,15 @@ def _closed_error(mesh: TriMesh, loops: list, structure: str) -> errors.MeshErro
         "call jaxcds.mesh.close_boundaries(mesh) first")
 
 
+def _check_flags(where: str, **flags) -> None:
+    """:class:`~jaxcds.errors.ArgumentError` naming the first flag that is not True or False: an
+    array raised numpy's untyped "truth value" ValueError, a dict numba's TypingError, and
+    ``closed="no"`` checked for boundaries (a truthy str)."""
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise errors.ArgumentError(f"{where}: {name} must be True or False, got {value!r}")
+
+
 def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,
              structure: str = "this structure", return_twins: bool = False,
              unreferenced_ok: bool = False):
@@ -2043,6 +2052,8 @@ def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,
       unreferenced_ok: accept vertices in no face (a half-edge built with
         ``HalfEdge.from_faces`` answers "absent" for them; Polylla's points in a hole).
     """
+    _check_flags("validate", closed=closed, connected=connected, return_twins=return_twins,
+                 unreferenced_ok=unreferenced_ok)
     clean = _fast_check(_mesh_arg(mesh, "validate"), components=connected,
                         unreferenced_ok=unreferenced_ok)
     if clean is None:  # a defect, or an input the fast path does not take: the full checks
@@ -2076,6 +2087,7 @@ def validate_and_close(mesh: TriMesh, *, connected: bool = True,
     return ``(mesh, twins)``, the :class:`Twins` of the returned (closed) mesh's faces, the
     closing fans included, or ``None`` when validation took the full path.
     """
+    _check_flags("validate_and_close", connected=connected, return_twins=return_twins)
     clean = _fast_check(_mesh_arg(mesh, "validate_and_close"), components=connected)
     if clean is None:  # the full checks, from ONE edge table
         et = edge_table(mesh.faces)

@@ -1124,3 +1124,21 @@ def test_edge_table_names_faces_it_cannot_take(faces):
 
     with pytest.raises((errors.ArgumentError, errors.InvalidIndexError), match="edge_table"):
         edge_table(faces)
+
+
+@pytest.mark.parametrize("call,flag", [
+    (lambda M, m, v: M.validate(m, closed=v), "validate: closed"),
+    (lambda M, m, v: M.validate(m, connected=v), "validate: connected"),
+    (lambda M, m, v: M.validate(m, return_twins=v), "validate: return_twins"),
+    (lambda M, m, v: M.validate(m, unreferenced_ok=v), "validate: unreferenced_ok"),
+    (lambda M, m, v: M.validate_and_close(m, connected=v), "validate_and_close: connected"),
+])
+@pytest.mark.parametrize("value", [np.array([True, False]), {"a": 1}, "no"])
+def test_validate_names_a_flag_that_is_not_a_bool(call, flag, value):
+    """An array raised numpy's untyped 'truth value' ValueError, a dict numba's TypingError, and
+    'no' was read as True."""
+    from jaxcds import mesh as M
+    from jaxcds.generators import icosphere
+
+    with pytest.raises(errors.ArgumentError, match=rf"{flag} must be True or False, got"):
+        call(M, icosphere(0), value)
