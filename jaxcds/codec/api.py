@@ -445,6 +445,12 @@ def decode_file(cds_path: str | os.PathLike, out_path: str | os.PathLike, *,
       ArgumentError: ``verify`` without a ``structure`` (nothing to verify: it was ignored), or
         ``verify`` not a bool; what :func:`read_cds` and :func:`write_mesh_atomic` raise."""
     _flags("decode_file", verify=verify)
+    # checked before the file is read: an array raised numpy's "truth value" ValueError, a
+    # misspelt name was refused only after the decoding
+    if structure is not None and (not isinstance(structure, str)
+                                  or structure not in ("", "cds6n", "cds5n", "cds4n")):
+        got = repr(structure) if isinstance(structure, (str, int, float)) else f"a {type(structure).__name__}"
+        raise errors.ArgumentError(f"decode_file: unknown structure {got}: 'cds6n', 'cds5n', 'cds4n' or None")
     if verify and not structure:
         raise errors.ArgumentError("decode_file: verify checks the structure built from the words; "
                                    "give structure='cds6n', 'cds5n' or 'cds4n'")

@@ -802,7 +802,9 @@ def build_lr(mesh, *, bits: bool = False, k="auto", seeds=4, check: bool = True,
     towards fewer references (:mod:`jaxcds.construct.ring_search`; beyond the paper, 0 = the
     paper's ring; about 0.2 us per triangle per sweep)."""
     _mappings.relieve()  # many meshes in one process: compiled programs pile up (_mappings)
-    # flags as bools (ArgumentError): check='no' was truthy, borders=0 falsy
+    # flags as bools (ArgumentError): check='no' was truthy, borders=0 falsy; bits first (an
+    # array raised numpy's "truth value" ValueError from `if bits`)
+    bits = flag_arg(bits, "build_lr: bits")
     where = "LRBits.from_mesh" if bits else "LR.from_mesh"
     check = flag_arg(check, f"{where}: check")
     wart_skipping = flag_arg(wart_skipping, f"{where}: wart_skipping")
@@ -1036,6 +1038,9 @@ def render_list(s: LR) -> dict:
     degenerate (tip ``v``). Vertex ids are the LR's (``positions[s.vertex_order]``).
 
     Returns ``{"apex": (2 m_r,) int32, "skip": (2 m_r,) bool, "t0": (n0, 3) int32, "rpt": float}``."""
+    if not isinstance(s, (LR, LRBits)):  # an AttributeError about num_ring before
+        raise errors.ArgumentError(f"render_list: expected an LR or LRBits structure "
+                                   f"(jaxcds.build('lr', mesh)), got {type(s).__name__}")
     m = s.num_ring
     v = jnp.arange(m, dtype=jnp.int32)
     d = s._dec(v)

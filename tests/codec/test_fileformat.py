@@ -652,3 +652,13 @@ def test_a_dummy_mask_on_every_face_is_refused(tmp_path):
     with pytest.raises(errors.ArgumentError, match=r"dummy mask leaves no face without a dummy vertex: "
                                                    r"the mask does not fit this mesh"):
         decode(words, structure="cds6n", dummy=mask)
+
+
+@pytest.mark.parametrize("structure,got", [(np.array(["cds6n", "cds5n"]), "a ndarray"), ("cds7n", "'cds7n'")])
+def test_decode_file_names_an_unknown_structure_before_reading(tmp_path, structure, got):
+    """An array raised numpy's untyped 'truth value' ValueError; a misspelt name was refused only
+    after the file was read and decoded. The file here does not exist: the argument comes first."""
+    with pytest.raises(errors.ArgumentError, match=rf"decode_file: unknown structure {got}: 'cds6n', 'cds5n', "
+                                                   r"'cds4n' or None"):
+        decode_file(tmp_path / "missing.cds", tmp_path / "out.off", structure=structure)
+    assert not (tmp_path / "out.off").exists()

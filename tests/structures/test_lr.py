@@ -728,3 +728,17 @@ def test_from_corner_table_with_every_vertex_dummy_has_no_seed():
     _, ct = _icosahedron_table()
     with pytest.raises(errors.UnsupportedTopologyError, match="no triangle without a dummy vertex to seed the ring"):
         LR.from_corner_table(ct, dummy=np.ones(12, bool))
+
+
+def test_build_lr_and_render_list_name_arguments_of_the_wrong_kind():
+    """``build_lr(bits=array)`` raised numpy's untyped 'truth value' ValueError, ``render_list``
+    of another structure an AttributeError about ``num_ring``."""
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+    from jaxcds.structures.lr import build_lr, render_list
+
+    m = icosphere(0)
+    with pytest.raises(errors.ArgumentError, match=r"build_lr: bits must be True or False, got array"):
+        build_lr(m, bits=np.array([True, False]))
+    with pytest.raises(errors.ArgumentError, match=r"render_list: expected an LR or LRBits structure .*got HalfEdge"):
+        render_list(registry.build("halfedge", m))
