@@ -160,10 +160,15 @@ def delaunay_disk(points) -> TriMesh:
     f[cw] = f[cw][:, [0, 2, 1]]
     used = np.zeros(pts.shape[0], bool)
     used[f.ravel()] = True
-    if not used.all():  # coplanar/collinear leftovers: qhull drops them
+    if not used.all():  # near-duplicate or coplanar/collinear leftovers: qhull drops them
+        k = int(np.argmin(used))
+        dist = np.linalg.norm(pts - pts[k], axis=1)
+        dist[k] = np.inf
+        j = int(np.argmin(dist))  # a point within rounding of another was the usual cause
         raise errors.MeshError(
-            f"delaunay_disk: point {int(np.argmin(used))} is not a vertex of the triangulation "
-            "(collinear input?)")
+            f"delaunay_disk: point {k} {pts[k]} is not a vertex of the triangulation: Qhull dropped "
+            f"it (the nearest point, {j}, is {dist[j]:.3g} away; points closer than rounding are "
+            "merged, and collinear leftovers dropped)")
     v = np.concatenate([pts, np.zeros((pts.shape[0], 1))], axis=1)
     return TriMesh(vertices=v, faces=f, source=f"delaunay_disk({pts.shape[0]})")
 

@@ -401,3 +401,13 @@ def test_random_planar_triangulation_names_positions_that_are_no_string():
 
     with pytest.raises(errors.MeshError, match="positions must be 'sphere', got array"):
         G.random_planar_triangulation(10, positions=np.array(["sphere", "plane"]))
+
+
+def test_delaunay_disk_names_a_point_qhull_dropped_and_its_neighbour():
+    """A point 1e-17 from another is distinct for np.unique but merged by Qhull; the message
+    guessed 'collinear input?' and did not name the point it was merged with."""
+    from jaxcds import generators as G
+
+    with pytest.raises(errors.MeshError, match=r"delaunay_disk: point 3 .* is not a vertex of the triangulation: "
+                                               r"Qhull dropped it \(the nearest point, 0, is 1e-17 away"):
+        G.delaunay_disk(np.array([[0, 0], [1, 0], [0, 1], [1e-17, 0]], float))
