@@ -278,3 +278,15 @@ def test_build_names_the_holes_a_cds_refusal_closed(capsys, tmp_path, kind):
     err = capsys.readouterr().err
     assert "genus 1 (Euler characteristic 0 after closing 1 boundary loop(s))" in err, err
     assert err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("kind,message", [
+    ("pemb", "pemb needs a planar (genus 0) mesh, this one has genus 1"),
+    ("cds6n", "cds6n (Schnyder woods) needs a genus-0 surface (a planar triangulation); this mesh has genus 1"),
+])
+def test_build_of_a_closed_torus_names_the_genus(capsys, kind, message):
+    """A closed genus-1 mesh (nothing for the CLI to close): the builder's own refusal passes
+    through, one line, exit 2 (the path no test ran)."""
+    assert main(["build", mesh_path("rocker-arm.obj"), "--structure", kind]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "rocker-arm.obj" in err and err.count("\n") == 1, err
