@@ -449,3 +449,12 @@ def test_from_bits_names_the_builder_and_what_it_takes(build, bits, msg):
     hold; none of these ran in a test."""
     with pytest.raises(errors.EncodingError, match=msg):
         build(bits)
+
+
+@pytest.mark.parametrize("mask", ["no", object()])
+def test_query_masks_that_are_no_flags_are_refused(mask):
+    """A str or any object converted to True: ``active="no"`` selected every query."""
+    p = BalancedParens.from_bits("(()())")
+    with pytest.raises(errors.ArgumentError, match=r"BalancedParens.match: active must be an array of flags, got"):
+        p.match(np.array([0, 1, 2]), active=mask)
+    np.testing.assert_array_equal(p.match(np.array([0, 1, 2]), active=[1, 1, 1]), p.match(np.array([0, 1, 2])))

@@ -142,6 +142,10 @@ def mask_arg(x, shape, what: str) -> jnp.ndarray:
     except (TypeError, ValueError) as exc:
         raise errors.ArgumentError(f"{what} must be an array of flags, got {type(x).__name__} "
                                    f"({exc})") from None
+    # a str or any object converted to True: active="no" selected every query
+    if not isinstance(x, jax.Array) and np.asarray(x).dtype.kind not in "biuf":
+        raise errors.ArgumentError(f"{what} must be an array of flags, got {type(x).__name__} "
+                                   f"of dtype {np.asarray(x).dtype}")
     shape = tuple(shape)
     try:
         fits = jnp.broadcast_shapes(m.shape, shape) == shape
