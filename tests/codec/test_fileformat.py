@@ -662,3 +662,15 @@ def test_decode_file_names_an_unknown_structure_before_reading(tmp_path, structu
                                                    r"'cds4n' or None"):
         decode_file(tmp_path / "missing.cds", tmp_path / "out.off", structure=structure)
     assert not (tmp_path / "out.off").exists()
+
+
+def test_a_temporary_file_the_os_refuses_is_an_output_error(tmp_path, monkeypatch):
+    """The atomic write's temporary file refused (a full inode table, a quota): named with the
+    output path; nothing is left behind."""
+    def refused(*a, **k):
+        raise OSError(122, "Disk quota exceeded")
+
+    monkeypatch.setattr(ff.tempfile, "mkstemp", refused)
+    with pytest.raises(errors.OutputError, match=r"cannot write '.*x.cds': Disk quota exceeded"):
+        ff.atomic_write_bytes(tmp_path / "x.cds", b"data")
+    assert list(tmp_path.iterdir()) == []
