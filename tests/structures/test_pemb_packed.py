@@ -111,3 +111,14 @@ def test_concatenate_does_not_rescan_the_parts_bits(monkeypatch):
         monkeypatch.setattr(mod, "bits_array", lambda x, what, real=real: calls.append(what) or real(x, what))
     u = B.concatenate([q, q, q]).structure
     assert calls == [] and u.A.size == 18 and u.P.size == 18
+
+
+def test_concatenate_names_a_hand_made_part_whose_order_is_short():
+    """The order check of a hand-made part no test ran: ids in range, one too few."""
+    import jaxcds.batch as B
+    from jaxcds._dataclass import replace
+
+    p = PEMB.from_faces(np.array([[0, 1, 2], [0, 2, 3]]), 4)
+    short = replace(p, order=np.asarray(p.order)[:-1])
+    with pytest.raises(errors.StructureError, match=r"PEMB.concatenate: part 1: order has 3 entries for 4 vertices"):
+        B.concatenate([p, short])
