@@ -261,6 +261,10 @@ def _with(a, index, value):
      r"seeds\[0\] = corner 0 is on a hole-closing \(dummy\) triangle"),
     (lambda V, O: best_ring(V, O, 12, dummy=np.ones(12, bool)), errors.UnsupportedTopologyError,
      "no triangle without a dummy vertex to seed the ring"),
+    (lambda V, O: hybrid_ring_expander(V, O, 12, 0, -1), errors.ArgumentError,
+     r"hybrid_ring_expander: k must be an integer >= 0, got -1"),
+    (lambda V, O: hybrid_ring_expander(V, O, 12, 0, 2.5), errors.ArgumentError,
+     r"hybrid_ring_expander: k must be an integer >= 0, got 2.5"),
 ])
 def test_ring_functions_name_a_bad_argument(call, error, msg):
     """Checks before the kernels that no test ran in-process (the child-process test above
