@@ -1066,3 +1066,17 @@ def test_per_mesh_reductions_name_a_kind_that_is_no_string(method):
     b = B.pack([load_mesh(*octahedron())] * 2, "halfedge")
     with pytest.raises(errors.ArgumentError, match=r"unknown id kind a ndarray: 'vertex' or 'face' here"):
         getattr(b, method)(jnp.ones(b.num_vertices), kind=np.array(["vertex", "face"]))
+
+
+@pytest.mark.parametrize("cls", [HalfEdge, CornerTable])
+def test_class_concatenate_of_no_parts_or_mixed_parts_is_named(cls):
+    """``HalfEdge.concatenate([])`` / ``CornerTable.concatenate([])`` raised numpy's untyped
+    broadcast ValueError; a part of the other class had its fields read as if it were one."""
+    m = load_mesh(*octahedron())
+    other = CornerTable if cls is HalfEdge else HalfEdge
+    with pytest.raises(errors.EmptyMeshError, match="concatenate: no structures given"):
+        cls.concatenate([])
+    with pytest.raises(errors.UnsupportedTopologyError, match=rf"{cls.__name__}.concatenate: part 1 is a "
+                                                              rf"{other.__name__}"):
+        cls.concatenate([cls.from_mesh(m), other.from_mesh(m)])
+    assert cls.concatenate([cls.from_mesh(m)] * 2).num_vertices == 2 * m.num_vertices

@@ -22,7 +22,7 @@ from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, validate
-from jaxcds.structures.base import Int, MeshStructure, checked_ids
+from jaxcds.structures.base import Int, MeshStructure, checked_ids, parts_of_one_class
 from jaxcds.structures.halfedge import _check_twins, _halfedge_arrays, _match_twins, twins_arg
 
 __all__ = ["CornerTable"]
@@ -233,6 +233,8 @@ class CornerTable(MeshStructure):
         """Disjoint union of corner tables with ids shifted, for :func:`jaxcds.batch.concatenate`."""
         from jaxcds.batch import shift_ids
 
+        # no part: numpy's untyped broadcast ValueError; a part of another class: its fields read
+        parts = parts_of_one_class(cls, parts)
         nc = [3 * c.num_faces for c in parts]
         nv = [c.num_vertices for c in parts]
         return cls(V=to_device(shift_ids([np.asarray(c.V) for c in parts], nv)),

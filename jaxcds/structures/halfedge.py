@@ -22,7 +22,7 @@ from jaxcds._args import flag_arg
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, Twins, load_mesh, trusted_faces, twin_defects, validate
-from jaxcds.structures.base import Int, MeshStructure
+from jaxcds.structures.base import Int, MeshStructure, parts_of_one_class
 
 __all__ = ["HalfEdge", "halfedge_arrays"]
 
@@ -158,6 +158,8 @@ class HalfEdge(MeshStructure):
         of every part (so ``face(e) = e // 3`` for ``e < 3F`` stays true)."""
         from jaxcds.batch import shift_darts, shift_ids
 
+        # no part: numpy's untyped broadcast ValueError; a part of another class: its fields read
+        parts = parts_of_one_class(cls, parts)
         p = [3 * h.num_faces for h in parts]
         x = [h.num_border_darts for h in parts]
         nv = [h.num_vertices for h in parts]
