@@ -384,3 +384,9 @@ def test_from_faces_names_an_unknown_spanning_tree(tree):
 
     with pytest.raises(errors.ArgumentError, match=r"pemb: unknown spanning tree .* \(bfs, dfs or stack\)"):
         PEMB.from_faces(icosphere(0).faces, 12, tree=tree)
+
+
+def test_from_bits_names_counts_of_a_and_the_parentheses_that_disagree():
+    with pytest.raises(errors.EncodingError, match=r"pemb: A has 4 bits with 2 ones and 2 zeros, but B has 2 and B\* 1 "
+                                                   r"parentheses \(they must match the ones and zeros\)"):
+        PEMB.from_bits("1100", "10", "1")
