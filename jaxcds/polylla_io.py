@@ -604,9 +604,12 @@ def from_points(points, source: str = "points") -> Triangulation2D:
         v = int(np.nonzero(~used)[0][0])
         same = np.nonzero((pts == pts[v]).all(axis=1))[0]
         if same.size > 1:
+            # the count too: a real-world set holds hundreds (sweep 53b), and one name per run
+            repeats = pts.shape[0] - np.unique(pts, axis=0).shape[0]
             raise errors.PolyllaError(
                 f"{source}: point {v} repeats point {int(same[same != v][0])} "
-                f"{pts[v].tolist()} and is in no triangle; remove duplicates")
+                f"{pts[v].tolist()} and is in no triangle; remove duplicates ({repeats} of the "
+                f"{pts.shape[0]} points repeat another)")
         # not a duplicate: Qhull merged it with a point too near for its precision (a cluster
         # 1e-6 of the set's extent wide), which the message had called a duplicate
         d = np.hypot(*(pts - pts[v]).T)

@@ -909,8 +909,12 @@ def test_points_qhull_drops_are_named_for_what_they_are():
     assert "duplicate" not in str(exc.value)
     dup = np.vstack([rng.random((30, 2)), [[0.25, 0.75], [0.25, 0.75]]])
     with pytest.raises(errors.PolyllaError, match=r"dup: point 30 repeats point 31 \[0.25, 0.75\] "
-                       "and is in no triangle; remove duplicates"):
+                       r"and is in no triangle; remove duplicates \(1 of the 32 points repeat another\)"):
         io.from_points(dup, "dup")
+    # stop 53: with the count (sweep 53b's real-world sets held hundreds, named one per run)
+    many = np.vstack([dup, dup[:5], [[0.25, 0.75]]])
+    with pytest.raises(errors.PolyllaError, match=r"\(7 of the 38 points repeat another\)"):
+        io.from_points(many, "many")
 
 
 @pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300])
