@@ -2034,9 +2034,10 @@ def _check_flags(where: str, **flags) -> None:
     """:class:`~jaxcds.errors.ArgumentError` naming the first flag that is not True or False: an
     array raised numpy's untyped "truth value" ValueError, a dict numba's TypingError, and
     ``closed="no"`` checked for boundaries (a truthy str)."""
+    from jaxcds._args import flag_arg
+
     for name, value in flags.items():
-        if not isinstance(value, (bool, np.bool_)):
-            raise errors.ArgumentError(f"{where}: {name} must be True or False, got {value!r}")
+        flag_arg(value, f"{where}: {name}")
 
 
 def validate(mesh: TriMesh, *, closed: bool = False, connected: bool = False,

@@ -21,7 +21,7 @@ import pytest
 from jaxcds import errors
 from jaxcds.algorithms import adjacent, vertex_degrees, vertex_normals
 from jaxcds.algorithms.normals import face_list_vertex_normals
-from jaxcds.construct.schnyder import BLACK, BLUE, RED, check_schnyder_wood, schnyder_wood
+from jaxcds.construct.schnyder import RED, check_schnyder_wood, schnyder_wood
 from jaxcds.generators import icosphere, random_planar_triangulation
 from jaxcds.mesh import close_boundaries
 from jaxcds.structures import cds, registry
