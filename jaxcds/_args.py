@@ -9,6 +9,15 @@ import numpy as np
 from jaxcds import errors
 
 
+def shown(value) -> str:
+    """``value`` as an error message shows it: its repr if a scalar (a name, a number, None),
+    else ``a <type>`` -- the repr of an array or a structure put where a name goes runs to pages
+    (sweep 53c found several such arguments)."""
+    if value is None or isinstance(value, (str, bytes, int, float, np.generic)):
+        return repr(value)
+    return f"a {type(value).__name__}"
+
+
 def is_integer(x) -> bool:
     """True for a Python or numpy integer; False for booleans (``True`` is an ``int`` to Python,
     and a seed count of ``True`` is a mistake, not 1) and for everything else."""

@@ -64,7 +64,7 @@ import numpy as np
 
 from jaxcds import errors
 from jaxcds._arrays import to_device, traced_for_cpu
-from jaxcds._args import flag_arg, number_array, refuse_non_real
+from jaxcds._args import flag_arg, number_array, refuse_non_real, shown
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import TriMesh, load_mesh, trusted_faces, validate
 from jaxcds.structures.base import Int, MeshStructure, id_arg
@@ -263,7 +263,7 @@ class PackedBatch(MeshStructure):
             return self.vertex_offsets, self.n_vertex, self.num_vertices
         if isinstance(kind, str) and kind == "face":
             return self.face_offsets, self.n_face, self.num_faces
-        got = repr(kind) if isinstance(kind, (str, int, float)) else f"a {type(kind).__name__}"
+        got = shown(kind)
         raise errors.ArgumentError(f"unknown id kind {got}: 'vertex' or 'face' here "
                                    "('dart' only for mesh_of / to_global / to_local)")
 
@@ -273,7 +273,7 @@ class PackedBatch(MeshStructure):
         (ids where the kind goes) raised numpy's untyped 'truth value of an array is
         ambiguous' ValueError from ``kind == "dart"``."""
         if not isinstance(kind, str) or kind not in ("vertex", "face", "dart"):
-            got = f"a {type(kind).__name__}" if not isinstance(kind, (str, int, float)) else repr(kind)
+            got = shown(kind)
             raise errors.ArgumentError(f"{where}: unknown id kind {got}: 'vertex', 'face' or 'dart' "
                                        "(the kind comes first)")
 

@@ -18,7 +18,7 @@ from typing import Any, Optional
 import numpy as np
 
 from jaxcds import errors
-from jaxcds._args import flag_arg
+from jaxcds._args import flag_arg, shown
 from jaxcds.codec import fileformat as ff
 from jaxcds.codec.decode import Paper6n, decode_faces, decode_paper6n  # noqa: F401  (Paper6n: named in decode's docs)
 from jaxcds.codec.encode import encode_faces
@@ -449,7 +449,7 @@ def decode_file(cds_path: str | os.PathLike, out_path: str | os.PathLike, *,
     # misspelt name was refused only after the decoding
     if structure is not None and (not isinstance(structure, str)
                                   or structure not in ("", "cds6n", "cds5n", "cds4n")):
-        got = repr(structure) if isinstance(structure, (str, int, float)) else f"a {type(structure).__name__}"
+        got = shown(structure)
         raise errors.ArgumentError(f"decode_file: unknown structure {got}: 'cds6n', 'cds5n', 'cds4n' or None")
     if verify and not structure:
         raise errors.ArgumentError("decode_file: verify checks the structure built from the words; "

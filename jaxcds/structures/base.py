@@ -49,6 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxcds import errors
+from jaxcds._args import shown
 from jaxcds._arrays import Tracer as _Tracer
 from jaxcds._arrays import to_device, traced_for_cpu
 
@@ -685,8 +686,7 @@ class MeshStructure:
         # an array as kind (the arguments swapped: check_ids(ids, "dart")) raised numpy's
         # "truth value of an array is ambiguous" ValueError from the membership test
         if not isinstance(kind, str) or kind not in ("dart", "vertex", "face"):
-            got = (f"a {type(kind).__name__}" if isinstance(kind, (np.ndarray, list, tuple))
-                   else repr(kind))
+            got = shown(kind)
             raise errors.ArgumentError(f"unknown id kind {got}: 'dart', 'vertex' or 'face' "
                                        "(check_ids(kind, ids): the kind comes first)")
         a = integer_array(ids, f"{kind} ids")

@@ -67,7 +67,7 @@ import numba
 import numpy as np
 
 from jaxcds import _mappings, errors
-from jaxcds._args import flag_arg, is_integer
+from jaxcds._args import flag_arg, is_integer, shown
 from jaxcds._arrays import to_device
 from jaxcds._dataclass import pytree_dataclass, static_field
 from jaxcds.mesh import load_mesh, trusted_faces, validate
@@ -408,7 +408,7 @@ class PEMB(MeshStructure):
         _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
         # before any work; an array here raised numpy's untyped "truth value" ValueError
         if not isinstance(tree, str) or tree not in ("bfs", "dfs", "stack"):
-            got = f"a {type(tree).__name__}" if isinstance(tree, (np.ndarray, list, tuple)) else repr(tree)
+            got = shown(tree)
             raise errors.ArgumentError(f"pemb: unknown spanning tree {got} (bfs, dfs or stack)")
         f = trusted_faces(faces, num_vertices, "PEMB.from_faces")
         nf = int(f.shape[0])
