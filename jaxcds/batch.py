@@ -263,8 +263,7 @@ class PackedBatch(MeshStructure):
             return self.vertex_offsets, self.n_vertex, self.num_vertices
         if isinstance(kind, str) and kind == "face":
             return self.face_offsets, self.n_face, self.num_faces
-        got = shown(kind)
-        raise errors.ArgumentError(f"unknown id kind {got}: 'vertex' or 'face' here "
+        raise errors.ArgumentError(f"unknown id kind {shown(kind)}: 'vertex' or 'face' here "
                                    "('dart' only for mesh_of / to_global / to_local)")
 
     @staticmethod
@@ -273,8 +272,7 @@ class PackedBatch(MeshStructure):
         (ids where the kind goes) raised numpy's untyped 'truth value of an array is
         ambiguous' ValueError from ``kind == "dart"``."""
         if not isinstance(kind, str) or kind not in ("vertex", "face", "dart"):
-            got = shown(kind)
-            raise errors.ArgumentError(f"{where}: unknown id kind {got}: 'vertex', 'face' or 'dart' "
+            raise errors.ArgumentError(f"{where}: unknown id kind {shown(kind)}: 'vertex', 'face' or 'dart' "
                                        "(the kind comes first)")
 
     # ------------------------------------------------------------------ batched local queries

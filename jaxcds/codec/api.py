@@ -121,7 +121,7 @@ def decode(words: Words, *, structure: str = "faces", dummy=None):
     # not a str: an array's membership test raised numpy's untyped "truth value" ValueError
     if not isinstance(structure, str) or structure not in ("faces", "paper6n", "wood", "cds6n", "cds5n", "cds4n"):
         raise errors.ArgumentError(
-            f"unknown structure {structure!r}: faces, paper6n, wood, cds6n, cds5n, cds4n")
+            f"unknown structure {shown(structure)}: faces, paper6n, wood, cds6n, cds5n, cds4n")
     if dummy is not None and structure not in ("cds6n", "cds5n", "cds4n"):
         raise errors.ArgumentError(f"a dummy mask is for the CDS structures, not {structure!r} "
                                    "(its faces include the fans; drop them with the mask yourself)")
@@ -449,8 +449,8 @@ def decode_file(cds_path: str | os.PathLike, out_path: str | os.PathLike, *,
     # misspelt name was refused only after the decoding
     if structure is not None and (not isinstance(structure, str)
                                   or structure not in ("", "cds6n", "cds5n", "cds4n")):
-        got = shown(structure)
-        raise errors.ArgumentError(f"decode_file: unknown structure {got}: 'cds6n', 'cds5n', 'cds4n' or None")
+        raise errors.ArgumentError(f"decode_file: unknown structure {shown(structure)}: 'cds6n', 'cds5n', "
+                                   "'cds4n' or None")
     if verify and not structure:
         raise errors.ArgumentError("decode_file: verify checks the structure built from the words; "
                                    "give structure='cds6n', 'cds5n' or 'cds4n'")

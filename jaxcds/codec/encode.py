@@ -495,9 +495,8 @@ def encode_schnyder(wood, *, mixed: bool = False) -> tuple[Words, np.ndarray]:
     as :func:`encode_wood`. A wood it did not make is checked first
     (:func:`~jaxcds.construct.schnyder.check_wood_arrays`: ``StructureError`` naming the entry;
     one out of range crashed the encoder's kernel)."""
-    from jaxcds.construct.schnyder import check_wood_arrays
-
     from jaxcds._args import is_integer
+    from jaxcds.construct.schnyder import check_wood_arrays
 
     n = getattr(wood, "num_vertices", None)
     if is_integer(n) and n < 4:  # before the wood check, whose refusal of n = 3 did not say this

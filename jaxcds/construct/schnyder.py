@@ -906,11 +906,11 @@ def _wood_in_range(wood, lean: bool, bad):
     if wrong.any():
         u, c = np.argwhere(wrong)[0]
         # in range but absent where an edge must be, or an edge where Sec. 2.1 has none: say which
-        slot = ("must be absent (n = {n}): V_red has no outgoing edge, V_blue no blue or black one, "
-                "V_black no black one (Sec. 2.1)" if absent[u, c]
-                else "must be a vertex in [0, {n}): only the six outer slots of Sec. 2.1 are absent (n)")
+        slot = (f"must be absent (n = {n}): V_red has no outgoing edge, V_blue no blue or black "
+                "one, V_black no black one (Sec. 2.1)" if absent[u, c]
+                else f"must be a vertex in [0, {n}): only the six outer slots of Sec. 2.1 are absent (n)")
         bad(f"out[{u}, {COLOUR_NAMES[c]}] = {int(out[u, c])}: "
-            + (slot.format(n=n) if 0 <= out[u, c] <= n else f"outside [0, {n}]"))
+            + (slot if 0 <= out[u, c] <= n else f"outside [0, {n}]"))
     for c1, c2 in ((RED, BLUE), (RED, BLACK), (BLUE, BLACK)):  # a simple graph: no double edge
         w = (out[:, c1] == out[:, c2]) & (out[:, c1] != n)
         if w.any():

@@ -686,8 +686,7 @@ class MeshStructure:
         # an array as kind (the arguments swapped: check_ids(ids, "dart")) raised numpy's
         # "truth value of an array is ambiguous" ValueError from the membership test
         if not isinstance(kind, str) or kind not in ("dart", "vertex", "face"):
-            got = shown(kind)
-            raise errors.ArgumentError(f"unknown id kind {got}: 'dart', 'vertex' or 'face' "
+            raise errors.ArgumentError(f"unknown id kind {shown(kind)}: 'dart', 'vertex' or 'face' "
                                        "(check_ids(kind, ids): the kind comes first)")
         a = integer_array(ids, f"{kind} ids")
         size = {"dart": self.num_darts, "vertex": self.num_vertices, "face": self.num_faces}[kind]

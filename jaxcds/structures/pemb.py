@@ -408,8 +408,7 @@ class PEMB(MeshStructure):
         _mappings.relieve()  # many meshes in one process (_mappings); from_mesh relieves here
         # before any work; an array here raised numpy's untyped "truth value" ValueError
         if not isinstance(tree, str) or tree not in ("bfs", "dfs", "stack"):
-            got = shown(tree)
-            raise errors.ArgumentError(f"pemb: unknown spanning tree {got} (bfs, dfs or stack)")
+            raise errors.ArgumentError(f"pemb: unknown spanning tree {shown(tree)} (bfs, dfs or stack)")
         f = trusted_faces(faces, num_vertices, "PEMB.from_faces")
         nf = int(f.shape[0])
         if nf == 0:  # the walk's first dart would not exist

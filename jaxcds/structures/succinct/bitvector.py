@@ -143,9 +143,10 @@ def mask_arg(x, shape, what: str) -> jnp.ndarray:
         raise errors.ArgumentError(f"{what} must be an array of flags, got {type(x).__name__} "
                                    f"({exc})") from None
     # a str or any object converted to True: active="no" selected every query
-    if not isinstance(x, jax.Array) and np.asarray(x).dtype.kind not in "biuf":
+    dtype = x.dtype if isinstance(x, jax.Array) else np.asarray(x).dtype
+    if dtype.kind not in "biuf":
         raise errors.ArgumentError(f"{what} must be an array of flags, got {type(x).__name__} "
-                                   f"of dtype {np.asarray(x).dtype}")
+                                   f"of dtype {dtype}")
     shape = tuple(shape)
     try:
         fits = jnp.broadcast_shapes(m.shape, shape) == shape
