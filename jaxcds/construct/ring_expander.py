@@ -145,7 +145,8 @@ def check_corner_table(V, O, num_vertices, where: str, *, tm=None, dummy=None):
         one length ``3F > 0``; ``tm`` not ``F`` flags 0/1; ``dummy`` not ``n`` flags 0/1.
       StructureError: ``V`` out of ``[0, n)``, or ``O`` not a corner table's opposites (an
         involution on ``[0, 3F)`` pairing each corner with one of another triangle facing the
-        same edge reversed), naming the first bad corner.
+        same edge reversed), naming the first bad corner; or the table not one connected
+        manifold surface using every vertex (a vertex in no triangle, two parts, a pinch vertex).
     """
     if not is_integer(num_vertices) or not 0 <= num_vertices < 2 ** 31:
         raise errors.ArgumentError(f"{where}: num_vertices must be an integer in [0, 2^31), got "
@@ -185,6 +186,7 @@ def check_corner_table(V, O, num_vertices, where: str, *, tm=None, dummy=None):
             f"{where}: O[{c}] = {int(O[c])} is not the opposite of corner {c}: O must be an involution "
             "pairing each corner with the corner of the other triangle on the edge it faces (the "
             "O of a closed jaxcds CornerTable)")
+    _check_one_surface(V, O, nx, n, where)
     if tm is not None:
         t = np.asarray(tm)
         if t.shape != (nc // 3,) or t.dtype.kind not in "biu" or (t.size and not np.isin(t, (0, 1)).all()):
@@ -198,6 +200,48 @@ def check_corner_table(V, O, num_vertices, where: str, *, tm=None, dummy=None):
                                        f"dtype {d.dtype} shape {d.shape}")
         dummy = d.astype(bool)
     return V, O, n, tm, dummy
+
+
+def _check_one_surface(V, O, nx, num_vertices: int, where: str) -> None:
+    """One connected manifold surface using every vertex: a ring (Sec. 4.2) is one loop through
+    one surface, and RING-EXPANDER marks vertices as visited, so it stops at the first fan of a
+    pinch vertex, never reaches a second part, and leaves a vertex in no triangle "isolated" with
+    no corner for the C table. Each returned a ring without a word. O(F) through scipy's
+    connected components (of the swing ``c.s = c.n.o.n``, LR Sec. 2, and of the triangles)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    nc = V.size
+    counts = np.bincount(V, minlength=num_vertices)
+    if not counts.all():
+        v = int(np.argmin(counts))
+        raise errors.StructureError(f"{where}: vertex {v} is in no triangle (num_vertices = "
+                                    f"{num_vertices}); a ring passes every vertex of a closed mesh")
+
+    def parts(rows, cols, size):
+        graph = coo_matrix((np.ones(rows.size, np.int8), (rows, cols)), shape=(size, size))
+        return connected_components(graph, directed=True, connection="weak")
+
+    corner = np.arange(nc)
+    num_parts, part = parts(corner // 3, O // 3, nc // 3)  # triangle to the one across each edge
+    if num_parts > 1:
+        t = int(np.nonzero(part != part[0])[0][0])
+        raise errors.StructureError(
+            f"{where}: the corner table has {num_parts} connected parts (triangles 0 and {t} are "
+            "in different ones); a ring covers one connected surface: build one per part "
+            "(jaxcds.batch packs several)")
+    _, fan = parts(corner, nx[O[nx]], nc)  # corner to the next one around its vertex
+    first_fan = np.full(num_vertices, -1, np.int64)
+    first_fan[V[::-1]] = fan[::-1]  # the fan of each vertex's first corner
+    bad = np.nonzero(fan != first_fan[V])[0]
+    if bad.size:
+        c = int(bad[0])
+        v = int(V[c])
+        other = int(np.nonzero(V == v)[0][0])
+        raise errors.StructureError(
+            f"{where}: vertex {v} has two fans of triangles (corners {other} and {c} do not swing "
+            "into each other): a pinch (non-manifold) vertex, which a ring cannot pass; split it "
+            "first (jaxcds.mesh.split_nonmanifold_vertices) or build from a validated mesh")
 
 
 def _seed_arg(seed, nc: int, where: str) -> int:

@@ -302,3 +302,43 @@ def test_lr_tables_refuses_a_ring_through_a_vertex_twice():
                                          right_corner=np.array([c, O[c], c, O[c]], np.int32))
     with pytest.raises(errors.StructureError, match=r"lr_tables: ring.order repeats a vertex \(a ring is a simple loop\)"):
         lr_tables(V, O, back_and_forth, 12)
+
+
+def _merged_far_vertices():
+    """icosphere(1) with vertex 0 and its antipode made one vertex: every edge stays manifold
+    (they share no neighbour), one connected surface, and vertex 0 has two fans (a pinch)."""
+    from jaxcds.generators import icosphere
+
+    m = icosphere(1)
+    f, p = np.asarray(m.faces), np.asarray(m.vertices)
+    far = int(np.argmin(p @ p[0]))
+    g = f.copy()
+    g[g == far] = 0
+    g[g == 41] = far  # the last vertex takes the freed id
+    return g, 41
+
+
+@pytest.mark.parametrize("case,msg", [
+    ("pinch", r"vertex 0 has two fans of triangles \(corners 0 and \d+ do not swing into each other\): "
+              "a pinch"),
+    ("two parts", r"the corner table has 2 connected parts \(triangles 0 and 20 are in different ones\)"),
+    ("unused vertex", r"vertex 12 is in no triangle \(num_vertices = 13\)"),
+])
+@pytest.mark.parametrize("call", [lambda V, O, n: ring_expander(V, O, n, 0), lambda V, O, n: best_ring(V, O, n)])
+def test_ring_functions_refuse_a_corner_table_that_is_not_one_surface(case, msg, call):
+    """Consistent opposites were all the check asked for: a hand-made corner table with a pinch
+    vertex, two parts or a vertex in no triangle got a ring of one fan or one part (the rest
+    "isolated") without a word. The builders validate the mesh first, so only callers of the
+    public ring functions met it."""
+    f = np.asarray(_icosahedron_faces())
+    faces, n = {"pinch": _merged_far_vertices(), "two parts": (np.concatenate([f, f + 12]), 24),
+                "unused vertex": (f, 13)}[case]
+    V, O = _vo(faces, n)
+    with pytest.raises(errors.StructureError, match=msg):
+        call(V, O, n)
+
+
+def _icosahedron_faces():
+    from jaxcds.generators import icosphere
+
+    return icosphere(0).faces
