@@ -950,7 +950,9 @@ def _check_off_lines(text: str, path: str, indices: bool = False) -> None:
         flags = key.upper()[:-3]  # [ST][C][N]: texture, colour, normal columns per vertex
         cols = 3 + 2 * flags.startswith("ST") + 3 * ("C" in flags) + 3 * ("N" in flags)
         wide = any(len(tok) >= 2 * cols for _, tok in body[:nv]) or any(
-            len(tok) > 5 + int(tok[0]) for _, tok in body[nv:] if tok[0].isdigit())
+            len(tok) > 5 + int(tok[0]) for _, tok in body[nv:]
+            # ASCII digits only: '³'.isdigit() holds, and int('³') raised a bare ValueError
+            if tok[0].isascii() and tok[0].isdigit())
         packed = wide and sum(len(tok) for _, tok in body) >= cols * nv + 4 * nf
         why = ("its lines hold numbers enough for them: several vertices or faces on one line? "
                "jaxcds reads OFF with one vertex or face per line (Geomview's free format is "

@@ -917,3 +917,12 @@ def test_binary_ply_bytes_after_the_last_element_are_counted(tmp_path):
 def test_load_mesh_names_an_object_or_arrays_it_cannot_read(obj, msg):
     with pytest.raises(errors.UnreadableMeshError, match=msg):
         load_mesh(obj)
+
+
+# ------------------------------------------------------------------ reader fuzzing (sweep 54b)
+def test_short_off_with_a_superscript_digit_opening_a_face_line_is_named(tmp_path):
+    """'³'.isdigit() is true but int('³') fails: the count of a cut OFF whose face line starts
+    with one raised a bare ValueError from the 'several items on a line?' guess."""
+    text = "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n\u00b3 0 1 3\n"
+    with pytest.raises(errors.UnreadableMeshError, match=r"declares 4 vertices and 4 faces.*truncated"):
+        load_mesh(_write(tmp_path, "m.off", text))
