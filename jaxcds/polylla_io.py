@@ -626,6 +626,36 @@ def from_points(points, source: str = "points") -> Triangulation2D:
     return _make(pts, tri.simplices, source, ccw=True)
 
 
+def _npy_array(data: bytes, path: str) -> np.ndarray:
+    """The array in a ``.npy`` file's bytes, its header checked before ``np.load`` reads the
+    data: numpy allocates the shape its header declares first (a header cut or flipped to
+    4294967295 rows asked for 64 GB before it found the data short), and a garbled header
+    raised what its parser raises (tokenize's ``TokenError``, ``OverflowError``, ``SyntaxError``)."""
+    import io
+    import math
+
+    from numpy.lib import format as npy
+
+    fh = io.BytesIO(data)
+    try:
+        version = npy.read_magic(fh)
+        # version 3.0 only allows a UTF-8 header, whose fields 2.0's reader parses alike
+        read = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+        shape, _, dtype = read(fh)
+    except Exception as exc:  # what numpy's header parser raises is not one kind
+        raise errors.PolyllaError(f"{path}: not a numeric .npy array: its header (bytes 0-"
+                                  f"{max(fh.tell() - 1, 0)}) does not parse: {exc}") from None
+    need = math.prod(shape) * dtype.itemsize
+    if not dtype.hasobject and need > len(data) - fh.tell():
+        raise errors.PolyllaError(
+            f"{path}: the .npy header declares a {dtype} array of shape {shape} ({need} bytes "
+            f"from byte {fh.tell()}), the file holds {len(data) - fh.tell()} bytes there (truncated?)")
+    try:
+        return np.load(io.BytesIO(data), allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise errors.PolyllaError(f"{path}: not a numeric .npy array: {exc}") from exc
+
+
 def read_input(path: str) -> Triangulation2D:
     """Any Polylla input by suffix: ``.node``/``.ele``/``.neigh`` (or their stem), ``.off``,
     or a point list (``.xy``, ``.txt``, ``.csv``, ``.npy``: one ``x y`` per line, Delaunay)."""
@@ -636,14 +666,7 @@ def read_input(path: str) -> Triangulation2D:
     if low.endswith(".off"):
         return read_off_2d(path)
     if low.endswith(".npy"):
-        import io
-
-        data = _input_file(path)
-        try:
-            pts = np.load(io.BytesIO(data), allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
-            raise errors.PolyllaError(f"{path}: not a numeric .npy array: {exc}") from exc
-        return from_points(pts, os.path.basename(path))
+        return from_points(_npy_array(_input_file(path), path), os.path.basename(path))
     if low.endswith((".xy", ".txt", ".csv", ".pts")):
         rows = [[c for c in ",".join(r).split(",") if c] for r in _rows(path)]
         short = [j for j, r in enumerate(rows) if len(r) < 2]

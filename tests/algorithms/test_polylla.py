@@ -1374,3 +1374,35 @@ def test_polylla_under_strict_dtype_promotion(mode, tmp_path):
     want = P.run(tri, tmp_path / "default.off", mode=mode)
     assert got["polygons"] == want["polygons"] > 0
     assert (tmp_path / "strict.off").read_text() == (tmp_path / "default.off").read_text()
+
+
+def _npy_with_header(tmp_path, name, old, new):
+    """A 12-point .npy whose header text has ``old`` replaced by ``new`` (padding kept, so the
+    header's length field still holds)."""
+    import io as pyio
+
+    buf = pyio.BytesIO()
+    np.save(buf, np.random.default_rng(0).random((12, 2)))
+    data = buf.getvalue()
+    hlen = int.from_bytes(data[8:10], "little")
+    head = data[10:10 + hlen].replace(old, new)
+    head = head[:-1].rstrip(b" ")[:hlen - 1].ljust(hlen - 1) + b"\n"
+    path = tmp_path / name
+    path.write_bytes(data[:10] + head + data[10 + hlen:])
+    return str(path)
+
+
+@pytest.mark.parametrize("old,new,match", [
+    (b"(12, 2)", b"(1000000000000, 2)", r"shape \(1000000000000, 2\) \(16000000000000 bytes from byte 128\), "
+                                         r"the file holds 192 bytes"),
+    (b"(12, 2)", b"(12, 18446744073709551616)", r"shape \(12, 18446744073709551616\)"),
+    (b"'shape': (12, 2), }", b"'shape': (12, 2, }", r"its header \(bytes 0-127\) does not parse"),
+], ids=["huge-shape", "shape-past-int64", "unclosed-bracket"])
+def test_npy_header_is_checked_before_numpy_reads_the_data(tmp_path, old, new, match):
+    """Fuzzing (sweep 54b): numpy allocates the shape a .npy header declares before it reads the
+    data (a flipped count asked for 16 TB: MemoryError), a shape past int64 raised OverflowError
+    and an unclosed bracket tokenize's TokenError; all named by the header now."""
+    path = _npy_with_header(tmp_path, "p.npy", old, new)
+    with pytest.raises(errors.PolyllaError, match=match):
+        io.read_input(path)
+    assert io.read_input(_npy_with_header(tmp_path, "ok.npy", b"", b"")).num_vertices == 12
