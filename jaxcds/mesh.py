@@ -544,7 +544,13 @@ def _prepare_obj(text: str, path: str) -> str:
         # classic Mac OS line ends: trimesh splits on "\n" only and read the whole file as one
         # line ("line 1: coordinate 'v' is not a number"); OFF already reads them
         text = text.replace("\r", "\n")
+    if "\r" in text and text.count("\r") != text.count("\r\n"):
+        _refuse_obj_lone_cr(text, path)
     text = _blanks_as_spaces(text)
+    if "\\\n" in text or "\\\r\n" in text:
+        text = _OBJ_CONTINUED.sub(_joined_keeping_lines, text)
+    if text[:1] == "f" and text[1:2] and text[1:2] in _OBJ_GLUE or _OBJ_GLUED.search(text):
+        _refuse_obj_glued_statement(text, path)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)
     if "#" in text and _obj_trailing_comment(text):
@@ -564,12 +570,98 @@ def _prepare_obj(text: str, path: str) -> str:
         # written in mixed forms ("f 1/1 2 3" as the face 1 1 2)
         if _OBJ_VERTEX_SLASH.search(text):
             _diagnose_obj(text, path)  # a "/" in a coordinate: named by line
-        text = _OBJ_CORNER_TAIL.sub("", text)
+        cut = _OBJ_CORNER_TAIL.sub("", text)
+        _refuse_obj_odd_corner(cut, text, path)
+        text = cut
     if "usemtl" in text:
         # trimesh made a mesh of each material's faces, each with its own copy of the vertices
         # they share (and the faces out of the file's order): one mesh of the file's vertices
         text = text.replace("usemtl", "#use_mtl")
+    _refuse_obj_last_face_token(text, path)
     return text
+
+
+#: a run of lines continued by a trailing backslash, up to the line that ends it
+_OBJ_CONTINUED = re.compile(r"[^\n]*\\\r?\n(?:[^\n]*\\\r?\n)*[^\n]*")
+#: what may follow a line's "f" where a blank should ("f1 2 3", "f/1 2 3", "f-1 -2 -3")
+_OBJ_GLUE = "-+0123456789/."
+_OBJ_GLUED = re.compile(r"\nf[-+\d/.]")
+
+
+def _joined_keeping_lines(run: re.Match) -> str:
+    """A run of backslash-continued lines as one line (the backslash and line end read as a
+    blank), then as many empty lines as it absorbed, so that every later line keeps its number.
+    Joined here, before the checks and the relative-index rewrite: that rewrite goes line by
+    line and left a corner on a continuation line relative to the file's last vertex, not the
+    face's (fuzzing, sweep 54b: "f -4 -3 \\" + " -1" with a vertex after it took that vertex)."""
+    lines = run.group().count("\n")
+    return _OBJ_LINE_GLUE.sub(" ", run.group()) + "\n" * lines
+
+
+_OBJ_LINE_GLUE = re.compile(r"\\\r?\n")
+
+
+def _line_of(text: str, at: int) -> tuple[int, int, int]:
+    """``(line number, start, stop)`` of the line holding character ``at`` of ``text``."""
+    start = text.rfind("\n", 0, at) + 1
+    stop = text.find("\n", at)
+    return text.count("\n", 0, start) + 1, start, len(text) if stop < 0 else stop
+
+
+def _refuse_obj_lone_cr(text: str, path: str) -> None:
+    """A carriage return that ends no line in a file whose lines end in "\\n": trimesh split
+    some lines there and read it as a blank in others ("f<CR> 1 2 3" was dropped without a
+    word, "v 1 0<CR>5 2" read as a 4-coordinate vertex)."""
+    hit = re.search(r"\r(?!\n)", text)
+    no, start, _ = _line_of(text, hit.start())
+    raise errors.UnreadableMeshError(
+        f"{path}: line {no}, column {hit.start() - start + 1}: a carriage return inside the line "
+        "(the file's lines end in LF): mixed line ends? save the file with one kind")
+
+
+def _refuse_obj_glued_statement(text: str, path: str) -> None:
+    """A line whose "f" runs into a number or "/" ("f1 11 12"): trimesh read it as a face when
+    the file has other faces (fuzzing, sweep 54b), though no OBJ statement is spelt so."""
+    hit = _OBJ_GLUED.search("\n" + text)
+    no, start, stop = _line_of(text, hit.start())
+    word = text[start:stop].split()[0]
+    raise errors.UnreadableMeshError(
+        f"{path}: line {no}: {word[:40]!r} is not an OBJ statement (a face is 'f', a blank, then "
+        "its corners)")
+
+
+def _refuse_obj_odd_corner(cut: str, text: str, path: str) -> None:
+    """A "/" left on a face line of ``cut`` (``text`` with the corner tails cut): a corner of no
+    OBJ form, four parts ("1//2/1": trimesh took its form for the whole face and read
+    "f 1//2/1 2 3" as the face (1, 2, 2)) or no vertex index ("/3", read as 3), named as
+    ``text`` has it (the cut keeps the lines). Each "/" left is looked at once."""
+    at = cut.find("/")
+    while at >= 0:
+        no, start, stop = _line_of(cut, at)
+        if cut.startswith("f ", start):
+            line = text.split("\n", no)[no - 1]
+            tok = next(t for t in line.split() if "/" in _OBJ_CORNER_TAIL.sub("", t))
+            raise errors.InvalidIndexError(
+                f"{path}: line {no}: corner {tok[:40]!r} is not v, v/vt, v//vn or v/vt/vn (a vertex "
+                "index, then optional texture and normal indices)")
+        at = cut.find("/", stop)
+
+
+def _refuse_obj_last_face_token(text: str, path: str) -> None:
+    """trimesh parses every face line's indices as one string (numpy's ``fromstring``), which
+    reads a last token that is no number, a lone "-" or "+" or a "\\" ending the file, as 0
+    ("f 1 2 -" became the face (1, 2, 1)); a bad token before it fails that parse and is named
+    by :func:`_diagnose_obj`. So the last face line alone is checked here."""
+    start = 0 if text.startswith("f ") else text.rfind("\nf ") + 1
+    if start == 0 and not text.startswith("f "):
+        return
+    no, start, stop = _line_of(text, start)
+    for tok in text[start:stop].split()[1:]:
+        try:
+            _int(tok.split("/")[0])
+        except ValueError:
+            raise errors.InvalidIndexError(
+                f"{path}: line {no}: face index {tok[:40]!r} is not an integer") from None
 
 
 #: a vertex, texture or normal line holding a "/" (not a number; a corner's form is not cut there)

@@ -926,3 +926,63 @@ def test_short_off_with_a_superscript_digit_opening_a_face_line_is_named(tmp_pat
     text = "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n\u00b3 0 1 3\n"
     with pytest.raises(errors.UnreadableMeshError, match=r"declares 4 vertices and 4 faces.*truncated"):
         load_mesh(_write(tmp_path, "m.off", text))
+
+
+_FOUR_V = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+
+
+@pytest.mark.parametrize("last", ["f 1 2 -", "f 1 2 -\n", "f 1 2 +\n", "f 1 2 3 \\"],
+                         ids=["minus-at-end", "minus", "plus", "backslash-at-end"])
+def test_obj_last_face_line_with_a_token_that_is_no_index_is_named(last, tmp_path):
+    """trimesh parses every face line's indices as one string, and numpy read a lone sign (or a
+    backslash ending the file) as the *last* token as 0: 'f 1 2 -' loaded as the face (1, 2, 1).
+    The same token on an earlier line was already refused; now the last line is too."""
+    path = _write(tmp_path, "m.obj", _FOUR_V + "f 2 4 3\n" + last)
+    tok = last.split()[-1]
+    with pytest.raises(errors.InvalidIndexError, match=rf"line 6: face index {re.escape(repr(tok))} is not"):
+        load_mesh(path)
+
+
+@pytest.mark.parametrize("face,tok", [("f 1//2/1 2 3", "1//2/1"), ("f 1/1 2/2/3/4 3/3", "2/2/3/4"),
+                                      ("f 2 /3 4", "/3")], ids=["v//vn/x", "four-parts", "no-vertex"])
+def test_obj_corner_of_no_obj_form_is_named(face, tok, tmp_path):
+    """A corner of four parts made trimesh read the whole face in the wrong form ('f 1//2/1 2 3'
+    loaded as (0, 1, 1)); one without a vertex index ('/3') read as 3."""
+    with pytest.raises(errors.InvalidIndexError, match=rf"line 6: corner {re.escape(repr(tok))} is not v, v/vt"):
+        load_mesh(_write(tmp_path, "m.obj", _FOUR_V + "f 2 4 3\n" + face + "\n"))
+    m = load_mesh(_write(tmp_path, "ok.obj", _FOUR_V + "f 2//1 4//1 3//1\nf 1/1 2/2/1 3/3\n"))
+    assert m.num_faces == 2
+
+
+@pytest.mark.parametrize("line", ["f1 2 3", "f/1 2 3", "f-1 -2 -4"])
+def test_obj_face_keyword_run_into_its_corners_is_named(line, tmp_path):
+    """'f1 2 3' among other faces was read as the face (1, 2, 3): no OBJ statement is spelt so."""
+    word = line.split()[0]
+    with pytest.raises(errors.UnreadableMeshError, match=rf"line 6: {re.escape(repr(word))} is not an OBJ statement"):
+        load_mesh(_write(tmp_path, "m.obj", _FOUR_V + "f 2 4 3\n" + line + "\n"))
+    with pytest.raises(errors.UnreadableMeshError, match=r"line 1: 'f1' is not an OBJ statement"):
+        load_mesh(_write(tmp_path, "first.obj", "f1 2 3\n" + _FOUR_V + "f 2 4 3\n"))
+
+
+@pytest.mark.parametrize("data,where", [(b"f\r 1 2 3\n", "line 6, column 2"), (b"f 1 2 3\r4\n", "line 6, column 8"),
+                                        (b"f 1 2 3\n", None)], ids=["after-f", "before-corner", "none"])
+def test_obj_carriage_return_inside_a_line_is_named(data, where, tmp_path):
+    """A CR alone in a file of LF lines: trimesh dropped 'f<CR> 1 2 3' without a word and read
+    'f 1 2 3<CR>4' as the quad (1, 2, 3, 4). CRLF files still load."""
+    body = _FOUR_V.encode() + b"f 2 4 3\n" + data
+    if where is None:
+        assert load_mesh(_write(tmp_path, "crlf.obj", body.replace(b"\n", b"\r\n"))).num_faces == 2
+        return
+    with pytest.raises(errors.UnreadableMeshError, match=rf"{where}: a carriage return inside the line"):
+        load_mesh(_write(tmp_path, "m.obj", body))
+
+
+def test_obj_continued_face_line_with_relative_indices_counts_from_its_face(tmp_path):
+    """Relative indices count back from the last vertex above the face; the rewrite went line by
+    line and left a corner on a continuation line counting from the file's last vertex, which
+    differs once a vertex follows the face ('-1' took vertex 5 here, not 4)."""
+    text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf -4 -3 \\\n -1\nv 5 5 5\n"
+    m = load_mesh(_write(tmp_path, "m.obj", text), weld=False)
+    np.testing.assert_array_equal(m.vertices[m.faces[0]], [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
+    with pytest.raises(errors.InvalidIndexError, match="line 10: face index 'x'"):  # lines kept
+        load_mesh(_write(tmp_path, "bad.obj", text + "f 1 2 \\\n 3\nf 2 3 \\\n x\n"))
