@@ -470,6 +470,11 @@ def read_regular_file(path: Any, *, error: type = errors.UnreadableMeshError) ->
             return fh.read()
         except OSError as exc:
             raise error(f"{path}: cannot read: {exc.strerror or exc}") from None
+        except MemoryError:
+            # the whole file is read at once: one larger than the memory this process may hold
+            # (a limit such as ulimit -v, or the machine's) raised a bare MemoryError
+            raise error(f"{path}: the file is {st.st_size} bytes, more than this process could "
+                        "allocate to read it") from None
 
 
 def _decode_text(raw: bytes) -> str:

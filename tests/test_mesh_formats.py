@@ -986,3 +986,21 @@ def test_obj_continued_face_line_with_relative_indices_counts_from_its_face(tmp_
     np.testing.assert_array_equal(m.vertices[m.faces[0]], [[0, 0, 0], [1, 0, 0], [0, 0, 1]])
     with pytest.raises(errors.InvalidIndexError, match="line 10: face index 'x'"):  # lines kept
         load_mesh(_write(tmp_path, "bad.obj", text + "f 1 2 \\\n 3\nf 2 3 \\\n x\n"))
+
+
+def test_file_larger_than_the_memory_limit_is_refused_by_name(tmp_path):
+    """A file read at once that the process cannot hold (a 4 GB sparse file under a 3 GB address
+    space limit, in a child process) raised a bare MemoryError from every reader."""
+    import subprocess
+    import sys
+
+    big = tmp_path / "big.off"
+    with open(big, "wb") as fh:
+        fh.truncate(4 << 30)  # sparse: no disk used
+    code = ("import resource, sys\nfrom jaxcds import errors\nfrom jaxcds.mesh import read_regular_file\n"
+            "resource.setrlimit(resource.RLIMIT_AS, (3 << 30, resource.RLIM_INFINITY))\n"
+            "try:\n    read_regular_file(sys.argv[1])\n"
+            "except errors.UnreadableMeshError as exc:\n    print(exc)\n")
+    out = subprocess.run([sys.executable, "-c", code, str(big)], capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == (f"{big}: the file is {4 << 30} bytes, more than this process could "
+                                  "allocate to read it"), out.stderr[-500:]
