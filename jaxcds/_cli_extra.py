@@ -186,7 +186,9 @@ def cmd_polylla(args) -> int:
     ``repaired_polygons``, ``regions``, ``frontier_edges``, ``vertices``, ``triangles``,
     ``structure``, ``mode``, ``input``, ``output``, ``timings`` (seconds per phase: ``build``, ``label``,
     ``traversal``, ``repair``, ``polygons``, ``order``, ``repair_count``, and ``cpu_*`` process
-    CPU seconds; the first run in a process includes jit compilation), ``seconds`` (total)."""
+    CPU seconds; the first run in a process includes jit compilation), ``seconds`` (total); for
+    some inputs ``duplicate_points`` and ``notes`` (a point set's exact repeats left in no
+    triangle, a lone ``.node`` triangulated as a point set)."""
     from jaxcds.algorithms import polylla
 
     if args.output is not None:

@@ -143,3 +143,8 @@ class OutputError(JaxcdsError, OSError):
 class ResourceLimitWarning(UserWarning):
     """A process resource ran near its limit and jaxcds acted (``jaxcds._mappings.relieve``:
     JAX's caches cleared before the kernel's memory-mapping limit crashed XLA)."""
+
+
+class PolyllaWarning(UserWarning):
+    """Polylla's input was taken with a change the user should know of: a point set's exact
+    duplicates are left in no triangle (as Triangle leaves them), the first copy is used."""

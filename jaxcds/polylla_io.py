@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from typing import Callable, Optional
 
 import numpy as np
@@ -43,6 +44,10 @@ class Triangulation2D:
       source: where it came from (file name, ``"points"``, ``"arrays"``).
       flipped: how many input triangles were clockwise and were re-oriented.
       clockwise: ``(F,)`` bool, which ones (None: none, or not known).
+      duplicates: how many points repeat an earlier one exactly and are in no triangle
+        (:func:`from_points`).
+      notes: facts about the input worth telling the user (duplicates left out, a lone
+        ``.node`` triangulated as a point set), one sentence each.
 
     Made by hand, ``points`` may be any real ``(V, 2)`` array or nested lists (``(V, 3)`` with
     every z = 0 too: a planar :class:`~jaxcds.mesh.TriMesh`'s vertices) and ``faces`` any
@@ -57,6 +62,8 @@ class Triangulation2D:
     source: str = "arrays"
     flipped: int = 0
     clockwise: Optional[np.ndarray] = None
+    duplicates: int = 0
+    notes: tuple = ()
 
     def __post_init__(self) -> None:
         # big-endian, float, unsigned or list arrays failed untyped in the numba kernels: made
@@ -572,9 +579,19 @@ def qhull_failure_reason(exc: Exception, pts: np.ndarray) -> str:
 
 
 def from_points(points, source: str = "points") -> Triangulation2D:
-    """Delaunay triangulation (scipy.spatial.Delaunay, Qhull) of a 2D point set."""
-    from scipy.spatial import Delaunay
+    """The Delaunay triangulation of a 2D point set, exactly (every orientation and in-circle
+    test decided as in exact arithmetic, as Shewchuk's Triangle decides them): Qhull's
+    (``scipy.spatial.Delaunay``) repaired by :mod:`jaxcds._exact_delaunay`. Where four points
+    are exactly cocircular either diagonal is Delaunay; Qhull's is kept.
 
+    Every distinct point is a vertex; a point repeating an earlier one exactly is left in no
+    triangle (ids unchanged, as Triangle leaves it), with a :class:`~jaxcds.errors.PolyllaWarning`
+    naming how many and the first pair (also in the result's ``notes``).
+
+    Raises:
+      PolyllaError: points not an ``(N, 2)`` real array, fewer than 3, a non-finite one, or all
+        on one line (exactly).
+    """
     try:
         raw = np.asarray(points)
         if raw.dtype.fields is not None or np.iscomplexobj(raw) or raw.dtype.kind in "USOVMm":
@@ -589,41 +606,52 @@ def from_points(points, source: str = "points") -> Triangulation2D:
     bad = np.nonzero(~np.isfinite(pts).all(axis=1))[0]
     if bad.size:
         raise errors.PolyllaError(f"{source}: point {int(bad[0])} is not finite")
+    keep, repeats = _first_copies(pts)
+    faces = _exact_delaunay_faces(pts[keep], source)
+    faces = keep[faces]
+    notes = ()
+    if repeats.size:
+        later, first = (int(x) for x in repeats[0])
+        note = (f"{repeats.shape[0]} of the {pts.shape[0]} points repeat an earlier point and are "
+                f"left in no triangle, as Triangle leaves them (point {later} repeats point "
+                f"{first} {pts[first].tolist()})")
+        warnings.warn(errors.PolyllaWarning(f"{source}: {note}"), stacklevel=2)
+        notes = (note,)
+    # counter-clockwise by construction (every orientation decided exactly)
+    return Triangulation2D(points=pts, faces=np.ascontiguousarray(faces, dtype=np.int32),
+                           source=source, duplicates=int(repeats.shape[0]), notes=notes)
+
+
+def _first_copies(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(keep, repeats)``: the ids of the first copy of every distinct point, ascending, and a
+    ``(R, 2)`` array of ``(later copy, first copy)`` pairs, ascending by the later copy. Exact
+    comparison (``-0.0`` equals ``0.0``), as Triangle's duplicate test."""
+    order = np.lexsort((pts[:, 1], pts[:, 0]))  # stable: a group's first copy comes first
+    s = pts[order]
+    same = np.zeros(order.size, bool)
+    same[1:] = (s[1:] == s[:-1]).all(axis=1)
+    if not same.any():
+        return np.arange(pts.shape[0]), np.empty((0, 2), np.int64)
+    group = np.cumsum(~same) - 1
+    first = order[~same][group]  # the first copy of every sorted point's group
+    later = np.sort(order[same])
+    owner = np.empty(pts.shape[0], np.int64)
+    owner[order] = first
+    return np.sort(order[~same]), np.stack([later, owner[later]], axis=1)
+
+
+def _exact_delaunay_faces(pts: np.ndarray, source: str) -> np.ndarray:
+    """Counter-clockwise triangles (ids into ``pts``, distinct points) of the exact Delaunay
+    triangulation (:func:`jaxcds._exact_delaunay.triangulate`), or :class:`PolyllaError` when
+    every point lies on one line."""
+    from jaxcds import _exact_delaunay as ed
+
     try:
-        # centred first: Qhull lifts the points to a paraboloid, whose heights lose every digit
-        # that tells the points apart at a large offset (200 points at 1e10 read as duplicates);
-        # scaled by a power of two (exact) so that tiny or huge coordinates (1e-300, 1e300)
-        # neither underflow nor overflow there
-        q = unit_scale(pts)
-        tri = Delaunay(unit_scale(q - (q.min(axis=0) + q.max(axis=0)) / 2))
-    except Exception as exc:  # Qhull errors: all points collinear, too few distinct points...
-        raise errors.PolyllaError(f"{source}: Delaunay triangulation failed: {qhull_failure_reason(exc, pts)}") from None
-    used = np.zeros(pts.shape[0], bool)
-    used[tri.simplices.ravel()] = True
-    if not used.all():
-        v = int(np.nonzero(~used)[0][0])
-        same = np.nonzero((pts == pts[v]).all(axis=1))[0]
-        if same.size > 1:
-            # the count too: a real-world set holds hundreds (sweep 53b), and one name per run
-            repeats = pts.shape[0] - np.unique(pts, axis=0).shape[0]
-            raise errors.PolyllaError(
-                f"{source}: point {v} repeats point {int(same[same != v][0])} "
-                f"{pts[v].tolist()} and is in no triangle; remove duplicates ({repeats} of the "
-                f"{pts.shape[0]} points repeat another)")
-        # not a duplicate: Qhull merged it with a point too near for its precision (a cluster
-        # 1e-6 of the set's extent wide), which the message had called a duplicate
-        d = np.hypot(*(pts - pts[v]).T)
-        d[v] = np.inf
-        near = int(np.argmin(d))
-        extent = float(np.ptp(pts, axis=0).max())
+        return ed.triangulate(pts)
+    except ed.Collinear:
         raise errors.PolyllaError(
-            f"{source}: point {v} {pts[v].tolist()} is in no triangle: Qhull merged it with a "
-            f"point too near for its precision (point {near} lies {d[near]:.3g} away, "
-            f"{d[near] / extent:.1g} of the set's extent {extent:.3g}); spread or remove such points")
-    # Qhull orients 2-D simplices counter-clockwise (scipy's documentation); its slivers along
-    # a nearly straight hull can have a floating-point area of the wrong sign (a 30 x 30 grid
-    # moved by 1e-13: 16 of 1,712), so their orientation is Qhull's, not the area's
-    return _make(pts, tri.simplices, source, ccw=True)
+            f"{source}: Delaunay triangulation failed: every point lies on one line (or they "
+            "coincide); a triangulation needs area") from None
 
 
 def _npy_array(data: bytes, path: str) -> np.ndarray:

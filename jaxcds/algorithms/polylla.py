@@ -1170,6 +1170,29 @@ def _split_pinch_vertices(tri):
     return out, copy_of
 
 
+def _without_repeats(tri, structure: str):
+    """``(tri', kept)``: a point set's triangulation without the exact repeats it leaves in no
+    triangle (``tri.duplicates``, :func:`jaxcds.polylla_io.from_points`), ``kept`` the input id
+    of every point of ``tri'`` (increasing, so vertex order and ties are kept); ``(tri, None)``
+    when there are none or ``structure`` is the half-edge, which takes points in no triangle.
+
+    Why: pemb, lr and lr-bits need every point in a triangle and refuse a triangulation's
+    unused point by name (a point in a hole), but a repeat is left out by the triangulator
+    itself, as Triangle leaves it, so the user has nothing to remove."""
+    from jaxcds import polylla_io
+
+    if not tri.duplicates or structure == "halfedge":
+        return tri, None
+    used = np.zeros(tri.num_vertices, bool)
+    used[tri.faces.ravel()] = True
+    kept = np.flatnonzero(used)
+    local = np.full(tri.num_vertices, -1, np.int64)
+    local[kept] = np.arange(kept.size)
+    return polylla_io.Triangulation2D(
+        points=np.ascontiguousarray(tri.points[kept]), faces=local[tri.faces].astype(np.int32),
+        source=tri.source, flipped=tri.flipped, clockwise=tri.clockwise), kept
+
+
 def _piece_refused(c: int, ncomp: int, rows: np.ndarray, structure: str, exc) -> str:
     """The message for connected piece ``c`` (input triangles ``rows``) that ``structure``
     refused: which piece, by its input triangles, then the structure's own reason."""
@@ -1196,7 +1219,9 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
 
     Returns a dict: ``polygons``, ``barrier_edge_tips``, ``repaired_polygons``, ``regions``,
     ``frontier_edges``, ``vertices``, ``triangles``, ``structure``, ``input``, ``output``,
-    ``timings`` (seconds per phase, first call includes compilation).
+    ``timings`` (seconds per phase, first call includes compilation); where the input says so,
+    ``duplicate_points`` (a point set's exact repeats, in no triangle) and ``notes`` (one
+    sentence per such fact: the repeats, a lone ``.node`` triangulated as a point set).
 
     Raises:
       PolyllaError (unreadable or degenerate input, naming file and line/triangle; an unknown
@@ -1226,7 +1251,11 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     else:
         tri, name = polylla_io.from_points(source), "points"
     try:
-        mesh, t_build = _run_whole(tri, structure, check=check, tables=tables, mode=mode)
+        run_tri, kept = _without_repeats(tri, structure)
+        mesh, t_build = _run_whole(run_tri, structure, check=check, tables=tables, mode=mode)
+        if kept is not None:
+            mesh = dataclasses.replace(mesh, points=tri.points,
+                                       indices=kept[mesh.indices].astype(np.int32))
     except errors.NonManifoldVertexError:
         split, copy_of = _split_pinch_vertices(tri)
         if copy_of is None:
@@ -1239,4 +1268,8 @@ def run(source, output: Optional[str] = None, *, structure: str = "halfedge",
     out = mesh.summary()
     out.update(structure=structure, mode=mode, tables=tables, input=name, output=output,
                timings={"build": t_build, **mesh.timings})
+    if tri.duplicates:  # a point set's exact repeats, left in no triangle (from_points)
+        out["duplicate_points"] = tri.duplicates
+    if tri.notes:
+        out["notes"] = list(tri.notes)
     return out

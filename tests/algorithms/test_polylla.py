@@ -868,10 +868,9 @@ def test_qhull_slivers_keep_qhull_orientation():
     rng = np.random.default_rng(5)
     g = np.stack(np.meshgrid(np.arange(30.0), np.arange(30.0)), -1).reshape(-1, 2)
     tri = io.from_points(g + 1e-13 * rng.random(g.shape))
-    p = tri.points[tri.faces]
-    area2 = ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-             - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-    assert (area2 < 0).any() and tri.flipped == 0  # the case this test is about
+    # since stop 54 Qhull's triangles are mended exactly (from_points): every one is exactly
+    # counter-clockwise, whatever its floating-point area says
+    assert (io.orientation_signs(tri.points, tri.faces) > 0).all() and tri.flipped == 0
     check_partition(tri, run_on(tri), slack=1e-9)
 
 
@@ -896,25 +895,181 @@ def test_collinear_points_are_named_in_one_line():
         assert "\n" not in str(exc.value)
 
 
-def test_points_qhull_drops_are_named_for_what_they_are():
-    """Sweep 47: three clusters 1e-6 wide in a unit domain lost points to Qhull's precision, and
-    the error called such a point "a duplicate (or coplanar)" although no point repeated it. Now
-    a real duplicate names the point it repeats, and a point Qhull merged names its nearest
-    neighbour and the distance."""
+def exact_delaunay_faults(pts: np.ndarray, faces: np.ndarray) -> list:
+    """What keeps ``faces`` from being the exact Delaunay triangulation of the distinct points
+    of ``pts`` (empty: nothing), decided in rational arithmetic on the float64 coordinates:
+    a triangle not strictly counter-clockwise, a distinct point in no triangle (or a later
+    copy of one in a triangle), a border edge with a point strictly right of it (the border is
+    not the convex hull), an interior edge whose opposite corner is strictly inside the circle."""
+    from fractions import Fraction
+
+    p = [(Fraction(x), Fraction(y)) for x, y in np.asarray(pts, float).tolist()]
+
+    def orient(a, b, c):
+        (ax, ay), (bx, by), (cx, cy) = p[a], p[b], p[c]
+        return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+
+    def incircle(a, b, c, d):
+        (dx, dy) = p[d]
+        r = [(x - dx, y - dy) for x, y in (p[a], p[b], p[c])]
+        (ax, ay), (bx, by), (cx, cy) = r
+        return ((ax * ax + ay * ay) * (bx * cy - cx * by) + (bx * bx + by * by) * (cx * ay - ax * cy)
+                + (cx * cx + cy * cy) * (ax * by - bx * ay))
+
+    faults = [f"triangle {f} is not counter-clockwise" for f in faces.tolist() if orient(*f) <= 0]
+    first = {}
+    for i, xy in enumerate(p):
+        first.setdefault(xy, i)
+    used = set(faces.ravel().tolist())
+    faults += [f"point {i} is a first copy in no triangle" for i, xy in enumerate(p)
+               if first[xy] == i and i not in used]
+    faults += [f"point {i} repeats point {first[xy]} and is in a triangle" for i, xy in enumerate(p)
+               if first[xy] != i and i in used]
+    apex = {}
+    for a, b, c in faces.tolist():
+        apex.update({(a, b): c, (b, c): a, (c, a): b})
+    for (a, b), c in apex.items():
+        if (b, a) not in apex:
+            faults += [f"point {x} is outside border edge {(a, b)}" for x in used if orient(a, b, x) < 0]
+        elif a < b and incircle(c, a, b, apex[(b, a)]) > 0:
+            faults.append(f"edge {(a, b)} is not locally Delaunay")
+    return faults
+
+
+def sorted_triangles(faces) -> list:
+    f = np.sort(np.asarray(faces), axis=1)
+    return f[np.lexsort(f.T[::-1])].tolist()
+
+
+# Small point sets (real-world: projections of Debian's sweethome3d-furniture models, reduced;
+# and a 10 x 10 grid moved by 1e-12) where Qhull's triangulation is not Triangle's; the expected
+# triangles are Triangle's (Shewchuk's, exact predicates; no four of these points are cocircular,
+# so the Delaunay triangulation is unique)
+QHULL_CASES = {
+    # Qhull merged point 4 with point 1 (1.1e-5 apart, 2e-8 of the extent): in no triangle
+    "merged": ([[1.15618, -2.627288], [1.15618, -24.417175], [1.156169, -24.417175],
+                [-28.490551, -68.059509], [1.156179, -24.417175]],
+               [[0, 1, 4], [0, 2, 3], [0, 2, 4], [1, 3, 4], [2, 3, 4]]),
+    # Qhull's Qt made a triangle of three exactly collinear points (zero area)
+    "zero-area": ([[1.971326, -39.437103], [1.97133, 38.916229], [1.97133, 38.916218],
+                   [73.565849, 40.34145], [1.97133, 40.34145], [1.97133, 40.341457]],
+                  [[0, 1, 2], [0, 1, 4], [0, 2, 3], [0, 4, 5], [1, 2, 3], [1, 3, 4], [3, 4, 5]]),
+    # Qhull output an exactly clockwise sliver over nearly collinear points
+    "inverted": ([[-72.431435, 33.223255], [-77.376282, 33.223255], [22.592625, 33.223263],
+                  [22.118916, 32.384586], [23.06633, 32.384586], [22.592623, 33.223263]],
+                 [[0, 1, 3], [0, 1, 5], [0, 3, 5], [2, 4, 5], [3, 4, 5]]),
+    # a perturbed grid: Qhull kept a diagonal whose opposite corner is (just) inside the circle
+    "not-delaunay": ([[6.000000000008586, 1.000000000003981], [7.000000000007696, 1.0000000000016918],
+                      [0.9999999999943763, 2.000000000027925], [4.999999999999103, 1.9999999999974782],
+                      [5.99999999999423, 1.9999999999893343], [7.00000000000506, 2.000000000008576]],
+                     [[0, 1, 5], [0, 2, 3], [0, 3, 4], [0, 4, 5], [2, 3, 5], [3, 4, 5]]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(QHULL_CASES))
+def test_point_sets_get_the_exact_delaunay_triangulation(case, monkeypatch):
+    """Qhull works in floating point: it merged near points (39 of 682 real-world sets were
+    refused: "Qhull merged it with a point too near"), left zero-area and inverted triangles,
+    and kept edges that are not Delaunay. Mended with exact predicates, the triangles are
+    Triangle's, and exactly Delaunay; by the repairs of Qhull's output, not the slow build
+    from scratch."""
+    from jaxcds import _exact_delaunay
+
+    def no_fallback(*args):
+        raise AssertionError("built from scratch")
+
+    monkeypatch.setattr(_exact_delaunay, "build_from_scratch", no_fallback)
+    pts, expected = QHULL_CASES[case]
+    pts = np.array(pts)
+    tri = io.from_points(pts, case)
+    assert exact_delaunay_faults(pts, tri.faces) == []
+    assert sorted_triangles(tri.faces) == expected
+    assert P.run(tri)["triangles"] == len(expected)
+
+
+def test_point_sets_qhull_cannot_mend_are_built_from_scratch(monkeypatch):
+    """Points 1e-15 off a line: Qhull inverts slivers again after its inverted triangles'
+    corners are taken out, so the triangulation is built from scratch by exact insertion (the
+    fallback); still exactly Delaunay."""
+    from jaxcds import _exact_delaunay
+
+    built = []
+    scratch = _exact_delaunay.build_from_scratch
+    monkeypatch.setattr(_exact_delaunay, "build_from_scratch", lambda *a: built.append(1) or scratch(*a))
+    r = np.random.default_rng(12)
+    t = r.random(int(r.integers(3, 50)))
+    line = np.c_[t, 0.3 * t + 0.1] + r.integers(-1, 2, (t.size, 2)) * 1e-15
+    pts = np.vstack([line, [[0.5, 2.0]]])
+    tri = io.from_points(pts, "near-line")
+    assert built and exact_delaunay_faults(pts, tri.faces) == []
+
+
+def test_points_qhull_merges_are_all_triangulated():
+    """Sweep 47: three clusters 1e-6 wide in a unit domain lost points to Qhull's precision
+    (refused since: "Qhull merged it with a point too near"). Each is inserted now, exactly."""
     rng = np.random.default_rng(5)
     clusters = np.vstack([c + 1e-6 * rng.random((80, 2)) for c in ([0, 0], [1, 0], [0.5, 1])])
-    with pytest.raises(errors.PolyllaError, match=r"clusters: point \d+ \[.*\] is in no triangle: "
-                       r"Qhull merged it with a point too near for its precision \(point \d+ lies") as exc:
-        io.from_points(clusters, "clusters")
-    assert "duplicate" not in str(exc.value)
-    dup = np.vstack([rng.random((30, 2)), [[0.25, 0.75], [0.25, 0.75]]])
-    with pytest.raises(errors.PolyllaError, match=r"dup: point 30 repeats point 31 \[0.25, 0.75\] "
-                       r"and is in no triangle; remove duplicates \(1 of the 32 points repeat another\)"):
-        io.from_points(dup, "dup")
-    # stop 53: with the count (sweep 53b's real-world sets held hundreds, named one per run)
+    tri = io.from_points(clusters, "clusters")
+    assert np.unique(tri.faces).size == 240
+    assert exact_delaunay_faults(clusters, tri.faces) == []
+    check_partition(tri, run_on(tri), slack=1e-9)
+
+
+def test_exact_duplicates_are_left_out_with_a_warning():
+    """A point repeating an earlier one was refused ("remove duplicates"); Triangle, Polylla's
+    own triangulator, leaves it in no triangle with a warning. So does jaxcds now: the first
+    copy is used, ids unchanged, a PolyllaWarning names how many and the first pair, and the
+    run's report counts them."""
+    rng = np.random.default_rng(5)
+    base = rng.random((30, 2))
+    dup = np.vstack([base, [[0.25, 0.75], [0.25, 0.75]]])
+    with pytest.warns(errors.PolyllaWarning, match=r"dup: 1 of the 32 points repeat an earlier "
+                      r"point and are left in no triangle.*\(point 31 repeats point 30 \[0.25, 0.75\]\)"):
+        tri = io.from_points(dup, "dup")
+    assert exact_delaunay_faults(dup, tri.faces) == []
+    assert 31 not in tri.faces and tri.duplicates == 1
+    alone = io.from_points(dup[:31], "alone")
+    assert sorted_triangles(tri.faces) == sorted_triangles(alone.faces)
     many = np.vstack([dup, dup[:5], [[0.25, 0.75]]])
-    with pytest.raises(errors.PolyllaError, match=r"\(7 of the 38 points repeat another\)"):
-        io.from_points(many, "many")
+    with pytest.warns(errors.PolyllaWarning, match=r"7 of the 38 points .*point 31 repeats point 30 "):
+        tri = io.from_points(many, "many")
+    assert sorted_triangles(tri.faces) == sorted_triangles(alone.faces)
+    with pytest.warns(errors.PolyllaWarning):
+        rep = P.run(many)
+    assert rep["duplicate_points"] == 7 and "7 of the 38 points" in rep["notes"][0]
+    assert rep["vertices"] == 38
+
+
+@pytest.mark.parametrize("structure", STRUCTURES)
+def test_duplicates_run_on_every_structure(structure, tmp_path):
+    """The later copies are vertices in no triangle: run() meshes around them on every
+    structure, with the half-edge's polygons."""
+    rng = np.random.default_rng(7)
+    base = rng.random((40, 2))
+    pts = np.vstack([base, base[[3, 9, 3]]])
+    with pytest.warns(errors.PolyllaWarning):
+        tri = io.from_points(pts)
+    polygons = {}
+    for s in ("halfedge", structure):
+        P.run(tri, str(tmp_path / f"{s}.off"), structure=s)
+        polygons[s] = P.polygons_as_cycles(io.read_polygon_off(str(tmp_path / f"{s}.off"))[1])
+    assert polygons[structure] == polygons["halfedge"]
+
+
+@pytest.mark.parametrize("pts", [
+    np.stack(np.meshgrid(np.arange(6.0), np.arange(5.0)), -1).reshape(-1, 2),
+    np.array([(5, 0), (-5, 0), (0, 5), (0, -5), (3, 4), (-3, 4), (3, -4), (-3, -4), (4, 3),
+              (-4, 3), (4, -3), (-4, -3)], float),
+    np.array([(5, 0), (-5, 0), (0, 5), (0, -5), (3, 4), (-3, 4), (3, -4), (-3, -4), (0, 0)], float),
+], ids=["grid", "circle", "circle-centre"])
+def test_exactly_cocircular_points_keep_a_delaunay_diagonal(pts):
+    """Exactly cocircular quadruples: either diagonal is Delaunay (Qhull's is kept); every
+    edge is still exactly legal, and the count is any triangulation's, 2n - h - 2."""
+    tri = io.from_points(pts)
+    assert exact_delaunay_faults(pts, tri.faces) == []
+    darts = {(a, b) for f in tri.faces.tolist() for a, b in zip(f, f[1:] + f[:1])}
+    border = {a for a, b in darts if (b, a) not in darts}  # collinear border points included
+    assert tri.num_faces == 2 * pts.shape[0] - len(border) - 2
 
 
 @pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300])
