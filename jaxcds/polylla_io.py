@@ -389,7 +389,10 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
 
     ``node`` may also be the common stem (``points50.1``) or any of the three file names; the
     siblings are found by suffix. Domains with holes are fine (no triangle covers a hole).
+    A ``.node`` (or stem) with no ``.ele`` beside it is a point set, Delaunay-triangulated
+    (:func:`_lone_node`); an ``.ele`` named but missing is refused.
     """
+    named_ele = ele is not None or node.endswith((".ele", ".neigh"))
     stem = node
     for suf in (".node", ".ele", ".neigh"):
         if stem.endswith(suf):
@@ -421,6 +424,8 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
         raise errors.PolyllaError(
             f"{node}: vertex ids must run consecutively from 0 or 1; line {bad + 1} has id {int(ids[bad])}")
     points = tab[:, 1:3]
+    if not named_ele and not os.path.lexists(ele):
+        return _lone_node(points, node)
     _require_ele(node, ele)
     # id, the corners (3, or 6 for second-order triangles), attributes
     text = _text(ele)
@@ -442,15 +447,26 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
     return tri
 
 
+def _lone_node(points: np.ndarray, node: str) -> Triangulation2D:
+    """A ``.node`` with no ``.ele`` beside it is a point set: Triangle's own program
+    (``triangle pts.node``) writes its Delaunay triangulation, so it is triangulated here as an
+    ``.xy`` list would be (:func:`from_points`); attributes and boundary markers are not used.
+    Said in the result's ``notes``."""
+    tri = from_points(points, os.path.basename(node))
+    note = (f"{os.path.basename(node)} has no .ele beside it: its {points.shape[0]} points were "
+            "Delaunay-triangulated as a point set (attributes and boundary markers ignored)")
+    return dataclasses.replace(tri, notes=(note,) + tri.notes)
+
+
 def _require_ele(node: str, ele: str) -> None:
-    """A .node without its .ele: Triangle's own program would triangulate those points, Polylla
-    meshes a given triangulation; "x.ele: no such file" alone did not say why an .ele is needed
-    nor how to give a point set (sweep 53b)."""
+    """An .ele named (as the input, or as ``ele``) but missing: "x.ele: no such file" alone did
+    not say why an .ele is needed nor how to give a point set (sweep 53b). A .node given alone
+    is a point set (:func:`_lone_node`)."""
     if not os.path.lexists(ele):
         raise errors.PolyllaError(
             f"{node}: its triangles file {os.path.basename(ele)} does not exist; Polylla meshes "
-            "a triangulation (put Triangle's .ele beside the .node), or give the points as "
-            ".xy/.txt/.csv/.npy to have them Delaunay-triangulated")
+            "a triangulation (put Triangle's .ele beside the .node), or give the .node alone or "
+            "the points as .xy/.txt/.csv/.npy to have them Delaunay-triangulated")
 
 
 def _check_neigh(path: str, faces: np.ndarray, nf: int, base: int) -> None:

@@ -156,17 +156,28 @@ def _refused(capsys, argv, out, match):
     assert not os.path.exists(out)
 
 
-def test_a_node_file_without_its_ele_says_how_to_give_points(capsys, tmp_path):
-    """Sweep 53b: a .node alone (a point set, as Triangle's own program takes it) was refused
-    as "p.ele: no such file", which did not say that Polylla wants the triangles, nor that a
-    point list (.xy, ...) is triangulated; typed, nothing written, both spellings of the input."""
-    (tmp_path / "p.node").write_text("4 2 0 0\n0 0 0\n1 1 0\n2 1 1\n3 0 1\n")
-    out = str(tmp_path / "o.off")
+def test_a_lone_node_file_is_triangulated_as_a_point_set(capsys, tmp_path):
+    """Sweep 53b: a .node alone was refused ("p.ele does not exist"), but it is Triangle's own
+    input format for a point set (``triangle p.node`` writes its Delaunay triangulation), so
+    it is triangulated as an .xy list is now (attributes and markers ignored), and the report
+    says so; by either spelling of the input. An .ele named but missing is still refused."""
+    pts = np.random.default_rng(3).random((12, 2))
+    lines = [f"{i + 1} {x!r} {y!r} 7.5 {i % 2}" for i, (x, y) in enumerate(pts.tolist())]
+    (tmp_path / "p.node").write_text("# points\n12 2 1 1\n" + "\n".join(lines) + "\n")
+    (tmp_path / "p.xy").write_text("".join(f"{x!r} {y!r}\n" for x, y in pts.tolist()))
+    out = tmp_path / "o.off"
     for given in ("p.node", "p"):
-        _refused(capsys, ["polylla", str(tmp_path / given), "-o", out], out,
-                 "p.node: its triangles file p.ele does not exist")
-    with pytest.raises(errors.PolyllaError, match=r"give the points as \.xy"):
-        io.read_input(str(tmp_path / "p.node"))
+        rep = run_json(capsys, ["polylla", str(tmp_path / given), "-o", str(out), "--json"])
+        assert rep["triangles"] == io.read_input(str(tmp_path / "p.xy")).num_faces
+        assert "p.node has no .ele beside it: its 12 points were Delaunay-triangulated" in rep["notes"][0]
+    tri = io.read_input(str(tmp_path / "p.node"))
+    np.testing.assert_array_equal(tri.points, pts)
+    np.testing.assert_array_equal(tri.faces, io.read_input(str(tmp_path / "p.xy")).faces)
+    refused = str(tmp_path / "x.off")
+    _refused(capsys, ["polylla", str(tmp_path / "p.ele"), "-o", refused], refused,
+             "p.node: its triangles file p.ele does not exist")
+    with pytest.raises(errors.PolyllaError, match=r"give the .node alone or the points as \.xy"):
+        io.read_triangle(str(tmp_path / "p.node"), ele=str(tmp_path / "p.ele"))
 
 
 def test_errors_write_nothing(capsys, tmp_path):
