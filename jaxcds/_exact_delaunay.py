@@ -458,13 +458,10 @@ def _orientations(m: _Mesh, faces: np.ndarray) -> np.ndarray:
 
 
 def _make_delaunay(m: _Mesh) -> None:
-    """Lawson's flips until no interior edge is illegal (re-checked globally: the final pass
-    finds none)."""
-    while True:
-        bad = illegal_edges(m)
-        if not bad:
-            return
-        m.legalize(bad)
+    """Lawson's flips from every illegal interior edge. One global pass is enough: a flip
+    pushes the four edges of its quadrilateral, the only ones whose test it changes, so when
+    the stack is empty every edge is legal."""
+    m.legalize(illegal_edges(m))
 
 
 def _seed_triangle(p: np.ndarray, q: np.ndarray) -> tuple[int, int, int]:
@@ -497,7 +494,6 @@ def build_from_scratch(p: np.ndarray, q: np.ndarray, lossy: np.ndarray) -> np.nd
     for x in order.tolist():
         if x not in seed:
             t = m.insert(x, t)
-    _make_delaunay(m)
     return m.faces()
 
 
@@ -562,8 +558,7 @@ def repair(p, q, lossy, simplices, neighbors):
     if not m.hull_is_convex():
         return None, None
     _make_delaunay(m)
-    _insert_unused(m)
-    _make_delaunay(m)  # a last global check (the insertions legalised locally)
+    _insert_unused(m)  # each insertion legalised around its point
     faces = m.faces()
     if (_orientations(m, faces) <= 0).any() or not m.hull_is_convex():
         return None, None
