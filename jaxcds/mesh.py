@@ -558,6 +558,8 @@ def _prepare_obj(text: str, path: str) -> str:
         _refuse_obj_glued_statement(text, path)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)
+    if _OBJ_BARE_VERTEX.match("\n" + text[:text.find("\n") + 1 or len(text)]) or _OBJ_BARE_VERTEX.search(text):
+        _refuse_obj_bare_vertex(text, path)
     if "#" in text and _obj_trailing_comment(text):
         text = _OBJ_COMMENT.sub("", text)
     if "+e" in text or "-e" in text:
@@ -591,6 +593,21 @@ _OBJ_CONTINUED = re.compile(r"[^\n]*\\\r?\n(?:[^\n]*\\\r?\n)*[^\n]*")
 #: what may follow a line's "f" where a blank should ("f1 2 3", "f/1 2 3", "f-1 -2 -3")
 _OBJ_GLUE = "-+0123456789/."
 _OBJ_GLUED = re.compile(r"\nf[-+\d/.]")
+
+
+#: a "v" line without coordinates after a line end (the first line: searched with "\n" before it)
+_OBJ_BARE_VERTEX = re.compile(r"\nv[^\S\n]*(?=\n|\Z)")
+
+
+def _refuse_obj_bare_vertex(text: str, path: str) -> None:
+    """A "v" line with no coordinates (a file cut inside its last vertex line, or a line cut by
+    hand): trimesh dropped it without a word, so every later vertex took the id of the one
+    before it and the faces pointed at other vertices than the file's (fuzzing, sweep 54b)."""
+    hit = _OBJ_BARE_VERTEX.search("\n" + text)  # (its start: the "v" in text)
+    raise errors.UnreadableMeshError(
+        f"{path}: line {_line_of(text, hit.start())[0]}: a vertex line without coordinates ('v' "
+        "alone); a vertex needs 3 (v x y z), and without this one every later vertex would take "
+        "another's number")
 
 
 def _joined_keeping_lines(run: re.Match) -> str:

@@ -1004,3 +1004,12 @@ def test_file_larger_than_the_memory_limit_is_refused_by_name(tmp_path):
     out = subprocess.run([sys.executable, "-c", code, str(big)], capture_output=True, text=True, timeout=120)
     assert out.stdout.strip() == (f"{big}: the file is {4 << 30} bytes, more than this process could "
                                   "allocate to read it"), out.stderr[-500:]
+
+
+@pytest.mark.parametrize("text,line", [("v\n" + _FOUR_V + "f 1 2 3\n", 1), (_FOUR_V + "v \r\nf 1 2 3\n", 5),
+                                       (_FOUR_V + "f 1 2 3\nv", 6)], ids=["first", "crlf", "cut-at-end"])
+def test_obj_vertex_line_without_coordinates_is_named(text, line, tmp_path):
+    """A bare 'v' line was dropped without a word: every later vertex took its predecessor's
+    number (the first case loaded the face 1 2 3 on the file's vertices 2 3 4)."""
+    with pytest.raises(errors.UnreadableMeshError, match=rf"line {line}: a vertex line without coordinates"):
+        load_mesh(_write(tmp_path, "m.obj", text))
