@@ -239,7 +239,7 @@ class _Mesh:
         opposite edge holds ``x``, or ``("out", t, k)`` with the hull edge opposite corner
         ``k`` of ``t`` seeing ``x``."""
         v, n = self.v, self.n
-        while True:
+        for _ in range(4 * self.count + 64):  # a walk longer than that circles: not a mesh
             r = int(self.rng.integers(3))
             on = []
             for i in range(3):
@@ -254,6 +254,7 @@ class _Mesh:
                     on.append(k)
             else:
                 return "in", t, on
+        raise _Broken
 
     def insert(self, x: int, start: int) -> int:
         """Insert point ``x`` (distinct from every vertex) and restore the Delaunay property
@@ -303,22 +304,24 @@ class _Mesh:
         """The hull edge after the one opposite corner ``k`` of ``t`` (counter-clockwise)."""
         b = int(self.v[t, (k + 2) % 3])
         s, i = t, (k + 2) % 3
-        while True:
+        for _ in range(self.count + 1):  # around b: a fan that does not end is not a mesh
             j = (i + 2) % 3
             nx = int(self.n[s, j])
             if nx < 0:
                 return s, j
             s, i = nx, self.corner(nx, b)
+        raise _Broken
 
     def prev_hull(self, t, k):
         a = int(self.v[t, (k + 1) % 3])
         s, i = t, (k + 1) % 3
-        while True:
+        for _ in range(self.count + 1):
             j = (i + 1) % 3
             nx = int(self.n[s, j])
             if nx < 0:
                 return s, j
             s, i = nx, self.corner(nx, a)
+        raise _Broken
 
     def hull_edge(self, t, k):
         return int(self.v[t, (k + 1) % 3]), int(self.v[t, (k + 2) % 3])
@@ -518,10 +521,11 @@ def triangulate(p: np.ndarray) -> np.ndarray:
             break
         try:
             tri = _qhull(q[keep])
-            faces, inverted = repair(p, q, lossy, keep[tri.simplices], tri.neighbors)
-        except _Broken:
+        except Exception:  # Qhull's errors (QhullError, ValueError): a flat or nearly flat set
             break
-        except Exception:  # Qhull's errors: a flat or nearly flat set
+        try:
+            faces, inverted = repair(p, q, lossy, keep[tri.simplices], tri.neighbors)
+        except _Broken:  # Qhull's neighbours do not describe one mesh
             break
         if faces is not None:
             return faces

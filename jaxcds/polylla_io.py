@@ -414,9 +414,12 @@ def read_triangle(node: str, ele: Optional[str] = None, neigh: Optional[str] = N
         if dim != 2:
             raise errors.PolyllaError(f"{node}: dimension {dim} in the header, Polylla needs 2")
         tab = _table(rows, nv, 3, node, "vertex", np.float64)
-    frac = np.flatnonzero(tab[:, 0] != np.floor(tab[:, 0]))
-    if frac.size:  # a float id was truncated to the next lower integer
-        raise errors.PolyllaError(f"{node}: vertex {int(frac[0])} has id {float(tab[frac[0], 0])!r}; ids are integers")
+    # a float id was truncated to the next lower integer; inf, nan or one past int64 became
+    # garbage in the cast below (a RuntimeWarning, then "line 3 has id -9223372036854775808")
+    frac = np.flatnonzero(~(np.abs(tab[:, 0]) <= 2.0 ** 62) | (tab[:, 0] != np.floor(tab[:, 0])))
+    if frac.size:
+        raise errors.PolyllaError(f"{node}: vertex {int(frac[0])} has id {float(tab[frac[0], 0])!r}; "
+                                  "ids are consecutive integers from 0 or 1")
     ids = tab[:, 0].astype(np.int64)
     base = int(ids[0]) if nv else 0
     if base not in (0, 1) or np.any(ids != np.arange(base, base + nv)):
@@ -668,6 +671,10 @@ def _exact_delaunay_faces(pts: np.ndarray, source: str) -> np.ndarray:
         raise errors.PolyllaError(
             f"{source}: Delaunay triangulation failed: every point lies on one line (or they "
             "coincide); a triangulation needs area") from None
+    except ed._Broken:  # never seen: the build from scratch lost its own mesh
+        raise errors.PolyllaError(
+            f"{source}: Delaunay triangulation failed: the exact build lost its mesh (a jaxcds "
+            "bug: please report it with the points)") from None
 
 
 def _npy_array(data: bytes, path: str) -> np.ndarray:

@@ -1004,6 +1004,24 @@ def test_point_sets_qhull_cannot_mend_are_built_from_scratch(monkeypatch):
     assert built and exact_delaunay_faults(pts, tri.faces) == []
 
 
+def test_a_qhull_mesh_that_does_not_close_falls_back_and_a_lost_build_is_typed(monkeypatch):
+    """Qhull's neighbours that do not describe one mesh (a walk around a corner that never
+    ends) send the build from scratch, not a hang or a bare exception; should that build itself
+    lose its mesh, a PolyllaError says so (never seen)."""
+    from jaxcds import _exact_delaunay
+
+    def broken(*args):
+        raise _exact_delaunay._Broken
+
+    pts = np.random.default_rng(2).random((30, 2))
+    monkeypatch.setattr(_exact_delaunay, "repair", broken)
+    assert exact_delaunay_faults(pts, io.from_points(pts).faces) == []
+    monkeypatch.setattr(_exact_delaunay, "build_from_scratch", broken)
+    with pytest.raises(errors.PolyllaError, match="pts: Delaunay triangulation failed: the exact "
+                       "build lost its mesh"):
+        io.from_points(pts, "pts")
+
+
 def test_points_qhull_merges_are_all_triangulated():
     """Sweep 47: three clusters 1e-6 wide in a unit domain lost points to Qhull's precision
     (refused since: "Qhull merged it with a point too near"). Each is inserted now, exactly."""
