@@ -1579,3 +1579,17 @@ def test_npy_header_is_checked_before_numpy_reads_the_data(tmp_path, old, new, m
     with pytest.raises(errors.PolyllaError, match=match):
         io.read_input(path)
     assert io.read_input(_npy_with_header(tmp_path, "ok.npy", b"", b"")).num_vertices == 12
+
+
+@pytest.mark.parametrize("vid", ["inf", "nan", "-inf", "1e30"])
+def test_node_id_that_is_no_integer_is_named_without_a_cast_warning(tmp_path, vid):
+    """Fuzzing (sweep 54b): a .node id 'inf' (or one past int64) was cast to int64 with a
+    RuntimeWarning on stderr and the refusal named the id -9223372036854775808."""
+    import warnings
+
+    (tmp_path / "a.node").write_text(f"4 2 0 1\n1 0 0 1\n2 1 0 1\n{vid} 1 1 1\n4 0 1 1\n")
+    (tmp_path / "a.ele").write_text("2 3 0\n1 1 2 3\n2 1 3 4\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(errors.PolyllaError, match=rf"a.node: vertex 2 has id {re.escape(repr(float(vid)))}; ids are"):
+            io.read_input(str(tmp_path / "a.node"))
