@@ -558,6 +558,14 @@ def read_off_2d(path: str) -> Triangulation2D:
     if len(vrows) < nv or len(frows) < nf:
         raise errors.PolyllaError(
             f"{path}: header announces {nv} vertices and {nf} faces, the file is shorter")
+    # rows past the declared faces (the "}" closing a geomview wrapper aside): the faces after
+    # the count were dropped without a word ("4 1 0" over two triangles meshed one)
+    rest = [r for r in rows[i + 1 + nv + nf:] if not (r == ["}"] and rows[0][0] == "{")]
+    if rest:
+        raise errors.PolyllaError(
+            f"{path}: data past the last face the OFF header declares ({nv} vertices, {nf} "
+            f"faces): {len(rest)} more line(s), the first {' '.join(rest[0])[:60]!r} (a wrong "
+            "count in the header?)")
     short = [j for j, r in enumerate(vrows) if len(r) < 2]
     if short:
         raise errors.PolyllaError(f"{path}: vertex {short[0]} has {len(vrows[short[0]])} coordinate(s) "

@@ -1593,3 +1593,23 @@ def test_node_id_that_is_no_integer_is_named_without_a_cast_warning(tmp_path, vi
         warnings.simplefilter("error")
         with pytest.raises(errors.PolyllaError, match=rf"a.node: vertex 2 has id {re.escape(repr(float(vid)))}; ids are"):
             io.read_input(str(tmp_path / "a.node"))
+
+
+_SQUARE_OFF = "4 {nf} 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n"
+
+
+@pytest.mark.parametrize("text,faces", [("OFF\n" + _SQUARE_OFF.format(nf=1), None),
+                                        ("OFF\n" + _SQUARE_OFF.format(nf=2) + "OFF\n", None),
+                                        ("{ appearance {+edge +face} LIST\nOFF\n" + _SQUARE_OFF.format(nf=2) + "}\n", 2)],
+                         ids=["count-too-low", "junk-after-faces", "geomview-wrapper"])
+def test_off_2d_rows_past_the_declared_faces_are_named(tmp_path, text, faces):
+    """Fuzzing (sweep 54b): read_off_2d read the faces its header counts and dropped the rest
+    without a word ('4 1 0' over two triangles meshed one triangle); the '}' closing the
+    reference's geomview wrapper is not data."""
+    (tmp_path / "m.off").write_text(text)
+    if faces is not None:
+        assert io.read_input(str(tmp_path / "m.off")).num_faces == faces
+        return
+    with pytest.raises(errors.PolyllaError, match=r"m.off: data past the last face the OFF header declares "
+                                                  r"\(4 vertices, \d faces\): 1 more line\(s\)"):
+        io.read_input(str(tmp_path / "m.off"))
