@@ -1188,7 +1188,6 @@ def _check_ply(raw: bytes, path: str) -> Optional[tuple[np.ndarray, np.ndarray]]
     nl = raw.find(b"\n", end)
     start = len(raw) if nl < 0 else nl + 1
     head = raw[:end].decode("latin-1").split("\n")
-    fmt = head[1].strip().lower() if len(head) > 1 else ""
     elements: list[_PlyElement] = []
     for no, line in enumerate(head, 1):
         tok = line.split()
@@ -1217,16 +1216,42 @@ def _check_ply(raw: bytes, path: str) -> Optional[tuple[np.ndarray, np.ndarray]]
                 raise errors.UnreadableMeshError(
                     f"{path}: line {no}: cannot read the property line {line.strip()[:80]!r} "
                     "('property TYPE NAME' or 'property list COUNT_TYPE TYPE NAME')")
+    fmt = _ply_format(head, path)  # (after the lines' own checks: a blank line is named as such)
     _check_ply_elements(elements, path)
-    if "ascii" in fmt:  # (rows past the declared counts are named first)
+    if fmt == "ascii":  # (rows past the declared counts are named first)
         _check_ply_ascii(raw[start:], elements, raw.count(b"\n", 0, start) + 1, path)
     for e in elements:
         if e.name == "face" and e.count == 0 and not any(
                 x.name == "tristrips" and x.count for x in elements):
             raise errors.EmptyMeshError(f"{path}: line {e.line}: the PLY header declares 0 faces")
-    if "ascii" in fmt:
+    if fmt == "ascii":
         return None
-    return _check_ply_binary(raw, start, elements, ">" if "big" in fmt else "<", path)
+    return _check_ply_binary(raw, start, elements, ">" if fmt == "binary_big_endian" else "<", path)
+
+
+_PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
+
+
+def _ply_format(head: list, path: str) -> str:
+    """The format of a PLY header's lines (``head``, up to 'end_header'), its first line 'ply'
+    and its 'format' line read word by word: the second line was taken as the format line and
+    searched for "ascii" and "big", so a comment line before it made an ASCII file read as
+    binary ('truncated'), and "format asciix 1.0", "plye" or a format line run into a comment
+    ("format ascii 1.0mment ...") loaded (fuzzing, sweep 54b)."""
+    if head[0].strip().lower() != "ply":
+        raise errors.UnreadableMeshError(
+            f"{path}: line 1: a PLY file starts with the line 'ply', got {head[0].strip()[:40]!r}")
+    tok = head[1].split() if len(head) > 1 else []
+    if len(tok) == 3 and tok[0] == "format" and tok[1] in _PLY_FORMATS and tok[2] in ("1.0", "1"):
+        return tok[1]
+    later = [no for no, line in enumerate(head[2:], 3) if line.split()[:1] == ["format"]]
+    if tok[:1] != ["format"] and later:  # (trimesh too reads the format from line 2)
+        raise errors.UnreadableMeshError(
+            f"{path}: line {later[0]}: the format line must come right after 'ply' (line 2 is "
+            f"{head[1].strip()[:40]!r})")
+    raise errors.UnreadableMeshError(
+        f"{path}: line 2: the format line is 'format ascii 1.0' (or binary_little_endian, "
+        f"binary_big_endian), got {(head[1].strip() if len(head) > 1 else '')[:80]!r}")
 
 
 def _check_ply_elements(elements: list, path: str) -> None:

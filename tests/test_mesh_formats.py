@@ -1013,3 +1013,24 @@ def test_obj_vertex_line_without_coordinates_is_named(text, line, tmp_path):
     number (the first case loaded the face 1 2 3 on the file's vertices 2 3 4)."""
     with pytest.raises(errors.UnreadableMeshError, match=rf"line {line}: a vertex line without coordinates"):
         load_mesh(_write(tmp_path, "m.obj", text))
+
+
+_PLY_TRI_BODY = ("element vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
+                 "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+
+
+@pytest.mark.parametrize("head,match", [
+    ("plye\nformat ascii 1.0\n", r"line 1: a PLY file starts with the line 'ply', got 'plye'"),
+    ("ply\nformat ascii 1.0mment by hand\n", r"line 2: the format line is 'format ascii 1.0'.*got 'format ascii 1.0mment"),
+    ("ply\nformat asciix 1.0\n", r"line 2: the format line is .*got 'format asciix 1.0'"),
+    ("ply\nformat binary_little_endian 1.0 ascii\n", r"line 2: the format line is"),
+    ("ply\ncomment first\nformat ascii 1.0\n", r"line 3: the format line must come right after 'ply' \(line 2 is 'comment first'\)"),
+], ids=["magic", "run-into-comment", "unknown-format", "extra-word", "comment-first"])
+def test_ply_magic_and_format_lines_are_read_word_by_word(head, match, tmp_path):
+    """The format was the second line searched for "ascii" and "big": 'plye', 'format asciix'
+    or a format line run into a comment loaded, a binary one naming "ascii" anywhere read as
+    ASCII, and a comment before the format line made an ASCII file 'truncated' binary."""
+    with pytest.raises(errors.UnreadableMeshError, match=match):
+        load_mesh(_write(tmp_path, "m.ply", head + _PLY_TRI_BODY))
+    for ok in ("ply\nformat ascii 1.0\n", "PLY\r\nformat ascii 1\r\n"):
+        assert load_mesh(_write(tmp_path, "ok.ply", ok + _PLY_TRI_BODY)).num_faces == 1
