@@ -554,14 +554,15 @@ def _prepare_obj(text: str, path: str) -> str:
     text = _blanks_as_spaces(text)
     if "\\\n" in text or "\\\r\n" in text:
         text = _OBJ_CONTINUED.sub(_joined_keeping_lines, text)
-    if text[:1] == "f" and text[1:2] and text[1:2] in _OBJ_GLUE or _OBJ_GLUED.search(text):
-        _refuse_obj_glued_statement(text, path)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)
-    if _OBJ_BARE_VERTEX.match("\n" + text[:text.find("\n") + 1 or len(text)]) or _OBJ_BARE_VERTEX.search(text):
-        _refuse_obj_bare_vertex(text, path)
     if "#" in text and _obj_trailing_comment(text):
         text = _OBJ_COMMENT.sub("", text)
+    # (both after the indents and comments are gone: "  f1 2 3" and "v# n" are caught too)
+    if text[:1] == "f" and text[1:2] and text[1:2] in _OBJ_GLUE or _OBJ_GLUED.search(text):
+        _refuse_obj_glued_statement(text, path)
+    if _OBJ_BARE_VERTEX.match("\n" + text[:text.find("\n") + 1 or len(text)]) or _OBJ_BARE_VERTEX.search(text):
+        _refuse_obj_bare_vertex(text, path)
     if "+e" in text or "-e" in text:
         _refuse_obj_sign_before_exponent(text, path)
     _refuse_obj_index_zero(text, path)

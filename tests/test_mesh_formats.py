@@ -954,7 +954,7 @@ def test_obj_corner_of_no_obj_form_is_named(face, tok, tmp_path):
     assert m.num_faces == 2
 
 
-@pytest.mark.parametrize("line", ["f1 2 3", "f/1 2 3", "f-1 -2 -4"])
+@pytest.mark.parametrize("line", ["f1 2 3", "f/1 2 3", "f-1 -2 -4", "  f1 2 3"])
 def test_obj_face_keyword_run_into_its_corners_is_named(line, tmp_path):
     """'f1 2 3' among other faces was read as the face (1, 2, 3): no OBJ statement is spelt so."""
     word = line.split()[0]
@@ -1007,7 +1007,8 @@ def test_file_larger_than_the_memory_limit_is_refused_by_name(tmp_path):
 
 
 @pytest.mark.parametrize("text,line", [("v\n" + _FOUR_V + "f 1 2 3\n", 1), (_FOUR_V + "v \r\nf 1 2 3\n", 5),
-                                       (_FOUR_V + "f 1 2 3\nv", 6)], ids=["first", "crlf", "cut-at-end"])
+                                       (_FOUR_V + "f 1 2 3\nv", 6), ("v# n\n" + _FOUR_V + "f 1 2 3 # c\n", 1)],
+                         ids=["first", "crlf", "cut-at-end", "v-before-comment"])
 def test_obj_vertex_line_without_coordinates_is_named(text, line, tmp_path):
     """A bare 'v' line was dropped without a word: every later vertex took its predecessor's
     number (the first case loaded the face 1 2 3 on the file's vertices 2 3 4)."""
@@ -1015,7 +1016,7 @@ def test_obj_vertex_line_without_coordinates_is_named(text, line, tmp_path):
         load_mesh(_write(tmp_path, "m.obj", text))
 
 
-_PLY_TRI_BODY = ("element vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
+_PLY_ONE_TRI = ("element vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n"
                  "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
 
 
@@ -1031,6 +1032,6 @@ def test_ply_magic_and_format_lines_are_read_word_by_word(head, match, tmp_path)
     or a format line run into a comment loaded, a binary one naming "ascii" anywhere read as
     ASCII, and a comment before the format line made an ASCII file 'truncated' binary."""
     with pytest.raises(errors.UnreadableMeshError, match=match):
-        load_mesh(_write(tmp_path, "m.ply", head + _PLY_TRI_BODY))
+        load_mesh(_write(tmp_path, "m.ply", head + _PLY_ONE_TRI))
     for ok in ("ply\nformat ascii 1.0\n", "PLY\r\nformat ascii 1\r\n"):
-        assert load_mesh(_write(tmp_path, "ok.ply", ok + _PLY_TRI_BODY)).num_faces == 1
+        assert load_mesh(_write(tmp_path, "ok.ply", ok + _PLY_ONE_TRI)).num_faces == 1
