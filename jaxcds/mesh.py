@@ -553,7 +553,7 @@ def _prepare_obj(text: str, path: str) -> str:
         _refuse_obj_lone_cr(text, path)
     text = _blanks_as_spaces(text)
     if "\\\n" in text or "\\\r\n" in text:
-        text = _OBJ_CONTINUED.sub(_joined_keeping_lines, text)
+        text = _join_continued_lines(text)
     if text[:1] == " " or "\n " in text:
         text = _OBJ_INDENT.sub("", text)
     if "#" in text and _obj_trailing_comment(text):
@@ -589,8 +589,6 @@ def _prepare_obj(text: str, path: str) -> str:
     return text
 
 
-#: a run of lines continued by a trailing backslash, up to the line that ends it
-_OBJ_CONTINUED = re.compile(r"[^\n]*\\\r?\n(?:[^\n]*\\\r?\n)*[^\n]*")
 #: what may follow a line's "f" where a blank should ("f1 2 3", "f/1 2 3", "f-1 -2 -3")
 _OBJ_GLUE = "-+0123456789/."
 _OBJ_GLUED = re.compile(r"\nf[-+\d/.]")
@@ -611,14 +609,28 @@ def _refuse_obj_bare_vertex(text: str, path: str) -> None:
         "another's number")
 
 
-def _joined_keeping_lines(run: re.Match) -> str:
-    """A run of backslash-continued lines as one line (the backslash and line end read as a
-    blank), then as many empty lines as it absorbed, so that every later line keeps its number.
-    Joined here, before the checks and the relative-index rewrite: that rewrite goes line by
-    line and left a corner on a continuation line relative to the file's last vertex, not the
-    face's (fuzzing, sweep 54b: "f -4 -3 \\" + " -1" with a vertex after it took that vertex)."""
-    lines = run.group().count("\n")
-    return _OBJ_LINE_GLUE.sub(" ", run.group()) + "\n" * lines
+def _join_continued_lines(text: str) -> str:
+    """Every run of backslash-continued lines as one line (the backslash and line end read as
+    a blank), then as many empty lines as it absorbed, so that every later line keeps its
+    number. Joined here, before the checks and the relative-index rewrite: that rewrite goes
+    line by line and left a corner on a continuation line relative to the file's last vertex,
+    not the face's (fuzzing, sweep 54b: "f -4 -3 \\" + " -1" with a vertex after it took that
+    vertex). Only the continuations are visited (a regex over every line took seconds)."""
+    parts, at, pending = [], 0, 0
+    for hit in _OBJ_LINE_GLUE.finditer(text):
+        if pending and text.find("\n", at, hit.start()) >= 0:  # the run before ended
+            stop = text.find("\n", at)
+            parts.append(text[at:stop] + "\n" * pending)
+            at, pending = stop, 0
+        parts.append(text[at:hit.start()] + " ")
+        at, pending = hit.end(), pending + 1
+    if pending:
+        stop = text.find("\n", at)
+        stop = len(text) if stop < 0 else stop
+        parts.append(text[at:stop] + "\n" * pending)
+        at = stop
+    parts.append(text[at:])
+    return "".join(parts)
 
 
 _OBJ_LINE_GLUE = re.compile(r"\\\r?\n")
