@@ -203,7 +203,7 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]
                 if mixed is not None:  # a binary PLY of mixed polygons (trimesh cannot read it)
                     return mixed + (None,)
                 if ((b"\v" in raw or b"\f" in raw or b"\t" in raw)
-                        and b"format ascii" in raw[:raw.find(b"end_header")]):
+                        and _ply_header_format(raw) == b"ascii"):
                     # ASCII values split on any blank (trimesh dropped a face line with a
                     # vertical tab); a binary body may hold those bytes, so ASCII only
                     raw = raw.translate(bytes.maketrans(b"\t\v\f", b"   "))
@@ -1243,6 +1243,15 @@ def _check_ply(raw: bytes, path: str) -> Optional[tuple[np.ndarray, np.ndarray]]
 
 
 _PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
+
+
+def _ply_header_format(raw: bytes) -> bytes:
+    """The format word of a PLY's format line (its second line, as :func:`_ply_format` has
+    checked); any "format ascii" in the header was taken, so a binary file with a comment
+    such as "converted from format ascii" had its tab, vertical tab and form feed bytes made
+    spaces: a face index 9 read as 32, a float's byte changed without a word."""
+    lines = raw[:raw.find(b"end_header")].split(b"\n", 2)
+    return (lines[1].split()[1:2] or [b""])[0] if len(lines) > 1 else b""
 
 
 def _ply_format(head: list, path: str) -> str:

@@ -1035,3 +1035,18 @@ def test_ply_magic_and_format_lines_are_read_word_by_word(head, match, tmp_path)
         load_mesh(_write(tmp_path, "m.ply", head + _PLY_ONE_TRI))
     for ok in ("ply\nformat ascii 1.0\n", "PLY\r\nformat ascii 1\r\n"):
         assert load_mesh(_write(tmp_path, "ok.ply", ok + _PLY_ONE_TRI)).num_faces == 1
+
+
+def test_binary_ply_whose_header_mentions_format_ascii_keeps_its_tab_bytes(tmp_path):
+    """Tabs, vertical tabs and form feeds became spaces in any PLY whose header held the words
+    "format ascii", a comment too: a binary file's float bytes 0x09 were changed silently and
+    the face index 9 read as 32 (fuzzing, sweep 54b)."""
+    pts = np.random.default_rng(0).random((10, 3)).astype("<f4")
+    pts[1, 0] = np.frombuffer(b"\x09\x0b\x0c\x3f", "<f4")[0]  # a float holding all three bytes
+    head = ("ply\nformat binary_little_endian 1.0\ncomment converted from format ascii\n"
+            "element vertex 10\nproperty float x\nproperty float y\nproperty float z\n"
+            "element face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
+    body = pts.tobytes() + struct.pack("<Biii", 3, 0, 9, 1)
+    m = load_mesh(_write(tmp_path, "b.ply", head + body), weld=False)
+    np.testing.assert_array_equal(m.vertices, pts[[0, 1, 9]].astype(np.float64))
+    np.testing.assert_array_equal(m.faces, [[0, 2, 1]])
