@@ -1058,7 +1058,7 @@ def test_exact_duplicates_are_left_out_with_a_warning():
     assert rep["vertices"] == 38
 
 
-@pytest.mark.parametrize("structure", STRUCTURES)
+@pytest.mark.parametrize("structure", io.BORDER_STRUCTURES)
 def test_duplicates_run_on_every_structure(structure, tmp_path):
     """The later copies are vertices in no triangle: run() meshes around them on every
     structure, with the half-edge's polygons."""
