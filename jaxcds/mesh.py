@@ -8,6 +8,7 @@ validated :class:`TriMesh`, and every defect is reported with a typed error of
 from __future__ import annotations
 
 import dataclasses
+import functools
 import io
 import operator
 import os
@@ -565,6 +566,7 @@ def _prepare_obj(text: str, path: str) -> str:
         _refuse_obj_bare_vertex(text, path)
     if "+e" in text or "-e" in text:
         _refuse_obj_sign_before_exponent(text, path)
+    text = _obj_vertices_of_one_count(text, path)
     _refuse_obj_index_zero(text, path)
     _refuse_obj_short_face(text, path)
     first_face = 0 if text.startswith("f ") else text.find("\nf ")
@@ -587,6 +589,43 @@ def _prepare_obj(text: str, path: str) -> str:
         text = text.replace("usemtl", "#use_mtl")
     _refuse_obj_last_face_token(text, path)
     return text
+
+
+def _obj_vertices_of_one_count(text: str, path: str) -> str:
+    """Vertex lines of one value count, x y z first. OBJ allows ``v x y z [w]`` and many
+    writers add ``r g b``, so a file may mix counts; trimesh read every vertex line with the
+    first one's count, and where the total happened to fit (lines of 4 and 8 values among 6)
+    it reshaped the flat values into wrong coordinates without a word (fuzzing, sweep 54b).
+    Found by one regular-expression search (a few percent of a large file's load); only then
+    is every vertex line cut to its x y z, and a line of fewer than three values named."""
+    first = _OBJ_FIRST_VERTEX.search(text)
+    if first is None:
+        return text
+    count = len(first.group(1).split())
+    if count < 3 or _other_count_vertex_line(count).search(text, first.start()) is not None:
+        short = _OBJ_SHORT_VERTEX.search("\n" + text)
+        if short is not None:
+            _diagnose_obj(text, path)  # the first bad line, by the words of every OBJ check
+            no = _line_of(text, short.start())[0]
+            raise errors.UnreadableMeshError(
+                f"{path}: line {no}: a vertex needs 3 coordinates (v x y z), got "
+                f"{len(short.group(1).split())}")
+        text = _OBJ_VERTEX_XYZ.sub(r"\1", text)
+    return text
+
+
+@functools.lru_cache(maxsize=16)
+def _other_count_vertex_line(count: int) -> "re.Pattern":
+    """A vertex line (after a line end) whose value count is not ``count``."""
+    values = r"[^\S\n]+".join([r"\S+"] * count)
+    return re.compile(r"\nv (?![^\S\n]*" + values + r"[^\S\n]*(?:\n|\Z))")
+
+
+_OBJ_FIRST_VERTEX = re.compile(r"(?:^|\n)v ([^\n]*)")
+#: a vertex line of fewer than three values (searched with a line end before the text)
+_OBJ_SHORT_VERTEX = re.compile(r"\nv((?:[^\S\n]+\S+){0,2})[^\S\n]*(?=\n|\Z)")
+#: a vertex line's "v x y z" and the values after it
+_OBJ_VERTEX_XYZ = re.compile(r"(?m)^(v[^\S\n]+\S+[^\S\n]+\S+[^\S\n]+\S+)[^\n]*")
 
 
 #: what may follow a line's "f" where a blank should ("f1 2 3", "f/1 2 3", "f-1 -2 -3")

@@ -1050,3 +1050,29 @@ def test_binary_ply_whose_header_mentions_format_ascii_keeps_its_tab_bytes(tmp_p
     m = load_mesh(_write(tmp_path, "b.ply", head + body), weld=False)
     np.testing.assert_array_equal(m.vertices, pts[[0, 1, 9]].astype(np.float64))
     np.testing.assert_array_equal(m.faces, [[0, 2, 1]])
+
+
+_OBJ_TWO_TRIANGLES = "f 1 2 3\nf 4 5 6\n"
+
+
+@pytest.mark.parametrize("vertex_lines", [
+    # 4 and 8 values among lines of 6: the total fits 6 lines of 6 (trimesh's fast path)
+    ["0 0 0 1 0 0", "0 0 1 1 0 0", "1 1 0 0", "1 0 0 1 0 0", "1 1 1 1 0 1 0 0", "0 1 1 1 0 0"],
+    ["0 0 0", "0 0 1 1", "1 1 0", "1 0 0 0.5", "1 1 1", "0 1 1 1"],  # x y z with an optional w
+    ["0 0 0 1 0 0", "0 0 1", "1 1 0 1 1 1", "1 0 0", "1 1 1 0 0 0", "0 1 1"],  # colours on some
+], ids=["totals-fit", "optional-w", "some-coloured"])
+def test_obj_vertex_lines_of_several_value_counts_keep_their_coordinates(vertex_lines, tmp_path):
+    """trimesh read every vertex line with the first one's value count: where the total fitted,
+    the flat values were reshaped into wrong coordinates without a word (fuzzing, sweep 54b:
+    vertex 3 of the first case loaded as (11, 1, 0), vertex 4 as (0, 1, 0))."""
+    text = "".join(f"v {line}\n" for line in vertex_lines) + _OBJ_TWO_TRIANGLES
+    m = load_mesh(_write(tmp_path, "m.obj", text), weld=False)
+    expected = np.array([[float(x) for x in line.split()[:3]] for line in vertex_lines])
+    np.testing.assert_array_equal(np.asarray(m.vertices), expected)
+    np.testing.assert_array_equal(np.asarray(m.faces), [[0, 1, 2], [3, 4, 5]])
+
+
+def test_obj_vertex_line_of_fewer_than_three_values_is_named(tmp_path):
+    text = "v 0 0 0\nv 0 0 1\nv 1 1\nv 1 0 0\nv 1 1 1\nv 0 1 1\n" + _OBJ_TWO_TRIANGLES
+    with pytest.raises(errors.UnreadableMeshError, match=r"line 3: a vertex needs 3 coordinates \(v x y z\), got 2"):
+        load_mesh(_write(tmp_path, "m.obj", text))
