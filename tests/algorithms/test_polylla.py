@@ -658,6 +658,16 @@ def test_run_on_point_file(tmp_path):
     assert (d["vertices"], d["polygons"]) == (400, run_on(tri).num_polygons)
 
 
+@pytest.mark.parametrize("sep", ["\v", "\f", "\x1c", "\x85", "\u2028"])
+def test_point_list_lines_end_at_line_ends_only(sep, tmp_path):
+    """str.splitlines ended a line at a vertical tab, a form feed and other separators:
+    "0.5 0.9<VT>0.3 0.3" read as two points (fuzzing, sweep 54b). Inside a line they are
+    blanks, as load_mesh reads them; CR and CRLF still end lines."""
+    xy = tmp_path / "pts.xy"
+    xy.write_text(f"0 0\r\n1 0\r2 0.5{sep}9 9\n0 1\n", encoding="utf-8")
+    np.testing.assert_array_equal(io.read_input(str(xy)).points, [[0, 0], [1, 0], [2, 0.5], [0, 1]])
+
+
 @pytest.mark.parametrize("content, match", [
     ("", "empty"),
     ("3 2 0 0\n0 0 0\n1 1 0\n", "only 2"),
