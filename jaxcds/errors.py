@@ -28,6 +28,10 @@ Hierarchy::
     ├── OutputError                   an output file cannot be written (nothing is left behind)
     └── ArgumentError                 a call's arguments: an unknown operator, id kind or
                                       method, an array of the wrong length
+
+Two warnings (``UserWarning``s, not errors: the work goes on) say where jaxcds acted on its
+own: ``ResourceLimitWarning`` (JAX's caches cleared near the memory-mapping limit) and
+``PolyllaWarning`` (a point set's exact duplicates left in no triangle).
 """
 
 from __future__ import annotations
@@ -53,6 +57,8 @@ __all__ = [
     "PolyllaError",
     "ArgumentError",
     "OutputError",
+    "ResourceLimitWarning",
+    "PolyllaWarning",
 ]
 
 
