@@ -782,12 +782,35 @@ def _refuse_obj_sign_before_exponent(text: str, path: str) -> None:
             "exponent's sign follows the e: 1e+2, 1e-2)")
 
 
+def _obj_index_zero(text: str) -> Optional[int]:
+    """Where the first face line with an index 0 starts, or None. A zero token anywhere from
+    the first face line on is sought first, then its line checked: the line-anchored pattern
+    scanned every face line (0.6 s of a 655K-vertex OBJ's 3.8 s load); files whose vertex lines
+    after a face hold many integer zeros fall back to it after a few thousand such tokens."""
+    first = 0 if text.startswith("f ") else text.find("\nf ")
+    if first < 0:
+        return None
+    for seen, zero in enumerate(_OBJ_ZERO_TOKEN.finditer(text, first)):
+        start = text.rfind("\n", 0, zero.start()) + 1
+        if text.startswith("f ", start):
+            return start
+        if seen > 4096:
+            hit = _OBJ_INDEX_ZERO.search(text, zero.start())
+            return None if hit is None else hit.start()
+    return None
+
+
+#: a blank, then a token of zeros (a sign allowed) ending a word or a corner's vertex part (the
+#: blank matched, not looked behind for: a literal first character is found by a fast scan)
+_OBJ_ZERO_TOKEN = re.compile(r" [-+]?0+(?=[/ \r\n]|\Z)")
+
+
 def _refuse_obj_index_zero(text: str, path: str) -> None:
     """OBJ face indices start at 1 (negative ones count back); trimesh reads a 0 as another
     vertex, and the face then looked degenerate instead of misnumbered."""
-    hit = _OBJ_INDEX_ZERO.search(text)
-    if hit:
-        line = text.count("\n", 0, hit.start()) + 1
+    hit = _obj_index_zero(text)
+    if hit is not None:
+        line = text.count("\n", 0, hit) + 1
         raise errors.InvalidIndexError(f"{path}: line {line}: face index 0; OBJ vertex indices "
                                        "start at 1 (negative ones count back from the last vertex)")
 
