@@ -208,6 +208,7 @@ def test_race_o1_first_read_routes_agree(capsys):
     assert "rows" in out and "columns" in out and "halfedge" in out
 
 
+@pytest.mark.slow  # an experiment's race (row orders not adopted): 22-29 s of CI on stop 54's AMD host
 def test_race_row_orders_every_order_gives_the_face_list_normals(capsys):
     """Every row order of benchmarks/race_row_orders.py sums the same normals as the face list,
     for packed LR and packed CDS, and for one LR and one CDS mesh."""
@@ -472,6 +473,7 @@ def test_bench_10m_runs_every_step_in_a_child_per_structure(tmp_path, capsys):
     assert "FAILED" in capsys.readouterr().out
 
 
+@pytest.mark.slow  # the stop-48 experiment, not a library route: 22-29 s of CI on stop 54's AMD host
 def test_race_pemb_host_rows_decodes_the_rows_of_face_vertices(capsys):
     """benchmarks/race_pemb_host_rows.py's host decoder (the stop-48 experiment) gives
     ``face_vertices()`` bit for bit on a pemb with a border loop and on a packed union, refuses
