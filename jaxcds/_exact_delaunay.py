@@ -302,25 +302,24 @@ class _Mesh:
 
     def next_hull(self, t, k):
         """The hull edge after the one opposite corner ``k`` of ``t`` (counter-clockwise)."""
-        b = int(self.v[t, (k + 2) % 3])
-        s, i = t, (k + 2) % 3
-        for _ in range(self.count + 1):  # around b: a fan that does not end is not a mesh
-            j = (i + 2) % 3
-            nx = int(self.n[s, j])
-            if nx < 0:
-                return s, j
-            s, i = nx, self.corner(nx, b)
-        raise _Broken
+        return self._around_to_hull(t, k, 2)
 
     def prev_hull(self, t, k):
-        a = int(self.v[t, (k + 1) % 3])
-        s, i = t, (k + 1) % 3
-        for _ in range(self.count + 1):
-            j = (i + 1) % 3
+        """The hull edge before the one opposite corner ``k`` of ``t``."""
+        return self._around_to_hull(t, k, 1)
+
+    def _around_to_hull(self, t, k, turn):
+        """Walk around the end of edge ``(t, k)`` that corner ``(k + turn) % 3`` holds (``turn``
+        2: its head, counter-clockwise; 1: its tail, clockwise) to the next hull edge."""
+        i = (k + turn) % 3
+        pivot = int(self.v[t, i])
+        s = t
+        for _ in range(self.count + 1):  # a fan that does not end is not a mesh
+            j = (i + turn) % 3
             nx = int(self.n[s, j])
             if nx < 0:
                 return s, j
-            s, i = nx, self.corner(nx, a)
+            s, i = nx, self.corner(nx, pivot)
         raise _Broken
 
     def hull_edge(self, t, k):
