@@ -315,11 +315,11 @@ def orientation_signs(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def _exact_orientation(corners: np.ndarray) -> int:
-    from fractions import Fraction
+    """The exact sign of a triangle's ``(3, 2)`` float64 corners: the exact Delaunay module's
+    test (integers over one power-of-two denominator), one predicate for both."""
+    from jaxcds._exact_delaunay import exact_orient
 
-    (ax, ay), (bx, by), (cx, cy) = ((Fraction(float(x)), Fraction(float(y))) for x, y in corners)
-    d = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-    return (d > 0) - (d < 0)
+    return exact_orient(np.asarray(corners, dtype=np.float64), 0, 1, 2)
 
 
 def orient_ccw(points: np.ndarray, faces: np.ndarray, source: str = "arrays"):
