@@ -9,6 +9,8 @@ tests run on every shared mesh.
 from __future__ import annotations
 
 import dataclasses
+import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, Optional
 
 import jax
@@ -110,6 +112,24 @@ def _whole_mesh(s):
     return s.face_vertices(), s.origin(ev), s.dart_valid(ev), s.face(s.edge_of_face(fs))
 
 
+def _compile_ahead(programs) -> None:
+    """Compile (and run once) every ``(jitted fn, args)`` of ``programs``, a few at a time on
+    worker threads, and wait for them all: the programs are independent, XLA releases the GIL
+    while it compiles, and verify then finds each in jit's cache. Compilation is verify's cost
+    on a mesh of a few thousand vertices: on 2 cores (stop 55's AMD host) pemb on the bunny took
+    32 s so, against 43-48 s one program after the other. On an error (or Ctrl-C) the programs
+    not yet started are dropped, not waited for."""
+    workers = min(4, os.cpu_count() or 1, len(programs))
+    if workers < 2:
+        return
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="jaxcds-verify")
+    try:
+        for f in [pool.submit(fn, *args) for fn, args in programs]:
+            jax.block_until_ready(f.result())  # the first error, as a serial run would raise it
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
 def _open_surface(mesh: TriMesh) -> TriMesh:
     """``mesh`` without its flagged dummy vertices and fan faces, the others renumbered in
     order (as LR numbers a mesh the user closed)."""
@@ -185,8 +205,16 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
         from_input = np.empty(n, dtype=np.int64)
         from_input[np.asarray(order)] = np.arange(n)
 
-    # reference: key (u, v) -> results
     he_darts = he.all_darts()
+    s_darts = s.all_darts()
+    tables = bool(getattr(s, "table_queries", None))
+    programs = [(_apply_all, (he, to_device(he_darts))), (_whole_mesh, (s,))]
+    for size in sorted({min(chunk, len(s_darts)), len(s_darts) % chunk} - {0}):  # the chunks' sizes
+        e = to_device(s_darts[:size])  # any darts of that size compile its programs
+        programs += [(_apply_all, (s, e)), (_endpoints, (s, e))] + tables * [(_other_routes, (s, e))]
+    _compile_ahead(programs)
+
+    # reference: key (u, v) -> results
     he_res = {k: np.asarray(v) for k, v in _apply_all(he, to_device(he_darts)).items()}
     he_keys = _pair_keys(he_res["origin"], he_res["target"], n)
     srt = np.argsort(he_keys)
@@ -198,7 +226,6 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
         idx = srt[pos]
         return idx, he_keys[idx] == keys
 
-    s_darts = s.all_darts()
     rep.add("dart_count", np.array([len(s_darts) != len(he_darts)]), 1,
             f"{len(s_darts)} darts vs {len(he_darts)}")
     s_faces, ev_origin, ev_valid, ef_face = (np.asarray(x) for x in _whole_mesh(s))
@@ -211,7 +238,7 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
         u, v = to_input(res["origin"]), to_input(res["target"])
         idx, found = he_lookup(_pair_keys(u, v, n))
         rep.add("dart_exists", ~found, len(e), f"dart {e[~found][:1]} = {u[~found][:1]}->{v[~found][:1]}")
-        if getattr(s, "table_queries", None):
+        if tables:
             for (op, route), got in _other_routes(s, to_device(e)).items():
                 bad = np.asarray(got) != res[op]
                 rep.add(f"{op} ({route} route)", bad, len(e), f"dart {e[bad][:1]}")
