@@ -15,6 +15,7 @@ import os
 import re
 import stat
 import struct
+import threading
 import types
 from typing import Any, Optional, Sequence
 
@@ -355,12 +356,19 @@ def _plain_ints(text: str) -> np.ndarray:
     return _plain_numbers(text, np.int64)
 
 
+#: held around :func:`_plain_numbers`'s ``catch_warnings`` block, which saves and restores the
+#: process's one list of warning filters (not thread-safe before Python 3.14): meshes loaded from
+#: two threads at once left the ``"error"`` filter installed for good (every later warning of the
+#: process raised), or let a parse run without it (sweep 55a)
+_FILTERS_LOCK = threading.Lock()
+
+
 def _plain_numbers(text: str, dtype) -> np.ndarray:
     """The numbers of a text of blank-separated numbers of ``dtype``, parsed by numpy in one
     pass; ValueError at any other token (where numpy's parser stops with a warning, or raises)."""
     import warnings
 
-    with warnings.catch_warnings():
+    with _FILTERS_LOCK, warnings.catch_warnings():
         warnings.simplefilter("error")
         try:
             return np.fromstring(text, dtype=dtype, sep=" ")

@@ -34,6 +34,7 @@ import dataclasses
 import os
 import struct
 import tempfile
+import threading
 import zlib
 from typing import Optional
 
@@ -285,9 +286,30 @@ def _output_mode(path: str) -> int:
     try:
         return stat.S_IMODE(os.stat(path).st_mode)
     except OSError:
-        umask = os.umask(0)
+        return 0o666 & ~_current_umask()
+
+
+_UMASK_LOCK = threading.Lock()
+
+
+def _current_umask() -> int:
+    """The process's umask, read without changing it where Linux says it (``/proc/self/status``,
+    Linux 4.7+). ``os.umask`` can only be read by setting it, and the umask is one per process:
+    two threads writing new files at once (``umask(0)`` then the restore, interleaved) left the
+    process with umask 0 for good, every later file world-writable, and a file another thread
+    created inside the window was too (sweep 55a). Elsewhere the swap is made under a lock, to
+    the restrictive ``077`` rather than to ``0``."""
+    try:
+        with open("/proc/self/status", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    with _UMASK_LOCK:
+        umask = os.umask(0o077)
         os.umask(umask)
-        return 0o666 & ~umask
+    return umask
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
