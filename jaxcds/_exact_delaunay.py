@@ -519,11 +519,11 @@ def triangulate(p: np.ndarray) -> np.ndarray:
         if keep.size < 3:
             break
         try:
-            tri = _qhull(q[keep])
+            simplices, neighbors = _qhull(q[keep])
         except Exception:  # Qhull's errors (QhullError, ValueError): a flat or nearly flat set
             break
         try:
-            faces, inverted = repair(p, q, lossy, keep[tri.simplices], tri.neighbors)
+            faces, inverted = repair(p, q, lossy, keep[simplices], neighbors)
         except _Broken:  # Qhull's neighbours do not describe one mesh
             break
         if faces is not None:
@@ -534,16 +534,47 @@ def triangulate(p: np.ndarray) -> np.ndarray:
     return build_from_scratch(p, q, lossy)
 
 
-def _qhull(q: np.ndarray):
-    """``scipy.spatial.Delaunay`` of the scaled points ``q``: centred first, as Qhull lifts the
-    points to a paraboloid, whose heights lose every digit that tells the points apart at a
-    large offset (200 points at 1e10 read as duplicates); then scaled by a power of two (exact)
-    so that tiny or huge coordinates (1e-300, 1e300) neither underflow nor overflow there."""
+def _qhull(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(simplices, neighbors)`` of ``scipy.spatial.Delaunay`` of the scaled points ``q``
+    (simplices in ids of ``q``): centred first, as Qhull lifts the points to a paraboloid, whose
+    heights lose every digit that tells the points apart at a large offset (200 points at 1e10
+    read as duplicates); then scaled by a power of two (exact) so that tiny or huge coordinates
+    (1e-300, 1e300) neither underflow nor overflow there.
+
+    Qhull is given the points in Z order (:func:`z_order`): on points in random order it
+    spends a third of its time waiting on memory (1M uniform points on stop 55's host: 9.5-11.7
+    s as given, 7.0-7.7 s in Z order; points already in a spatially coherent order: no change,
+    6.3-7.1 against 6.7-7.0 s)."""
     from scipy.spatial import Delaunay
 
     from jaxcds.polylla_io import unit_scale
 
-    return Delaunay(unit_scale(q - (q.min(axis=0) + q.max(axis=0)) / 2))
+    order = z_order(q)
+    tri = Delaunay(unit_scale(q[order] - (q.min(axis=0) + q.max(axis=0)) / 2))
+    return order[tri.simplices], tri.neighbors
+
+
+def _spread_bits(x: np.ndarray) -> np.ndarray:
+    """The low 16 bits of each ``uint64`` of ``x`` moved to the even bit positions 0, 2, ..., 30."""
+    x = x & np.uint64(0xFFFF)
+    for shift, mask in ((8, 0x00FF00FF), (4, 0x0F0F0F0F), (2, 0x33333333), (1, 0x55555555)):
+        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
+    return x
+
+
+def z_order(q: np.ndarray) -> np.ndarray:
+    """Indices of the points ``q`` (``(n, 2)``, finite) in Z (Morton) order over a grid of about
+    one point per cell on their bounding square (at most ``2^16`` cells a side); stable, so
+    points of one cell keep their order."""
+    n = q.shape[0]
+    lo = q.min(axis=0)
+    extent = float((q.max(axis=0) - lo).max())
+    if n < 2 or not extent > 0:
+        return np.arange(n)
+    side = (1 << int(np.clip(np.ceil(np.log2(n) / 2), 1, 16))) - 1
+    cells = np.minimum((q - lo) * (side / extent), side).astype(np.uint64)
+    key = _spread_bits(cells[:, 0]) | (_spread_bits(cells[:, 1]) << np.uint64(1))
+    return np.argsort(key, kind="stable")
 
 
 def repair(p, q, lossy, simplices, neighbors):

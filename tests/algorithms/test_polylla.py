@@ -1100,6 +1100,26 @@ def test_exactly_cocircular_points_keep_a_delaunay_diagonal(pts):
     assert tri.num_faces == 2 * pts.shape[0] - len(border) - 2
 
 
+def test_z_order_walks_the_grid_cell_by_cell():
+    """Qhull gets the points in Z order (``_exact_delaunay._qhull``, faster on points in random
+    order): on a 4 x 4 grid the order is Morton's (x bits at even positions, y at odd), points
+    of one cell keep their order, and a flat or one-point set is left as it is."""
+    from jaxcds._exact_delaunay import z_order
+
+    xy = np.stack(np.meshgrid(np.arange(4.0), np.arange(4.0)), -1).reshape(-1, 2)
+    perm = np.random.default_rng(3).permutation(16)
+    got = xy[perm][z_order(xy[perm])]
+    morton = [sum(((int(x) >> b & 1) << 2 * b) | ((int(y) >> b & 1) << 2 * b + 1) for b in range(2))
+              for x, y in got]
+    assert morton == list(range(16))
+    twice = np.repeat(xy[perm], 2, axis=0) + np.tile([[0.0, 0.0], [1e-9, 0.0]], (16, 1))
+    order = z_order(twice)
+    assert sorted(order.tolist()) == list(range(32))
+    assert all(order[i] < order[i + 1] for i in range(0, 32, 2))  # a cell's two points, in order
+    assert z_order(np.zeros((5, 2))).tolist() == list(range(5))
+    assert z_order(np.ones((1, 2))).tolist() == [0]
+
+
 @pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300])
 def test_points50_at_extreme_coordinate_scales(scale, tmp_path):
     """Polylla does not depend on the scale: squared lengths overflowed (1e160) or fell into
