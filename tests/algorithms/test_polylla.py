@@ -1120,6 +1120,23 @@ def test_z_order_walks_the_grid_cell_by_cell():
     assert z_order(np.ones((1, 2))).tolist() == [0]
 
 
+def test_incircle_filter_flags_every_sign_it_gets_wrong():
+    """The float in-circle filter (a numba loop since stop 55) on 3,000 nearly cocircular
+    quadruples (a circle of radius 1e-3 off the origin, corners rounded to float64): about 8 of
+    its float signs are wrong, and every one is flagged unsure (Shewchuk's bound), so the exact
+    test decides it; every sign it does not flag is the exact one."""
+    import jaxcds._exact_delaunay as ed
+
+    theta = np.sort(np.random.default_rng(1).random((3000, 4)) * 2 * np.pi, axis=1)
+    pts = (np.array([0.3, 0.2]) + 1e-3 * np.stack([np.cos(theta), np.sin(theta)], -1)).reshape(-1, 2)
+    a, b, c, d = (np.arange(3000) * 4 + k for k in range(4))  # a, b, c counter-clockwise
+    sign, unsure = ed.incircle_filter(ed.scaled(pts)[0], a, b, c, d)
+    exact = np.array([ed.exact_incircle(pts, a[i], b[i], c[i], d[i]) for i in range(3000)])
+    assert (sign != exact).sum() >= 3  # the float evaluation does go wrong here
+    assert not ((sign != exact) & ~unsure).any()
+    assert unsure.sum() < 1000  # and the filter decides most of them itself
+
+
 @pytest.mark.parametrize("scale", [1e-160, 1e160, 1e300])
 def test_points50_at_extreme_coordinate_scales(scale, tmp_path):
     """Polylla does not depend on the scale: squared lengths overflowed (1e160) or fell into
