@@ -94,3 +94,44 @@ def test_the_umask_is_read_without_changing_it(monkeypatch):
     finally:
         monkeypatch.undo()
         os.umask(previous)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["cds5n", "lr"])
+def test_eager_and_jitted_operators_from_threads_answer_as_one_thread(name):
+    # eager calls of these classes run bucketed (base._bucketed: one jitted program per power of
+    # two, made on first use and kept on the operator's wrapper), so the threads race to make and
+    # compile the same programs, while one more thread clears JAX's caches under them (a guard:
+    # this passed when written, sweep 55a)
+    import jax
+
+    from jaxcds.generators import icosphere
+    from jaxcds.structures import registry
+
+    s = registry.build(name, icosphere(1))
+    darts = s.all_darts()
+    ops = ("next", "target", "face", "right_front")
+    batches = [darts[(np.arange(3 + 5 * i) * 7 + i) % len(darts)] for i in range(8)]
+    stop = threading.Event()
+
+    def clear():
+        while not stop.wait(0.5):
+            jax.clear_caches()
+
+    def ask(i):
+        ids = batches[i % len(batches)]
+        op = ops[i % len(ops)]
+        eager = np.asarray(getattr(s, op)(ids))
+        jitted = np.asarray(jax.jit(lambda t, d: getattr(t, op)(d))(s, ids))
+        return eager, jitted
+
+    clearer = threading.Thread(target=clear, daemon=True)
+    clearer.start()
+    try:
+        got = _together(ask, 16, timeout=300)
+    finally:
+        stop.set()
+        clearer.join(10)
+    for i, (eager, jitted) in enumerate(got):
+        want = np.asarray(jax.jit(lambda t, d: getattr(t, ops[i % len(ops)])(d))(s, batches[i % len(batches)]))
+        assert np.array_equal(eager, want) and np.array_equal(jitted, want), (i, ops[i % len(ops)])
