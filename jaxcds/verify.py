@@ -118,9 +118,14 @@ def _compile_ahead(programs) -> None:
     while it compiles, and verify then finds each in jit's cache. Compilation is verify's cost
     on a mesh of a few thousand vertices: on 2 cores (stop 55's AMD host) pemb on the bunny took
     32 s so, against 43-48 s one program after the other. On an error (or Ctrl-C) the programs
-    not yet started are dropped, not waited for."""
+    not yet started are dropped, not waited for; those already compiling finish in the
+    background (XLA cannot be stopped mid-compilation: a script interrupted there exits when
+    they are done, a few seconds to half a minute).
+
+    Skipped under ``jax.disable_jit()``: verify's calls then run op by op and would use none
+    of it (JAX's settings blocks are per thread, so the workers would compile anyway)."""
     workers = min(4, os.cpu_count() or 1, len(programs))
-    if workers < 2:
+    if workers < 2 or jax.config.jax_disable_jit:
         return
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="jaxcds-verify")
     try:

@@ -50,3 +50,21 @@ def test_verify_compiles_every_program_ahead_and_once(kind, monkeypatch):
     assert {f: f._cache_size() for f in programs} == after_ahead
     assert V.verify(s, m, chunk=chunk).ok
     assert {f: f._cache_size() for f in programs} == after_ahead
+
+
+def test_verify_compiles_nothing_ahead_under_disable_jit(monkeypatch):
+    """Under ``jax.disable_jit()`` verify runs op by op: no worker threads compiling programs
+    it would not use (sweep 55a: JAX's settings blocks are per thread, so workers compiled)."""
+    import jax
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a thread pool under disable_jit")
+
+    monkeypatch.setattr(V, "ThreadPoolExecutor", no_pool)
+    monkeypatch.setattr(V.os, "cpu_count", lambda: 2)
+    m = random_planar_triangulation(6, seed=0)
+    s = registry.build("halfedge", m)
+    with jax.disable_jit():
+        assert V.verify(s, m, adjacency_samples=10).ok
+    with pytest.raises(AssertionError, match="a thread pool"):
+        V.verify(s, m)  # the pool is asked for where jit is on
