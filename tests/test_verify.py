@@ -27,7 +27,8 @@ def test_verify_names_a_wrong_operator_and_its_dart():
     assert V.verify(s, m).ok  # the same check passes on the structure as built
 
 
-@pytest.mark.parametrize("kind", ["pemb", "lr-bits"])
+# pemb's programs take 34 s to compile in CI (the quick set keeps lr-bits: table routes too)
+@pytest.mark.parametrize("kind", ["lr-bits", pytest.param("pemb", marks=pytest.mark.slow)])
 def test_verify_compiles_every_program_ahead_and_once(kind, monkeypatch):
     """Every program verify runs is compiled by ``_compile_ahead`` (chunks of two sizes
     included): none compiles after it, and a second verify compiles nothing. A program warmed
