@@ -112,10 +112,11 @@ def _whole_mesh(s):
     return s.face_vertices(), s.origin(ev), s.dart_valid(ev), s.face(s.edge_of_face(fs))
 
 
-def _compile_ahead(programs) -> None:
-    """Compile (and run once) every ``(jitted fn, args)`` of ``programs``, a few at a time on
-    worker threads, and wait for them all: the programs are independent, XLA releases the GIL
-    while it compiles, and verify then finds each in jit's cache. Compilation is verify's cost
+def _compile_ahead(programs) -> Optional[list]:
+    """Compile and run every ``(jitted fn, args)`` of ``programs``, a few at a time on worker
+    threads, and return their results in order (``None`` where it did not run): the programs
+    are independent, XLA releases the GIL while it compiles, and verify then finds each in
+    jit's cache and takes the results it can use as they are. Compilation is verify's cost
     on a mesh of a few thousand vertices: on 2 cores (stop 55's AMD host) pemb on the bunny took
     32 s so, against 43-48 s one program after the other. On an error (or Ctrl-C) the programs
     not yet started are dropped, not waited for; those already compiling finish in the
@@ -126,11 +127,12 @@ def _compile_ahead(programs) -> None:
     of it (JAX's settings blocks are per thread, so the workers would compile anyway)."""
     workers = min(4, os.cpu_count() or 1, len(programs))
     if workers < 2 or jax.config.jax_disable_jit:
-        return
+        return None
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="jaxcds-verify")
     try:
-        for f in [pool.submit(fn, *args) for fn, args in programs]:
-            jax.block_until_ready(f.result())  # the first error, as a serial run would raise it
+        futures = [pool.submit(fn, *args) for fn, args in programs]
+        # in order: the first error, as a serial run would raise it
+        return [jax.block_until_ready(f.result()) for f in futures]
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
 
@@ -216,11 +218,16 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
     programs = [(_apply_all, (he, to_device(he_darts))), (_whole_mesh, (s,))]
     for size in sorted({min(chunk, len(s_darts)), len(s_darts) % chunk} - {0}):  # the chunks' sizes
         e = to_device(s_darts[:size])  # any darts of that size compile its programs
-        programs += [(_apply_all, (s, e)), (_endpoints, (s, e))] + tables * [(_other_routes, (s, e))]
-    _compile_ahead(programs)
+        programs += [(_apply_all, (s, e)), (_endpoints, (s, e))]
+        if tables:
+            programs.append((_other_routes, (s, e)))
+    ahead = _compile_ahead(programs)
+    # the two whole-mesh results as the threads left them (not computed a second time)
+    he_out, whole = ahead[:2] if ahead else (fn(*args) for fn, args in programs[:2])
+    del ahead
 
     # reference: key (u, v) -> results
-    he_res = {k: np.asarray(v) for k, v in _apply_all(he, to_device(he_darts)).items()}
+    he_res = {k: np.asarray(v) for k, v in he_out.items()}
     he_keys = _pair_keys(he_res["origin"], he_res["target"], n)
     srt = np.argsort(he_keys)
     he_faces = np.sort(np.asarray(he.face_vertices()), axis=1)
@@ -233,7 +240,7 @@ def verify(structure, mesh: TriMesh, reference: Optional[HalfEdge] = None,
 
     rep.add("dart_count", np.array([len(s_darts) != len(he_darts)]), 1,
             f"{len(s_darts)} darts vs {len(he_darts)}")
-    s_faces, ev_origin, ev_valid, ef_face = (np.asarray(x) for x in _whole_mesh(s))
+    s_faces, ev_origin, ev_valid, ef_face = (np.asarray(x) for x in whole)
     s_faces = np.sort(to_input(s_faces), axis=1)
     he_fkey, s_fkey = _face_ids(he_faces, s_faces)
 

@@ -40,8 +40,9 @@ def test_verify_compiles_every_program_ahead_and_once(kind, monkeypatch):
     compile_ahead = V._compile_ahead
 
     def recorded(todo):
-        compile_ahead(todo)
+        results = compile_ahead(todo)
         after_ahead.update({f: f._cache_size() for f in programs})
+        return results
 
     monkeypatch.setattr(V, "_compile_ahead", recorded)
     monkeypatch.setattr(V.os, "cpu_count", lambda: 2)  # threads even on a 1-core runner
