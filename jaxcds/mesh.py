@@ -209,6 +209,8 @@ def _read_file(path: str) -> tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]
                     # ASCII values split on any blank (trimesh dropped a face line with a
                     # vertical tab); a binary body may hold those bytes, so ASCII only
                     raw = raw.translate(bytes.maketrans(b"\t\v\f", b"   "))
+            elif suffix == ".stl":
+                raw = _end_last_ascii_solid(raw, path)
             # the bytes read above, not the path again: it may have changed in between
             loaded = _trimesh_load(io.BytesIO(raw), suffix[1:])
     except errors.JaxcdsError:
@@ -433,6 +435,32 @@ def _stl_solids(stream) -> types.SimpleNamespace:
              for s, start in zip(solids, starts)]
     return types.SimpleNamespace(vertices=np.concatenate(vertices or [np.zeros((0, 3))]),
                                  faces=np.concatenate(faces or [np.zeros((0, 3), np.int64)]))
+
+
+def _end_last_ascii_solid(raw: bytes, path: str) -> bytes:
+    """An ASCII STL whose last solid has facets but no ``endsolid`` line, ended (OpenMesh's
+    test file cube1.stl: 15,048 whole facets, no ``endsolid``; OpenMesh and assimp read it).
+    trimesh reads a solid only up to its ``endsolid``: it dropped such a last solid without a
+    word (an empty mesh for a one-solid file, named "a point cloud?"; the last solid's facets
+    missing from a multi-solid one). Ended only where its text ends with a whole facet
+    (``endfacet``); a file cut inside a facet is named, as truncated."""
+    if not raw.lstrip()[:5].lower() == b"solid" or not re.search(rb"(?i)\bfacet\b", raw):
+        return raw
+    if len(raw) >= 84 and 84 + 50 * int(np.frombuffer(raw[80:84], "<u4")[0]) == len(raw):
+        return raw  # a binary STL whose free-text header starts with "solid" (trimesh's test)
+    ends = [m.end() for m in re.finditer(rb"(?i)\bendsolid\b[^\n]*", raw)]
+    tail = raw[ends[-1]:] if ends else raw
+    last = None
+    for last in re.finditer(rb"(?i)\bfacet\b", tail):
+        pass
+    if last is None:
+        return raw
+    if tail.split()[-1].lower() != b"endfacet":
+        line = raw[:len(raw) - len(tail) + last.start()].count(b"\n") + 1
+        raise errors.UnreadableMeshError(
+            f"{path}: line {line}: the file ends inside the facet from "
+            "this line, without 'endfacet' or 'endsolid' (truncated?)")
+    return raw + b"\nendsolid\n"
 
 
 def _file_kind(mode: int) -> str:

@@ -624,6 +624,26 @@ def test_ascii_stl_with_a_bad_normal_loads_without_a_traceback(tmp_path, capfd):
     assert logging.getLogger("trimesh").level == level  # put back as it was
 
 
+def _tet_facets(faces) -> str:
+    return "".join("facet normal 0 0 0\nouter loop\n"
+                   + "".join(f"vertex {' '.join(map(str, _TET_V[i]))}\n" for i in f)
+                   + "endloop\nendfacet\n" for f in faces)
+
+
+def test_ascii_stl_without_endsolid_keeps_its_last_solid(tmp_path):
+    """Sweep 56b (OpenMesh's test file cube1.stl, whole facets and no ``endsolid``): trimesh
+    reads a solid only up to its ``endsolid``, so the last solid was dropped without a word: the
+    one-solid file refused as "a point cloud?", a multi-solid file's last facets missing."""
+    one = load_mesh(_write(tmp_path, "one.stl", "solid\n" + _tet_facets(_TET_F)))
+    assert one.num_vertices == 4 and one.num_faces == 4 and topology(one)["closed"]
+    two = load_mesh(_write(tmp_path, "two.stl", "solid a\n" + _tet_facets(_TET_F[:2])
+                           + "endsolid a\nsolid b\n" + _tet_facets(_TET_F[2:])), weld=False)
+    assert two.num_faces == 4 and np.array_equal(two.faces, np.arange(12).reshape(4, 3))
+    cut = "solid\n" + _tet_facets(_TET_F)[:-len("endloop\nendfacet\n")]  # 7 lines a facet
+    with pytest.raises(errors.UnreadableMeshError, match="line 23: the file ends inside the facet"):
+        load_mesh(_write(tmp_path, "cut.stl", cut))
+
+
 def test_multi_solid_ascii_stl_keeps_every_facet_vertex_until_welded(tmp_path):
     """Sweep 52a (gmsh's ``Mesh.StlOneSolidPerSurface``: one solid per CAD face): trimesh merged
     the vertices within each solid of a multi-solid ASCII STL whatever ``process`` said, so
