@@ -60,6 +60,7 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 if str(HERE.parent) not in sys.path:  # run as a script from anywhere
     sys.path.insert(0, str(HERE.parent))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from benchmarks.harness import _proc_status, _reset_peak_rss, machine_info  # noqa: E402
 
@@ -377,12 +378,13 @@ def to_markdown(doc: dict) -> str:
     return "\n".join(lines)
 
 
+@clean_exit
 def main(argv: Optional[Sequence[str]] = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--vertices", type=int, default=10_000_000)
     p.add_argument("--structures", nargs="+", default=None, help="registry names (default: all)")
     p.add_argument("--queries", type=int, default=1_000_000, help="random darts for Target")
-    p.add_argument("--repeats", type=int, default=5, help="timed Target runs after the first")
+    p.add_argument("--repeats", type=at_least_one, default=5, help="timed Target runs after the first")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--timeout", type=float, default=0, help="seconds per structure (0: none)")
     p.add_argument("--json", help="write the results here")

@@ -44,6 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 from paired import paired_summary  # noqa: E402
 
 from jaxcds import batch as B
@@ -315,6 +316,7 @@ def table(rows, args) -> str:
     return "\n".join(lines)
 
 
+@clean_exit
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--meshes", type=int, default=300)
@@ -322,7 +324,7 @@ def main(argv=None) -> int:
     p.add_argument("--max", type=int, default=5000)
     p.add_argument("--loop-meshes", type=int, default=100, help="meshes timed in the Python loop")
     p.add_argument("--queries", type=int, default=1_000_000)
-    p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--repeat", type=at_least_one, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--no-check", action="store_true", help="do not time the validation of the union")
     p.add_argument("--structures", default="cds5n,lr",

@@ -47,6 +47,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 if os.path.dirname(HERE) not in sys.path:  # run as a script from anywhere
     sys.path.insert(0, os.path.dirname(HERE))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from benchmarks.harness import (_proc_status, _reset_peak_rss, load_bench_mesh,  # noqa: E402
                                 machine_info, time_compiled)
@@ -330,10 +331,11 @@ def to_markdown(res: dict) -> str:
     return "\n".join(out)
 
 
+@clean_exit
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--meshes", nargs="+", default=["random:100000", "../shared/meshes/bunny.off"])
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--repeats", type=at_least_one, default=5)
     ap.add_argument("--queries", type=int, default=1_000_000)
     ap.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
     ap.add_argument("--no-navigation", action="store_true")

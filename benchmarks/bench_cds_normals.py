@@ -25,6 +25,7 @@ import jax.numpy as jnp
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import clean_exit  # noqa: E402
 
 from bench_lr_normals import bench_main  # noqa: E402
 
@@ -45,6 +46,7 @@ def dense_normals(s, positions):
     return normalize(acc)
 
 
+@clean_exit
 def main(argv=None):
     bench_main(argv, description=__doc__.splitlines()[0], structures=CDS, build=registry.build,
                pack=lambda ms, name: B.pack(ms, name, check=False),
@@ -52,4 +54,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

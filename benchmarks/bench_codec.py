@@ -45,6 +45,8 @@ import zlib
 from typing import Optional, Sequence
 
 import numpy as np
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # run as a script too
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SHARED = os.path.join(os.path.dirname(os.path.dirname(HERE)), "shared", "meshes")
@@ -200,10 +202,11 @@ def machine() -> dict:
             "load_average": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}
 
 
+@clean_exit
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--meshes", nargs="*", default=None)
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=at_least_one, default=3)
     ap.add_argument("--gzip-max", type=int, default=2_000_000, help="skip gzip above this many vertices")
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--json", default=None, help="write the rows here")

@@ -47,6 +47,7 @@ import traceback
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 #: unit normals in float32: sums taken in another order differ by a few 1e-4 on a 5M-vertex
 #: mesh (the face list itself is 2.1e-4 off a float64 reference there, on an H100)
@@ -93,12 +94,13 @@ def header(args) -> dict:
             "devices": len(jax.devices()), "command": " ".join(sys.argv), "settings": vars(args)}
 
 
+@clean_exit
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--vertices", type=int, default=5_000_000)
     p.add_argument("--queries", type=int, default=10_000_000)
     p.add_argument("--check-queries", type=int, default=1_000_000)
-    p.add_argument("--repeats", type=int, default=7)
+    p.add_argument("--repeats", type=at_least_one, default=7)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--budget", type=float, default=3.0, help="seconds of timed runs per op (fewer repeats)")
     p.add_argument("--structures", default=",".join(DEFAULT_ORDER))

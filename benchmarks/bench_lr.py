@@ -51,6 +51,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 if os.path.dirname(HERE) not in sys.path:  # run as a script from anywhere
     sys.path.insert(0, os.path.dirname(HERE))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from benchmarks.harness import time_wall_cpu  # noqa: E402
 
@@ -390,14 +391,16 @@ def fig10_mesh(spec: Optional[str], num_faces: int):
     """``None``: a random planar triangulation of ``num_faces`` triangles (very irregular: few
     valence-6 vertices, so LR is far from 1 rpt on it); ``subdiv:NAME:K``: the closed shared mesh
     ``NAME`` after ``K`` 1:4 midpoint subdivisions (regular like the paper's scans)."""
+    from jaxcds.errors import ArgumentError
     from jaxcds.generators import random_planar_triangulation
     from jaxcds.mesh import load_mesh
 
     if spec is None:
         return random_planar_triangulation(num_faces // 2 + 2, seed=3)
-    kind, name, k = spec.split(":")
-    if kind != "subdiv":
-        raise SystemExit(f"--fig10-mesh: expected subdiv:NAME:K, got {spec!r}")
+    parts = spec.split(":")
+    if len(parts) != 3 or parts[0] != "subdiv" or not parts[1] or not parts[2].isdigit():
+        raise ArgumentError(f"--construction-mesh / --fig10-mesh: expected subdiv:NAME:K, got {spec!r}")
+    _, name, k = parts
     import trimesh
 
     m = load_mesh(os.path.join(MESH_DIR, name))
@@ -482,6 +485,7 @@ def _fig10_md(rows: list) -> str:
 
 
 # ------------------------------------------------------------------------------ main
+@clean_exit
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="tiny sizes (smoke test)")
@@ -493,7 +497,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--fig10-faces", type=int, default=2_000_000)
     ap.add_argument("--fig10-mesh", help="subdiv:NAME:K (a subdivided shared mesh) instead of "
                     "the random triangulation")
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=at_least_one, default=3)
     ap.add_argument("--no-table1", action="store_true")
     ap.add_argument("--ring-sweeps", type=int, default=100,
                     help="Table 1 again with the ring search (0: skip)")

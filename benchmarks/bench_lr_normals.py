@@ -39,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms.normals import (face_list_vertex_normals, face_normals, normalize,  # noqa: E402
@@ -136,7 +137,7 @@ def bench_main(argv, *, description: str, structures: str, build, pack, routes,
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("--meshes", default="armadillo.obj,bunny.off,random:200000")
     ap.add_argument("--structures", default=structures)
-    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--repeat", type=at_least_one, default=7)
     if no_generic:
         ap.add_argument("--no-generic", action="store_true", help="skip the old per-face route")
     ap.add_argument("--packed", type=int, default=0,
@@ -157,6 +158,7 @@ def _pack(ms, name):
     return B.concatenate([_build(name, m) for m in ms])
 
 
+@clean_exit
 def main(argv=None):
     bench_main(argv, description=__doc__.splitlines()[0], structures="lr,lr-bits", build=_build,
                pack=_pack, routes=lambda a: {} if a.no_generic else {"generic": generic_normals},
@@ -164,4 +166,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

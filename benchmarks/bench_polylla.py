@@ -38,6 +38,8 @@ import numpy as np
 
 from jaxcds import polylla_io as io
 from jaxcds.algorithms import polylla as P
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # run as a script too
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 PHASES = ("label", "traversal", "repair", "polygons")
 
@@ -113,13 +115,14 @@ def bench_one(n: int, structures, repeats: int, seed: int = 0, tables: bool = Tr
     return rows
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[100_000, 1_000_000])
     ap.add_argument("--structures", nargs="+", default=["halfedge", "pemb"])
     ap.add_argument("--modes", nargs="+", default=["canonical", "reference"],
                     choices=["canonical", "reference"])
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=at_least_one, default=3)
     ap.add_argument("--json", default=None, help="write all rows to this file")
     ap.add_argument("--no-tables", action="store_true",
                     help="run Polylla without per-run navigation tables (pemb searches per operator)")

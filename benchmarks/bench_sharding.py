@@ -36,6 +36,8 @@ import statistics
 import subprocess
 import sys
 import time
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # run as a script too
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEFAULT_STRUCTURES = ("halfedge", "corner-table", "cds5n", "lr")
@@ -209,13 +211,14 @@ def table(rows, args) -> str:
     return "\n".join(lines)
 
 
+@clean_exit
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--vertices", type=int, default=1_000_000)
     p.add_argument("--queries", type=int, default=1_000_000)
     p.add_argument("--devices", type=int, nargs="+", default=[1, 2, 4])
     p.add_argument("--structures", nargs="+", default=list(DEFAULT_STRUCTURES))
-    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--repeat", type=at_least_one, default=3)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--timeout", type=int, default=600, help="seconds per child process")
     p.add_argument("--json", help="also write the rows to this file")

@@ -35,6 +35,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 if os.path.dirname(HERE) not in sys.path:  # run as a script from anywhere
     sys.path.insert(0, os.path.dirname(HERE))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from benchmarks.harness import time_wall_cpu  # noqa: E402
 
@@ -105,10 +106,11 @@ def markdown(r: dict) -> str:
     return "\n".join(lines)
 
 
+@clean_exit
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--vertices", type=int, nargs="+", default=[1_000_000])
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=at_least_one, default=3)
     ap.add_argument("--no-full", action="store_true", help="skip the full-check path")
     ap.add_argument("--quick", action="store_true", help="20,000 vertices (smoke test)")
     ap.add_argument("--json", help="write the results as JSON here")

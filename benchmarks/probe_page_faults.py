@@ -33,6 +33,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from race_lf_words import _in_order, _meshes, _structure  # noqa: E402
 
@@ -43,11 +44,12 @@ def _faults() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default="packed:1000")
     ap.add_argument("--structures", default="lr,cds5n-o1,cds6n")
-    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--rounds", type=at_least_one, default=5)
     a = ap.parse_args(argv)
     mesh, parts = _meshes(a.mesh)
     n = mesh.num_vertices

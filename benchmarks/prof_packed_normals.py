@@ -33,6 +33,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from bench_lr_normals import rounds  # noqa: E402
 
@@ -81,11 +82,12 @@ def _pack(name, ms):
     return B.pack(ms, name, check=False)
 
 
+@clean_exit
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--packed", type=int, default=300)
     ap.add_argument("--structures", default="lr,lr-bits,cds6n,cds5n,cds4n,cds5n-o1")
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=at_least_one, default=5)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--baseline", default="", help="git revision whose packed rows run as normals_before")
     args = ap.parse_args(argv)
@@ -128,4 +130,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -29,6 +29,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import clean_exit  # noqa: E402
 
 from bench_lr_normals import _mesh  # noqa: E402
 
@@ -36,6 +37,7 @@ from jaxcds.algorithms.normals import face_list_vertex_normals, vertex_normals  
 from jaxcds.structures import registry  # noqa: E402
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default="armadillo.obj")

@@ -18,6 +18,7 @@ import numpy as np
 
 from jaxcds import polylla_io as io
 from jaxcds.algorithms import polylla as P
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 OPS = {
     "access": lambda s, e: s.A.access(e),
@@ -45,10 +46,11 @@ OPS = {
 }
 
 
+@clean_exit
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=100_000)
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=at_least_one, default=3)
     ap.add_argument("--ops", nargs="+", default=list(OPS))
     ap.add_argument("--tree", default=None, choices=["dfs", "bfs"],
                     help="pemb spanning tree (default: PEMB.from_faces's default)")
@@ -93,4 +95,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

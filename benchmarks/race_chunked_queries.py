@@ -25,6 +25,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from jaxcds.batch import pack  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
@@ -48,13 +49,14 @@ def _compiled(s, op, d, route: str):
         base.WRITE_CHUNK_ANSWERS_APART = saved
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, default=100_000)
     ap.add_argument("--queries", type=int, default=4_000_000)
     ap.add_argument("--structures", default="cds5n-o1,lr")
     ap.add_argument("--ops", default="target,origin,face_left")
-    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--rounds", type=at_least_one, default=5)
     ap.add_argument("--packed", type=int, default=0,
                     help="instead of one mesh: a packed batch of this many random meshes (500-5,000 vertices)")
     a = ap.parse_args(argv)

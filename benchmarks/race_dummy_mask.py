@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from benchmarks.harness import _edge_degrees  # noqa: E402
 from benchmarks.race_lf_words import race_in_turn  # noqa: E402
@@ -60,11 +61,12 @@ def runs_for(n: int, structures, seed: int = 1):
     return runs, m.num_vertices
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--vertices", default="20000,200000,1000000")
     ap.add_argument("--structures", default="cds6n,cds4n")
-    ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--rounds", type=at_least_one, default=15)
     a = ap.parse_args(argv)
     for n in (int(x) for x in a.vertices.split(",")):
         runs, nv = runs_for(n, a.structures.split(","))

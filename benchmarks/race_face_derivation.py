@@ -29,6 +29,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from race_lf_words import _in_order, _meshes, _structure, face_list_baseline, race_in_turn  # noqa: E402
 
@@ -45,11 +46,12 @@ def _given_rows(s):
     return fv if valid is None else jnp.where(valid[:, None], fv, 0)
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="random:200000,armadillo.obj")
     ap.add_argument("--structures", default="cds6n,cds5n-o1")
-    ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--rounds", type=at_least_one, default=15)
     ap.add_argument("--target", type=float, default=1.5, help="ratio the paired verdict is against")
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):

@@ -21,6 +21,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from race_lf_words import _in_order, _meshes, _structure, face_list_baseline, race_in_turn  # noqa: E402
 
@@ -38,11 +39,12 @@ def _compiled(s, p, in_loop: bool):
         base.IN_LOOP_MAX_VERTICES = saved
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="decimated-knight.off,bunny.off,spot.obj,armadillo.obj")
     ap.add_argument("--structures", default="cds5n-o1")
-    ap.add_argument("--rounds", type=int, default=60)
+    ap.add_argument("--rounds", type=at_least_one, default=60)
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         m, parts = _meshes(spec)

@@ -33,6 +33,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from bench_lr_normals import _mesh  # noqa: E402
 
@@ -114,11 +115,12 @@ def _compiled(limits, s, pos):
         cds._WORD_MIN_VERTICES, cds._WORD_VERTICES = saved
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="armadillo.obj,bunny.off,random:200000")
     ap.add_argument("--structures", default="cds6n,cds5n,cds4n,cds5n-o1")
-    ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--rounds", type=at_least_one, default=15)
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         mesh, parts = _meshes(spec)

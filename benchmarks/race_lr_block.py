@@ -29,6 +29,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from race_lf_words import _in_order, _meshes, _structure, race_in_turn  # noqa: E402
 
@@ -57,11 +58,12 @@ def _compiled(route, s, pos):
         lr_packed.materialize_loop = saved
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="packed:300")
     ap.add_argument("--structures", default="lr,lr-bits")
-    ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--rounds", type=at_least_one, default=15)
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         if not spec.startswith("packed:"):

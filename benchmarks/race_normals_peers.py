@@ -29,12 +29,14 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from paired import paired_summary  # noqa: E402
 from peers import PEERS, PeerUnavailable  # noqa: E402
 from race_lf_words import _in_order, _meshes, _structure, face_list_baseline, race_in_turn  # noqa: E402
 
 from jaxcds.algorithms import normals  # noqa: E402
+from jaxcds.errors import ArgumentError  # noqa: E402
 
 
 def _peer_runs(names, mesh):
@@ -53,18 +55,19 @@ def _peer_runs(names, mesh):
     return runs
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="bunny.off,cheburashka.obj,armadillo.obj")
     ap.add_argument("--structures", default="cds6n,cds5n,cds4n,cds5n-o1")
     ap.add_argument("--peers", default="libigl,openmesh,trimesh")
-    ap.add_argument("--rounds", type=int, default=40)
+    ap.add_argument("--rounds", type=at_least_one, default=40)
     ap.add_argument("--target", type=float, default=1.5, help="the face list's verdict (issue 3: 1.5x)")
     a = ap.parse_args(argv)
     peers = [p for p in a.peers.split(",") if p]
     unknown = sorted(set(peers) - set(PEERS))
     if unknown:
-        raise SystemExit(f"unknown peer(s) {unknown}; known: {sorted(PEERS)}")
+        raise ArgumentError(f"--peers: unknown peer(s) {unknown}; known: {sorted(PEERS)}")
     for spec in a.meshes.split(","):
         m, parts = _meshes(spec)
         pos, _, want, runs = face_list_baseline(m, public=True)

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from benchmarks.race_queries import race, random_darts, report  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
@@ -34,11 +35,12 @@ def _rows_first_read(self, d, want_target):
     return self._target_finish_r(y, second, self._second_row(y, second))
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, default=100_000)
     ap.add_argument("--queries", type=int, default=10_000_000)
-    ap.add_argument("--rounds", type=int, default=21)
+    ap.add_argument("--rounds", type=at_least_one, default=21)
     a = ap.parse_args(argv)
     mesh = random_planar_triangulation(a.vertices, seed=1)
     rng = np.random.default_rng(0)

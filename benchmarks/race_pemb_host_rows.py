@@ -34,6 +34,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from jaxcds.algorithms.normals import (corner_sums, face_list_vertex_normals, face_normals,  # noqa: E402
                                        normalize, vertex_normals)
@@ -184,11 +185,12 @@ def race(label, s, pos, faces, nv, rounds):
               f"paired {paired:.2f}x the face list", flush=True)
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, default=100_000, help="single pemb (0: skip)")
     ap.add_argument("--meshes", type=int, default=300, help="packed pemb batch (0: skip)")
-    ap.add_argument("--rounds", type=int, default=11)
+    ap.add_argument("--rounds", type=at_least_one, default=11)
     a = ap.parse_args(argv)
     print(f"jax {jax.__version__}, {jax.devices()}, {platform.processor() or platform.machine()}", flush=True)
     if a.vertices:

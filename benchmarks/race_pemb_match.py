@@ -29,6 +29,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms import face_list_vertex_normals, vertex_normals  # noqa: E402
@@ -102,11 +103,12 @@ def race(label: str, s, pos, faces, nv: int, rounds: int) -> list[dict]:
     return rows
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, default=100_000, help="single pemb (0: skip)")
     ap.add_argument("--meshes", type=int, default=300, help="packed pemb batch (0: skip)")
-    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--rounds", type=at_least_one, default=7)
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args(argv)
     rows = []

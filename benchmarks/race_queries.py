@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 
 from benchmarks.paired import paired_summary  # noqa: E402
 from jaxcds.algorithms import adjacent  # noqa: E402
@@ -54,6 +55,7 @@ def race_times(items, rounds: int) -> dict:
     return times
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, default=100_000)
@@ -61,7 +63,7 @@ def main(argv=None) -> int:
     ap.add_argument("--structures", nargs="+", default=["halfedge", "cds5n-o1"])
     ap.add_argument("--ops", nargs="+", default=["target"], help="dart operators (target, origin, "
                     "face_left, next, ...) or adjacent (vertex pairs: half of them edges)")
-    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--rounds", type=at_least_one, default=7)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--target", type=float, default=2.0, help="ratio against the first structure's "
                     "same op that the paired verdict is against (issue 3: 2x the half-edge)")

@@ -35,6 +35,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms import normals as N  # noqa: E402
@@ -95,12 +96,13 @@ def _build(name, mesh):
     return _build_lr(name, mesh) if name in ("lr", "lr-bits") else registry.build(name, mesh)
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default="packed:300")
     ap.add_argument("--structures", default="lr")
     ap.add_argument("--orders", default="cur,g8,p8x8")
-    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--rounds", type=at_least_one, default=5)
     args = ap.parse_args(argv)
     parts = None
     if args.mesh.startswith("packed:"):

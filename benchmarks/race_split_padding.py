@@ -28,6 +28,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from race_lf_words import _in_order, _meshes, _structure, race_in_turn  # noqa: E402
 
@@ -50,11 +51,12 @@ def _compiled(s, p, padding: bool):
             module.split_padding = real
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="armadillo.obj,packed:300")
     ap.add_argument("--structures", default="cds6n,cds4n,lr,lr-bits,halfedge")
-    ap.add_argument("--rounds", type=int, default=25)
+    ap.add_argument("--rounds", type=at_least_one, default=25)
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         m, parts = _meshes(spec)

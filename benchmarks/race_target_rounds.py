@@ -24,6 +24,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from bench_lr_normals import _mesh  # noqa: E402
 
@@ -46,11 +47,12 @@ def static_two(v, rounds):
 ROUTES = {"data_driven": data_driven, "static_one": static_one, "static_two": static_two}
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--meshes", default="armadillo.obj,random:200000")
     ap.add_argument("--structure", default="cds6n")
-    ap.add_argument("--rounds", type=int, default=40, help="race rounds")
+    ap.add_argument("--rounds", type=at_least_one, default=40, help="race rounds")
     a = ap.parse_args(argv)
     for spec in a.meshes.split(","):
         s = registry.build(a.structure, _mesh(spec))

@@ -26,17 +26,19 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from race_lf_words import _meshes, _structure, race_in_turn  # noqa: E402
 
 from jaxcds.algorithms import normals as N  # noqa: E402
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default="random:200000", help="random:N, packed:K or a shared mesh file")
     ap.add_argument("--structure", default="cds4n", help="a structure with a vertex_order")
-    ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--rounds", type=at_least_one, default=15)
     a = ap.parse_args(argv)
     mesh, parts = _meshes(a.mesh)
     s = _structure(a.structure, mesh, parts)

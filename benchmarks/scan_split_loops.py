@@ -22,6 +22,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from script_errors import clean_exit  # noqa: E402
 
 from race_lf_words import _in_order, _meshes, _structure  # noqa: E402
 
@@ -44,6 +45,7 @@ def split_loops(hlo: str, parts: int):
     return total, uneven
 
 
+@clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default="armadillo.obj")

@@ -499,3 +499,56 @@ def test_race_pemb_host_rows_decodes_the_rows_of_face_vertices(capsys):
     assert H.decode_rows(aw, pw, *args)[1] is False
     assert H.main(["--vertices", "300", "--meshes", "3", "--rounds", "1"]) == 0
     assert capsys.readouterr().out.count("x the face list") == 6
+
+
+_SCRIPTS_WITH_MAIN = sorted(
+    p.stem for p in __import__("pathlib").Path(__file__).resolve().parents[1].joinpath("benchmarks").glob("*.py")
+    if p.stem not in ("harness", "probe_eager_pemb") and "\ndef main(" in p.read_text())
+
+
+@pytest.mark.parametrize("name", _SCRIPTS_WITH_MAIN)
+def test_every_script_main_turns_jaxcds_errors_into_exit_2(name):
+    """A typo'd structure or a missing mesh reaches a script as a JaxcdsError; unwrapped, it
+    printed a traceback and exited 1 (``harness`` has its own handling)."""
+    import importlib
+
+    mod = importlib.import_module(f"benchmarks.{name}")
+    assert getattr(mod.main, "__wrapped__", None) is not None, f"{name}.main is not @clean_exit"
+
+
+@pytest.mark.parametrize("name,argv,message", [
+    ("race_face_derivation", ["--meshes", "random:300", "--structures", "cds6x", "--rounds", "1"],
+     "unknown structure 'cds6x'"),
+    ("race_target_rounds", ["--meshes", "no-such-mesh.off", "--rounds", "1"], "no-such-mesh.off: no such file"),
+    ("race_queries", ["--vertices", "0", "--queries", "10", "--rounds", "1"], "need n >= 4"),
+    ("race_normals_peers", ["--meshes", "random:300", "--rounds", "0"], "--rounds: 0 must be at least 1"),
+    ("race_pemb_match", ["--vertices", "300", "--meshes", "0", "--rounds", "0"], "--rounds: 0 must be at least 1"),
+    ("bench_batch", ["--meshes", "2", "--repeat", "0"], "--repeat: 0 must be at least 1"),
+    ("bench_codec", ["--meshes", "random:300", "--repeats", "0"], "--repeats: 0 must be at least 1"),
+])
+def test_script_bad_arguments_are_one_line_and_exit_2(name, argv, message, capsys):
+    """Before: tracebacks (a JaxcdsError unwrapped, or ``statistics.median`` of no rounds)."""
+    import importlib
+
+    mod = importlib.import_module(f"benchmarks.{name}")
+    try:
+        rc = mod.main(argv)
+    except SystemExit as exc:  # argparse
+        rc = exc.code
+    err = capsys.readouterr().err
+    assert rc == 2 and message in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("name,argv,message", [
+    ("race_normals_peers", ["--meshes", "random:300", "--peers", "libigx", "--rounds", "1"],
+     "--peers: unknown peer(s) ['libigx']"),
+    ("bench_lr", ["--no-table1", "--no-fig10", "--construction-mesh", "subdiv:bunny.off", "--repeats", "1"],
+     "expected subdiv:NAME:K, got 'subdiv:bunny.off'"),
+])
+def test_script_bad_names_exit_2_not_1(name, argv, message, capsys):
+    """Before: SystemExit(message), status 1 (peers), or a ValueError traceback (bench_lr's split)."""
+    import importlib
+
+    rc = importlib.import_module(f"benchmarks.{name}").main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2 and message in err and "Traceback" not in err, err
