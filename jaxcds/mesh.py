@@ -1675,7 +1675,19 @@ def _check_ply_binary(raw: bytes, start: int, elements: list, endian: str,
         pos += e.count * item
     if uniform and pos == len(raw):
         return None  # trimesh reads it as it is
+    if uniform and _ply_data_ends_at(raw, pos):  # trimesh refused the line end after the data
+        loaded = _trimesh_load(io.BytesIO(raw[:pos]), "ply")
+        return (np.asarray(loaded.vertices, dtype=np.float64),
+                np.asarray(loaded.faces, dtype=np.int64))
     return _walk_ply_binary(raw, start, elements, endian, path)
+
+
+def _ply_data_ends_at(raw: bytes, pos: int) -> bool:
+    """Whether a binary PLY's data, ending at byte ``pos``, ends the file: a line end after it
+    ("\\n" or "\\r\\n", as OpenMesh's test file cube-minimal-custom_props-binary.ply has, which
+    OpenMesh and trimesh read) is no data. Other bytes left over are refused: they may be what
+    a corrupted count left unread."""
+    return len(raw) - pos <= 2 and raw[pos:] in (b"", b"\n", b"\r\n")
 
 
 def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
@@ -1736,10 +1748,11 @@ def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
         if e.name == "face" and want is not None:
             idt = np.dtype(endian + dict(e.props)[want][1])
             faces = [np.frombuffer(raw, idt, c, o) for o, c in keep]
-    if pos != size:
+    if not _ply_data_ends_at(raw, pos):
         raise errors.UnreadableMeshError(
             f"{path}: {size - pos} bytes after the last PLY element (byte {pos} on): the header "
-            f"declares {_ply_declared(elements)}; a corrupted corner count?")
+            f"declares {_ply_declared(elements)}; a corrupted corner count, or bytes appended "
+            "after the data?")
     vert = blocks.get("vertex")
     if faces is None or vert is None or not faces:
         raise errors.UnreadableMeshError(

@@ -915,6 +915,24 @@ def test_header_and_face_lines_a_reader_cannot_read_are_named(tmp_path, name, co
         load_mesh(str(path))
 
 
+@pytest.mark.parametrize("corners", [(3, 3), (3, 4)])  # trimesh's reading, and the walk's
+@pytest.mark.parametrize("line_end", [b"\n", b"\r\n"])
+def test_binary_ply_ending_in_a_line_end_loads(tmp_path, corners, line_end):
+    """Sweep 56b (OpenMesh's test file cube-minimal-custom_props-binary.ply): a line end after a
+    binary PLY's data was refused as "1 bytes after the last PLY element; a corrupted corner
+    count?", and trimesh refused it too ("PLY is unexpected length!")."""
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
+            "property float y\nproperty float z\nelement face 2\n"
+            "property list uchar int vertex_indices\nend_header\n").encode()
+    body = struct.pack("<12f", 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0) + b"".join(
+        struct.pack(f"<B{c}i", c, *ids) for c, ids in zip(corners, ([0, 1, 2], [2, 1, 3, 0][:corners[1]])))
+    (tmp_path / "ok.ply").write_bytes(head + body)
+    (tmp_path / "nl.ply").write_bytes(head + body + line_end)
+    plain, ended = (load_mesh(str(tmp_path / n), weld=False) for n in ("ok.ply", "nl.ply"))
+    assert np.array_equal(plain.vertices, ended.vertices) and np.array_equal(plain.faces, ended.faces)
+    assert ended.num_faces == 1 + corners[1] - 2
+
+
 def test_binary_ply_bytes_after_the_last_element_are_counted(tmp_path):
     head = ("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
             "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
