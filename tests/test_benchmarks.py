@@ -552,3 +552,20 @@ def test_script_bad_names_exit_2_not_1(name, argv, message, capsys):
     rc = importlib.import_module(f"benchmarks.{name}").main(argv)
     err = capsys.readouterr().err
     assert rc == 2 and message in err and "Traceback" not in err, err
+
+
+def test_bench_cds_navigation_times_the_face_list_and_each_op(tmp_path, capsys):
+    """RESULTS' Table 3 command (navigation on): face_list_vertex_normals became a checking
+    wrapper (no ``.lower``) and time_compiled raised AttributeError before any row."""
+    from benchmarks import bench_cds
+
+    out = tmp_path / "cds.json"
+    assert bench_cds.main(["--meshes", "random:300", "--repeats", "1", "--queries", "100",
+                           "--no-construction", "--structures", "cds6n",
+                           "--ops", "vertex_normals", "target", "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["navigation"]
+    assert {(r["impl"], r["op"]) for r in rows} >= {("face-list (plain JAX)", "vertex_normals"),
+                                                   ("cds6n", "vertex_normals"), ("cds6n", "target")}
+    with pytest.raises(SystemExit) as exc:  # a typo'd op: argparse's choices, not a silent no-op
+        bench_cds.main(["--meshes", "random:300", "--ops", "vertex_normal"])
+    assert exc.value.code == 2 and "invalid choice: 'vertex_normal'" in capsys.readouterr().err
