@@ -28,6 +28,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from script_errors import at_least_one, clean_exit  # noqa: E402
 
 from jaxcds.batch import pack  # noqa: E402
+from jaxcds.errors import ArgumentError  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.structures import base, registry  # noqa: E402
 
@@ -72,6 +73,8 @@ def main(argv=None) -> int:
         darts = np.asarray(s.all_darts())
         d = jnp.asarray(darts[rng.integers(0, darts.size, a.queries)], jnp.int32)
         for op in a.ops.split(","):
+            if not callable(getattr(s, op, None)):
+                raise ArgumentError(f"--ops {op}: {name} has no dart operator {op!r}")
             routes = [(f"{name} {op} {k}", _compiled(s, op, d, k), (s, d))
                       for k in ("chunked", "fused", "one-pass")]
             got = [np.asarray(c(*args)) for _, c, args in routes]

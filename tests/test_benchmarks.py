@@ -569,3 +569,12 @@ def test_bench_cds_navigation_times_the_face_list_and_each_op(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:  # a typo'd op: argparse's choices, not a silent no-op
         bench_cds.main(["--meshes", "random:300", "--ops", "vertex_normal"])
     assert exc.value.code == 2 and "invalid choice: 'vertex_normal'" in capsys.readouterr().err
+
+
+def test_race_chunked_queries_names_a_typod_operator(capsys):
+    """Before: getattr inside jax.jit's trace, an AttributeError traceback."""
+    from benchmarks import race_chunked_queries
+
+    assert race_chunked_queries.main(["--vertices", "200", "--queries", "10", "--rounds", "1",
+                                      "--structures", "cds6n", "--ops", "targt"]) == 2
+    assert "--ops targt: cds6n has no dart operator 'targt'" in capsys.readouterr().err
