@@ -1690,6 +1690,12 @@ def _ply_data_ends_at(raw: bytes, pos: int) -> bool:
     return len(raw) - pos <= 2 and raw[pos:] in (b"", b"\n", b"\r\n")
 
 
+def _ply_gather(buf: np.ndarray, offsets: list, dtype: np.dtype) -> np.ndarray:
+    """The values of ``dtype`` at byte ``offsets`` of ``buf``."""
+    at = np.asarray(offsets, dtype=np.int64)[:, None] + np.arange(dtype.itemsize)
+    return np.ascontiguousarray(buf[at]).view(dtype).reshape(-1)
+
+
 def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
                      path: str) -> Optional[tuple[np.ndarray, np.ndarray]]:
     """Item by item through a binary PLY (only where :func:`_check_ply_binary` found sizes or
@@ -1714,6 +1720,9 @@ def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
             pos += e.count * width
             continue
         keep = []  # (offset, count) of the vertex index list of each face
+        # a vertex element with a list property (OpenMesh writes one: its test file
+        # cube-minimal-custom_props-binary.ply): each coordinate's offset, item by item
+        slots = {n: [] for n, t in e.props if n in ("x", "y", "z")} if e.name == "vertex" else {}
         names = [n for n, _ in e.props]
         want = next((n for n in ("vertex_indices", "vertex_index") if n in names), None)
         fields = []
@@ -1727,6 +1736,8 @@ def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
             at = pos
             for n, fmt, width, isz in fields:
                 if fmt is None:
+                    if n in slots:
+                        slots[n].append(pos)
                     pos += width
                     continue
                 if pos + width > size:
@@ -1745,6 +1756,8 @@ def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
                     f"{keep[-1][1] if keep and e.name == 'face' else 'more'} corners: the PLY "
                     f"header declares {_ply_declared(elements)}, the file has {size} bytes "
                     "(a corrupted corner count, or truncated)")
+        if slots and pos <= size:
+            blocks["vertex"] = (slots, e)
         if e.name == "face" and want is not None:
             idt = np.dtype(endian + dict(e.props)[want][1])
             faces = [np.frombuffer(raw, idt, c, o) for o, c in keep]
@@ -1759,11 +1772,17 @@ def _walk_ply_binary(raw: bytes, start: int, elements: list, endian: str,
             f"{path}: a PLY of mixed polygons without a plain vertex element and a face "
             "'vertex_indices' list cannot be read")
     v0, ve = vert
-    dt = np.dtype([(n, endian + t) for n, t in ve.props])
-    if not {"x", "y", "z"} <= set(dt.names):
+    if not {"x", "y", "z"} <= {n for n, _ in ve.props}:
         raise errors.UnreadableMeshError(f"{path}: the PLY vertex element has no x, y, z")
-    rec = np.frombuffer(raw, dt, ve.count, v0)
-    vertices = np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float64)
+    if isinstance(v0, dict):  # items of different sizes: each coordinate gathered by offset
+        buf = np.frombuffer(raw, np.uint8)
+        types_ = dict(ve.props)
+        vertices = np.stack([_ply_gather(buf, v0[n], np.dtype(endian + types_[n]))
+                             for n in ("x", "y", "z")], axis=1).astype(np.float64)
+    else:
+        dt = np.dtype([(n, endian + t) for n, t in ve.props])
+        rec = np.frombuffer(raw, dt, ve.count, v0)
+        vertices = np.stack([rec["x"], rec["y"], rec["z"]], axis=1).astype(np.float64)
     from trimesh.geometry import triangulate_quads
 
     return vertices, np.asarray(triangulate_quads(faces), dtype=np.int64).reshape(-1, 3)

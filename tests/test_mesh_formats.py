@@ -933,6 +933,24 @@ def test_binary_ply_ending_in_a_line_end_loads(tmp_path, corners, line_end):
     assert ended.num_faces == 1 + corners[1] - 2
 
 
+def test_binary_ply_vertex_element_with_a_list_property_loads(tmp_path):
+    """Sweep 56b (OpenMesh's test file cube-minimal-custom_props-binary.ply, vertices with a
+    ``list uint8 int32 test_values``): lists of different lengths in the vertex element were
+    refused as "a PLY of mixed polygons without a plain vertex element"."""
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
+            "property list uchar int test_values\nproperty float y\nproperty float z\n"
+            "element face 2\nproperty list uchar int vertex_indices\nend_header\n").encode()
+    xyz = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0.5)]
+    body = b"".join(struct.pack("<f", x) + struct.pack(f"<B{n}i", n, *range(n)) + struct.pack("<2f", y, z)
+                    for (x, y, z), n in zip(xyz, (0, 2, 1, 3)))
+    body += struct.pack("<B3i", 3, 0, 1, 2) + struct.pack("<B3i", 3, 2, 1, 3)
+    path = tmp_path / "vl.ply"
+    path.write_bytes(head + body)
+    m = load_mesh(str(path), weld=False)
+    assert np.array_equal(m.vertices, np.array(xyz, dtype=np.float32).astype(np.float64))
+    assert np.array_equal(m.faces, [[0, 1, 2], [2, 1, 3]])
+
+
 def test_binary_ply_bytes_after_the_last_element_are_counted(tmp_path):
     head = ("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
             "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
