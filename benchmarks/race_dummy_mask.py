@@ -61,14 +61,22 @@ def runs_for(n: int, structures, seed: int = 1):
     return runs, m.num_vertices
 
 
+def _vertex_counts(text: str) -> list:
+    """``--vertices``: comma-separated whole numbers (argparse's one-line error otherwise)."""
+    try:
+        return [int(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of whole numbers") from None
+
+
 @clean_exit
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--vertices", default="20000,200000,1000000")
+    ap.add_argument("--vertices", type=_vertex_counts, default="20000,200000,1000000")
     ap.add_argument("--structures", default="cds6n,cds4n")
     ap.add_argument("--rounds", type=at_least_one, default=15)
     a = ap.parse_args(argv)
-    for n in (int(x) for x in a.vertices.split(",")):
+    for n in a.vertices:
         runs, nv = runs_for(n, a.structures.split(","))
         for f, args in runs.values():
             jax.block_until_ready(f(*args))  # compile outside the race

@@ -33,7 +33,8 @@ from script_errors import at_least_one, clean_exit  # noqa: E402
 from race_lf_words import _in_order, _meshes, _structure, race_in_turn  # noqa: E402
 
 from jaxcds.algorithms import normals  # noqa: E402
-from jaxcds.structures import base, cds  # noqa: E402
+from jaxcds.errors import ArgumentError  # noqa: E402
+from jaxcds.structures import base, cds, registry  # noqa: E402
 
 _USERS = (cds,)  # the modules that call split_padding
 
@@ -58,6 +59,11 @@ def main(argv=None) -> int:
     ap.add_argument("--structures", default="cds6n,cds4n,lr,lr-bits,halfedge")
     ap.add_argument("--rounds", type=at_least_one, default=25)
     a = ap.parse_args(argv)
+    # a typo'd name would fall into the skip below (a structure that refuses the mesh) and the
+    # run would time the face list alone
+    unknown = sorted(set(a.structures.split(",")) - set(registry.names()))
+    if unknown:
+        raise ArgumentError(f"--structures: unknown structure(s) {unknown}; available: {', '.join(registry.names())}")
     for spec in a.meshes.split(","):
         m, parts = _meshes(spec)
         faces = jnp.asarray(np.asarray(m.faces, np.int32))

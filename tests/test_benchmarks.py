@@ -578,3 +578,15 @@ def test_race_chunked_queries_names_a_typod_operator(capsys):
     assert race_chunked_queries.main(["--vertices", "200", "--queries", "10", "--rounds", "1",
                                       "--structures", "cds6n", "--ops", "targt"]) == 2
     assert "--ops targt: cds6n has no dart operator 'targt'" in capsys.readouterr().err
+
+
+def test_race_split_padding_and_dummy_mask_refuse_bad_names(capsys):
+    """race_split_padding skipped a typo'd structure as one that refuses the mesh (status 0,
+    the face list timed alone); race_dummy_mask's --vertices abc was a ValueError traceback."""
+    from benchmarks import race_dummy_mask, race_split_padding
+
+    assert race_split_padding.main(["--meshes", "random:300", "--structures", "cds6x", "--rounds", "1"]) == 2
+    assert "--structures: unknown structure(s) ['cds6x']" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        race_dummy_mask.main(["--vertices", "abc", "--rounds", "1"])
+    assert exc.value.code == 2 and "'abc' is not a comma-separated list" in capsys.readouterr().err
