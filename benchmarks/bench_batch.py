@@ -319,7 +319,7 @@ def table(rows, args) -> str:
 @clean_exit
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--meshes", type=int, default=300)
+    p.add_argument("--meshes", type=at_least_one, default=300)
     p.add_argument("--min", type=int, default=500)
     p.add_argument("--max", type=int, default=5000)
     p.add_argument("--loop-meshes", type=int, default=100, help="meshes timed in the Python loop")

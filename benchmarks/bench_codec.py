@@ -64,8 +64,13 @@ def load(spec: str):
     if spec.startswith("random:"):
         from jaxcds.generators import random_planar_triangulation
 
+        from jaxcds.errors import ArgumentError
+
         parts = spec.split(":")
-        n, seed = int(float(parts[1])), int(parts[2]) if len(parts) > 2 else 0
+        try:  # N may be written 1e7
+            n, seed = int(float(parts[1])), int(parts[2]) if len(parts) > 2 else 0
+        except ValueError:
+            raise ArgumentError(f"--meshes {spec}: expected random:N[:SEED] with whole numbers") from None
         return random_planar_triangulation(n, seed=seed)
     path = spec if os.path.exists(spec) else os.path.join(SHARED, spec)
     m = load_mesh(path)

@@ -590,3 +590,15 @@ def test_race_split_padding_and_dummy_mask_refuse_bad_names(capsys):
     with pytest.raises(SystemExit) as exc:
         race_dummy_mask.main(["--vertices", "abc", "--rounds", "1"])
     assert exc.value.code == 2 and "'abc' is not a comma-separated list" in capsys.readouterr().err
+
+
+def test_bench_codec_and_bench_batch_refuse_bad_sizes(capsys):
+    """Before: a ValueError traceback each (random:abc read by float(); --meshes 0 reached an
+    empty concatenate)."""
+    from benchmarks import bench_batch, bench_codec
+
+    assert bench_codec.main(["--meshes", "random:abc", "--repeats", "1"]) == 2
+    assert "--meshes random:abc: expected random:N[:SEED]" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        bench_batch.main(["--meshes", "0", "--repeat", "1"])
+    assert exc.value.code == 2 and "--meshes: 0 must be at least 1" in capsys.readouterr().err
