@@ -44,6 +44,7 @@ from benchmarks.script_errors import at_least_one, clean_exit  # noqa: E402
 from jaxcds import batch as B  # noqa: E402
 from jaxcds.algorithms.normals import (face_list_vertex_normals, face_normals, normalize,  # noqa: E402
                                        vertex_normals)
+from jaxcds.errors import ArgumentError  # noqa: E402
 from jaxcds.generators import random_planar_triangulation  # noqa: E402
 from jaxcds.mesh import load_mesh  # noqa: E402
 from jaxcds.structures.base import MeshStructure  # noqa: E402
@@ -149,6 +150,10 @@ def bench_main(argv, *, description: str, structures: str, build, pack, routes,
 
 
 def _build(name, mesh):
+    # any other name built an LR and labelled its row with that name
+    if name not in ("lr", "lr-bits"):
+        raise ArgumentError(f"--structures {name}: this script times lr and lr-bits only "
+                            "(bench_cds_normals.py: the CDS family)")
     # lr-bits: one hybrid period (k=64) instead of "auto" (8 builds): construction is not timed
     return build_lr(mesh, bits=name == "lr-bits", seeds=1, check=False,
                     **({"k": 64} if name == "lr-bits" else {}))

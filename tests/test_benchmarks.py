@@ -602,3 +602,11 @@ def test_bench_codec_and_bench_batch_refuse_bad_sizes(capsys):
     with pytest.raises(SystemExit) as exc:
         bench_batch.main(["--meshes", "0", "--repeat", "1"])
     assert exc.value.code == 2 and "--meshes: 0 must be at least 1" in capsys.readouterr().err
+
+
+def test_bench_lr_normals_refuses_a_structure_it_would_build_as_lr(capsys):
+    """Before: any name but lr-bits built an LR, timed it and printed it under that name."""
+    from benchmarks import bench_lr_normals
+
+    assert bench_lr_normals.main(["--meshes", "random:300", "--structures", "cds6n", "--repeat", "1"]) == 2
+    assert "--structures cds6n: this script times lr and lr-bits only" in capsys.readouterr().err
