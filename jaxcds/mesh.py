@@ -449,18 +449,23 @@ def _end_last_ascii_solid(raw: bytes, path: str) -> bytes:
     if len(raw) >= 84 and 84 + 50 * int(np.frombuffer(raw[80:84], "<u4")[0]) == len(raw):
         return raw  # a binary STL whose free-text header starts with "solid" (trimesh's test)
     ends = [m.end() for m in re.finditer(rb"(?i)\bendsolid\b[^\n]*", raw)]
-    tail = raw[ends[-1]:] if ends else raw
-    last = None
-    for last in re.finditer(rb"(?i)\bfacet\b", tail):
+    after = ends[-1] if ends else 0  # where the solid without an "endsolid" would start
+    if not re.compile(rb"(?i)\bfacet\b").search(raw, after):
+        return raw
+    end = len(raw)  # the text's last word, found without splitting a big file into words
+    while end > after and raw[end - 1:end].isspace():
+        end -= 1
+    if raw[end - 8:end].lower() == b"endfacet" and (end - 8 == after or raw[end - 9:end - 8].isspace()):
+        return raw + b"\nendsolid\n"
+    last = None  # the facet the file ends in, named by its line
+    for last in re.compile(rb"(?i)\bfacet\b").finditer(raw, max(after, end - 4096)):
         pass
     if last is None:
-        return raw
-    if tail.split()[-1].lower() != b"endfacet":
-        line = raw[:len(raw) - len(tail) + last.start()].count(b"\n") + 1
-        raise errors.UnreadableMeshError(
-            f"{path}: line {line}: the file ends inside the facet from "
-            "this line, without 'endfacet' or 'endsolid' (truncated?)")
-    return raw + b"\nendsolid\n"
+        *_, last = re.compile(rb"(?i)\bfacet\b").finditer(raw, after)
+    line = raw.count(b"\n", 0, last.start()) + 1
+    raise errors.UnreadableMeshError(
+        f"{path}: line {line}: the file ends inside the facet from this line, without "
+        "'endfacet' or 'endsolid' (truncated?)")
 
 
 def _file_kind(mode: int) -> str:
