@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 import time
 
 import numpy as np
@@ -514,6 +515,8 @@ def test_every_script_main_turns_jaxcds_errors_into_exit_2(name):
 
     mod = importlib.import_module(f"benchmarks.{name}")
     assert getattr(mod.main, "__wrapped__", None) is not None, f"{name}.main is not @clean_exit"
+    if "sys.exit(main())" in open(mod.__file__).read():  # the status reaches the shell
+        assert getattr(mod, "sys", None) is sys, f"{name} calls sys.exit without importing sys"
 
 
 @pytest.mark.parametrize("name,argv,message", [
