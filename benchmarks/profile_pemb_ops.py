@@ -52,7 +52,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=100_000)
     ap.add_argument("--repeats", type=at_least_one, default=3)
-    ap.add_argument("--ops", nargs="+", default=list(OPS))
+    ap.add_argument("--ops", nargs="+", default=list(OPS), choices=list(OPS))
     ap.add_argument("--tree", default=None, choices=["dfs", "bfs"],
                     help="pemb spanning tree (default: PEMB.from_faces's default)")
     ap.add_argument("--check", default=None, help="save (or compare with) results in this .npz")

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import statistics
 import sys
 import time
@@ -79,6 +80,16 @@ def raw_rows(s):
     return jnp.where(valid[:, None], full, 0).astype(jnp.int32), valid, inner.num_vertices
 
 
+def _orders(text: str) -> list:
+    """``--orders``: comma-separated ``cur``, ``gB``, ``pDxS``, ``lDxS`` (a typo was a traceback
+    from inside the traced program)."""
+    orders = text.split(",")
+    bad = [o for o in orders if not re.fullmatch(r"cur|g[1-9][0-9]*|[pl][1-9][0-9]*x[1-9][0-9]*", o)]
+    if bad:
+        raise argparse.ArgumentTypeError(f"{', '.join(bad)}: expected cur, gB, pDxS or lDxS")
+    return orders
+
+
 def program(order: str):
     if order == "cur":
         return jax.jit(lambda s, p: N.normalize(N._scatter_sums(s, p)))
@@ -101,7 +112,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mesh", default="packed:300")
     ap.add_argument("--structures", default="lr")
-    ap.add_argument("--orders", default="cur,g8,p8x8")
+    ap.add_argument("--orders", type=_orders, default="cur,g8,p8x8")
     ap.add_argument("--rounds", type=at_least_one, default=5)
     args = ap.parse_args(argv)
     parts = None
@@ -123,7 +134,7 @@ def main(argv=None) -> int:
         pos = fpos if order is None else fpos[np.asarray(order)]
         ref = want if order is None else want[np.asarray(order)]
         routes = {"face_list": lambda: N.face_list_vertex_normals(fpos, faces)}
-        for o in args.orders.split(","):
+        for o in args.orders:
             f = program(o)
             err = float(np.max(np.abs(np.asarray(f(s, pos)) - ref)))
             print(f"{name}/{o}: largest difference from the face list {err:.2e}", flush=True)

@@ -613,3 +613,18 @@ def test_bench_lr_normals_refuses_a_structure_it_would_build_as_lr(capsys):
 
     assert bench_lr_normals.main(["--meshes", "random:300", "--structures", "cds6n", "--repeat", "1"]) == 2
     assert "--structures cds6n: this script times lr and lr-bits only" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name,argv,message", [
+    ("race_row_orders", ["--mesh", "packed:2", "--structures", "lr", "--orders", "cur,cux"],
+     "cux: expected cur, gB, pDxS or lDxS"),
+    ("profile_pemb_ops", ["--points", "300", "--ops", "twn"], "invalid choice: 'twn'"),
+])
+def test_typod_order_or_operator_is_argparses_error(name, argv, message, capsys):
+    """Before: a traceback from inside the traced program (race_row_orders) and a KeyError
+    traceback with status 0 (profile_pemb_ops)."""
+    import importlib
+
+    with pytest.raises(SystemExit) as exc:
+        importlib.import_module(f"benchmarks.{name}").main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err
