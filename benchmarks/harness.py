@@ -37,6 +37,8 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
+from benchmarks.script_errors import at_least_one
+
 __all__ = ["main", "run", "load_bench_mesh", "machine_info", "time_compiled", "time_call", "time_wall_cpu",
            "DEFAULT_MESHES", "QUICK_MESHES"]
 
@@ -198,18 +200,6 @@ def _op_prefix(text: str) -> str:
         if not any(op.startswith(x) for op in OP_NAMES):
             raise argparse.ArgumentTypeError(f"{x!r} is not (a prefix of) one of {', '.join(OP_NAMES)}")
     return text
-
-
-def _positive(text: str) -> int:
-    """An argparse type: an integer >= 1 (0 and negatives used to turn silently into the
-    default, or a traceback)."""
-    try:
-        x = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if x < 1:
-        raise argparse.ArgumentTypeError(f"{x} must be at least 1")
-    return x
 
 
 # ---------------------------------------------------------------------------------- meshes
@@ -626,8 +616,8 @@ def _parser() -> argparse.ArgumentParser:
                         f"(default: {' '.join(DEFAULT_MESHES)})")
     p.add_argument("--ops", nargs="+", metavar="OP", type=_op_prefix,
                    help="only these ops (prefixes): vertex_degrees vertex_normals target face_left adjacent")
-    p.add_argument("--repeats", type=_positive, help="timed runs per op, median reported (default 7, quick 3)")
-    p.add_argument("--queries", type=_positive, help="batch size of the query ops (default 2^20, quick 4096)")
+    p.add_argument("--repeats", type=at_least_one, help="timed runs per op, median reported (default 7, quick 3)")
+    p.add_argument("--queries", type=at_least_one, help="batch size of the query ops (default 2^20, quick 4096)")
     p.add_argument("--budget", type=_seconds, default=30.0, metavar="S",
                    help="at most about S seconds of timed runs per op (fewer repeats for slow ops)")
     p.add_argument("--max-call", type=_seconds, default=60.0, metavar="S",
