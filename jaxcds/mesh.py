@@ -437,6 +437,9 @@ def _stl_solids(stream) -> types.SimpleNamespace:
                                  faces=np.concatenate(faces or [np.zeros((0, 3), np.int64)]))
 
 
+_FACET = re.compile(rb"(?i)\bfacet\b")  # a facet keyword of an ASCII STL
+
+
 def _end_last_ascii_solid(raw: bytes, path: str) -> bytes:
     """An ASCII STL whose last solid has facets but no ``endsolid`` line, ended (OpenMesh's
     test file cube1.stl: 15,048 whole facets, no ``endsolid``; OpenMesh and assimp read it).
@@ -444,13 +447,13 @@ def _end_last_ascii_solid(raw: bytes, path: str) -> bytes:
     word (an empty mesh for a one-solid file, named "a point cloud?"; the last solid's facets
     missing from a multi-solid one). Ended only where its text ends with a whole facet
     (``endfacet``); a file cut inside a facet is named, as truncated."""
-    if not raw.lstrip()[:5].lower() == b"solid" or not re.search(rb"(?i)\bfacet\b", raw):
+    if not raw.lstrip()[:5].lower() == b"solid":
         return raw
     if len(raw) >= 84 and 84 + 50 * int(np.frombuffer(raw[80:84], "<u4")[0]) == len(raw):
         return raw  # a binary STL whose free-text header starts with "solid" (trimesh's test)
     ends = [m.end() for m in re.finditer(rb"(?i)\bendsolid\b[^\n]*", raw)]
     after = ends[-1] if ends else 0  # where the solid without an "endsolid" would start
-    if not re.compile(rb"(?i)\bfacet\b").search(raw, after):
+    if not _FACET.search(raw, after):  # no facet at all, or every solid ended
         return raw
     end = len(raw)  # the text's last word, found without splitting a big file into words
     while end > after and raw[end - 1:end].isspace():
@@ -458,10 +461,10 @@ def _end_last_ascii_solid(raw: bytes, path: str) -> bytes:
     if raw[end - 8:end].lower() == b"endfacet" and (end - 8 == after or raw[end - 9:end - 8].isspace()):
         return raw + b"\nendsolid\n"
     last = None  # the facet the file ends in, named by its line
-    for last in re.compile(rb"(?i)\bfacet\b").finditer(raw, max(after, end - 4096)):
+    for last in _FACET.finditer(raw, max(after, end - 4096)):
         pass
     if last is None:
-        *_, last = re.compile(rb"(?i)\bfacet\b").finditer(raw, after)
+        *_, last = _FACET.finditer(raw, after)
     line = raw.count(b"\n", 0, last.start()) + 1
     raise errors.UnreadableMeshError(
         f"{path}: line {line}: the file ends inside the facet from this line, without "
